@@ -1,0 +1,120 @@
+//! SigmaRL's kinematic bicycle (`KinematicBicycleModel` driven by `WorldCustom.step`):
+//! commands become constant acceleration and steering rate over one step by a finite
+//! difference, then one explicit Euler step with every right-hand side at the old state.
+
+use crate::VehicleParams;
+
+/// State of the kinematic bicycle. Yaw is never wrapped (it accumulates beyond ±π).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BicycleState {
+    pub x_m: f64,
+    pub y_m: f64,
+    pub yaw_rad: f64,
+    pub speed_mps: f64,
+    pub steering_rad: f64,
+}
+
+/// A command: target speed and target steering angle.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Command {
+    pub speed_mps: f64,
+    pub steering_rad: f64,
+}
+
+/// What one step yields besides the state: the velocity in the map frame and the slip angle,
+/// both evaluated at the new state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepOutput {
+    pub state: BicycleState,
+    pub velocity_mps: [f64; 2],
+    pub sideslip_rad: f64,
+}
+
+/// The model with its parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KinematicBicycle {
+    pub params: VehicleParams,
+}
+
+impl KinematicBicycle {
+    pub fn new(params: VehicleParams) -> Self {
+        Self { params }
+    }
+
+    /// The command after SigmaRL's clamping to the speed and steering limits.
+    pub fn clamp_command(&self, command: Command) -> Command {
+        let p = &self.params;
+        Command {
+            speed_mps: command.speed_mps.clamp(-p.max_speed_mps, p.max_speed_mps),
+            steering_rad: command
+                .steering_rad
+                .clamp(-p.max_steering_rad, p.max_steering_rad),
+        }
+    }
+
+    /// Slip angle at the centre of gravity for a steering angle.
+    pub fn sideslip_rad(&self, steering_rad: f64) -> f64 {
+        (self.params.rear_axle_m / self.params.wheelbase_m * steering_rad.tan()).atan()
+    }
+
+    /// Velocity vector in the map frame of a state.
+    pub fn velocity_mps(&self, state: &BicycleState) -> [f64; 2] {
+        let heading = state.yaw_rad + self.sideslip_rad(state.steering_rad);
+        [state.speed_mps * heading.cos(), state.speed_mps * heading.sin()]
+    }
+
+    /// One step of `dt_s` towards `command`.
+    pub fn step(&self, state: &BicycleState, command: Command, dt_s: f64) -> StepOutput {
+        let p = &self.params;
+        let command = self.clamp_command(command);
+
+        // Commands become constant inputs over the step.
+        let accel = ((command.speed_mps - state.speed_mps) / dt_s).clamp(p.accel_mps2.0, p.accel_mps2.1);
+        let steering_rate = ((command.steering_rad - state.steering_rad) / dt_s)
+            .clamp(-p.max_steering_rate_rad_s, p.max_steering_rate_rad_s);
+
+        // One explicit Euler step, right-hand sides at the old state.
+        let beta = self.sideslip_rad(state.steering_rad);
+        let heading = state.yaw_rad + beta;
+        let yaw_rate = state.speed_mps / p.wheelbase_m * state.steering_rad.tan() * beta.cos();
+        let steering = state.steering_rad + steering_rate * dt_s;
+        let next = BicycleState {
+            x_m: state.x_m + state.speed_mps * heading.cos() * dt_s,
+            y_m: state.y_m + state.speed_mps * heading.sin() * dt_s,
+            yaw_rad: state.yaw_rad + yaw_rate * dt_s,
+            speed_mps: state.speed_mps + accel * dt_s,
+            steering_rad: wrap_to_pi(steering),
+        };
+        StepOutput {
+            velocity_mps: self.velocity_mps(&next),
+            sideslip_rad: self.sideslip_rad(next.steering_rad),
+            state: next,
+        }
+    }
+}
+
+/// `((a + π) mod 2π) − π` with a floored modulo, as torch computes it.
+fn wrap_to_pi(angle_rad: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    (angle_rad + PI).rem_euclid(TAU) - PI
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn standing_start_reaches_half_a_metre_per_second_after_one_step() {
+        let model = KinematicBicycle::new(VehicleParams::MU_CAR);
+        let out = model.step(
+            &BicycleState::default(),
+            Command {
+                speed_mps: 1.0,
+                steering_rad: 0.0,
+            },
+            0.1,
+        );
+        assert_eq!(out.state.x_m, 0.0);
+        assert!((out.state.speed_mps - 0.5).abs() < 1e-12);
+    }
+}

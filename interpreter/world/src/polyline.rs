@@ -1,0 +1,113 @@
+//! Polylines and the distance queries SigmaRL uses on them (`get_perpendicular_distances`).
+
+/// A point in the map frame [m].
+pub type Point = [f64; 2];
+
+/// An ordered list of points; segment `i` joins point `i` and point `i + 1`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Polyline {
+    pub points: Vec<Point>,
+}
+
+/// The result of a nearest-segment query.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SegmentDistance {
+    /// Unsigned distance to the polyline [m].
+    pub distance_m: f64,
+    /// Index of the first segment that attains the minimum.
+    pub segment: usize,
+    /// Projection parameter on that segment, clamped to [0, 1].
+    pub t: f64,
+}
+
+impl SegmentDistance {
+    /// SigmaRL's "closest point index": the end point of the nearest segment.
+    pub fn closest_point_index(&self) -> usize {
+        self.segment + 1
+    }
+}
+
+impl Polyline {
+    pub fn new(points: Vec<Point>) -> Self {
+        Self { points }
+    }
+
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// Number of segments.
+    pub fn segment_count(&self) -> usize {
+        self.points.len().saturating_sub(1)
+    }
+
+    /// Nearest segment to `p` (the first one on ties), or `None` for fewer than two points.
+    pub fn nearest_segment(&self, p: Point) -> Option<SegmentDistance> {
+        let mut best: Option<SegmentDistance> = None;
+        for (segment, pair) in self.points.windows(2).enumerate() {
+            let (distance_m, t) = point_segment_distance(p, pair[0], pair[1]);
+            if best.is_none_or(|b| distance_m < b.distance_m) {
+                best = Some(SegmentDistance {
+                    distance_m,
+                    segment,
+                    t,
+                });
+            }
+        }
+        best
+    }
+
+    /// Unsigned distance from `p` to the polyline (infinite for fewer than two points).
+    pub fn distance_m(&self, p: Point) -> f64 {
+        self.nearest_segment(p).map_or(f64::INFINITY, |d| d.distance_m)
+    }
+
+    /// Total length [m].
+    pub fn length_m(&self) -> f64 {
+        self.points.windows(2).map(|w| dist(w[0], w[1])).sum()
+    }
+}
+
+/// Distance from `p` to the segment `a`–`b` and the projection parameter clamped to [0, 1].
+/// A degenerate segment (a == b) measures the distance to `a`.
+pub fn point_segment_distance(p: Point, a: Point, b: Point) -> (f64, f64) {
+    let ab = [b[0] - a[0], b[1] - a[1]];
+    let ap = [p[0] - a[0], p[1] - a[1]];
+    let len2 = ab[0] * ab[0] + ab[1] * ab[1];
+    let t = if len2 > 0.0 {
+        ((ap[0] * ab[0] + ap[1] * ab[1]) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let q = [a[0] + t * ab[0], a[1] + t * ab[1]];
+    (dist(p, q), t)
+}
+
+/// Euclidean distance between two points.
+pub fn dist(a: Point, b: Point) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_segment_reports_the_end_point_as_closest_index() {
+        let line = Polyline::new(vec![[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]);
+        let d = line.nearest_segment([1.5, 0.3]).unwrap();
+        assert_eq!(d.segment, 1);
+        assert_eq!(d.closest_point_index(), 2);
+        assert!((d.distance_m - 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn ties_go_to_the_first_segment() {
+        let line = Polyline::new(vec![[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]);
+        assert_eq!(line.nearest_segment([1.0, 1.0]).unwrap().segment, 0);
+    }
+}
