@@ -7,17 +7,24 @@ use crate::VehicleParams;
 /// State of the kinematic bicycle. Yaw is never wrapped (it accumulates beyond ±π).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct BicycleState {
+    /// Centre of gravity, x [m].
     pub x_m: f64,
+    /// Centre of gravity, y [m].
     pub y_m: f64,
+    /// Heading [rad], not wrapped.
     pub yaw_rad: f64,
+    /// Longitudinal speed [m/s] (negative when reversing).
     pub speed_mps: f64,
+    /// Front steering angle [rad].
     pub steering_rad: f64,
 }
 
 /// A command: target speed and target steering angle.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Command {
+    /// Target speed [m/s].
     pub speed_mps: f64,
+    /// Target steering angle [rad].
     pub steering_rad: f64,
 }
 
@@ -25,18 +32,40 @@ pub struct Command {
 /// both evaluated at the new state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepOutput {
+    /// The new state.
     pub state: BicycleState,
+    /// Velocity vector of the new state in the map frame [m/s].
     pub velocity_mps: [f64; 2],
+    /// Slip angle of the new state [rad].
     pub sideslip_rad: f64,
+}
+
+/// The arithmetic of one step.
+///
+/// SigmaRL integrates in float32. [`Precision::F32`] repeats its operations in the same order
+/// in f32 (true divisions by `dt`, clamps, `atan(l_r / l_wb * tan δ)`, one Euler step, the
+/// steering wrap that rounds δ to the float32 grid around π); only the transcendental
+/// functions differ (evaluated in f64 and rounded, where torch uses SLEEF), so results agree
+/// with SigmaRL to within one float32 ulp. [`Precision::F64`] is the same model in f64 and
+/// differs from SigmaRL by up to about 7e-7.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Precision {
+    /// Plain f64 arithmetic (the project default).
+    #[default]
+    F64,
+    /// float32 arithmetic in SigmaRL's operation order.
+    F32,
 }
 
 /// The model with its parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KinematicBicycle {
+    /// Geometry and limits.
     pub params: VehicleParams,
 }
 
 impl KinematicBicycle {
+    /// A model with the given parameters.
     pub fn new(params: VehicleParams) -> Self {
         Self { params }
     }
@@ -63,8 +92,26 @@ impl KinematicBicycle {
         [state.speed_mps * heading.cos(), state.speed_mps * heading.sin()]
     }
 
-    /// One step of `dt_s` towards `command`.
+    /// One step of `dt_s` towards `command`, computed in f64 (what the project uses).
     pub fn step(&self, state: &BicycleState, command: Command, dt_s: f64) -> StepOutput {
+        self.step_with_precision(state, command, dt_s, Precision::F64)
+    }
+
+    /// One step of `dt_s` towards `command` in the chosen arithmetic.
+    pub fn step_with_precision(
+        &self,
+        state: &BicycleState,
+        command: Command,
+        dt_s: f64,
+        precision: Precision,
+    ) -> StepOutput {
+        match precision {
+            Precision::F64 => self.step_f64(state, command, dt_s),
+            Precision::F32 => crate::bicycle_f32::step_f32(&self.params, state, command, dt_s),
+        }
+    }
+
+    fn step_f64(&self, state: &BicycleState, command: Command, dt_s: f64) -> StepOutput {
         let p = &self.params;
         let command = self.clamp_command(command);
 

@@ -5,9 +5,10 @@
 //! maps, policies or metrics, and draws no random numbers.
 
 mod bicycle;
+mod bicycle_f32;
 mod footprint;
 
-pub use bicycle::{BicycleState, Command, KinematicBicycle, StepOutput};
+pub use bicycle::{BicycleState, Command, KinematicBicycle, Precision, StepOutput};
 pub use footprint::{Footprint, footprint_corners};
 
 /// Geometry and limits of a vehicle (SigmaRL's `AGENTS`; the CPM Lab µCar at 1:18).
