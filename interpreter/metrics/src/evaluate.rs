@@ -1,0 +1,234 @@
+//! The per-run metrics of one recording: CRA-A, CRA-L, CD and AS with the raw counts behind
+//! them, computed as SigmaRL's `evaluate_single_run` does (in f64).
+//!
+//! This module owns the order of the steps (resample, truncate, rotate, footprints,
+//! distances, events, violations, means). It reads a `Recording` and the map's reference
+//! paths only, never an engine.
+
+use cpmx_recording::{AgentSample, Recording};
+use cpmx_vehicle::{VehicleParams, footprint_corners};
+use cpmx_world::{Point, Polyline, ReferencePath, polyline::dist};
+
+use crate::MetricsError;
+use crate::collision::{PlacedBox, signed_distance_m};
+use crate::config::{EventCount, MetricsConfig};
+use crate::hysteresis::event_samples;
+use crate::lane::Lane;
+use crate::output::{AgentMetrics, PairEvent, RunMetrics};
+use crate::resample::resample;
+
+/// What the metrics need of a reference path: its id, centre line and own-lane boundaries.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PathGeometry<'a> {
+    /// The id agents refer to it by (`Recording::ref_paths`).
+    pub id: usize,
+    /// Centre line (CD is measured to it).
+    pub center_line: &'a [Point],
+    /// Own-lane left boundary, in driving direction.
+    pub left_boundary: &'a [Point],
+    /// Own-lane right boundary, in driving direction.
+    pub right_boundary: &'a [Point],
+}
+
+impl<'a> From<&'a ReferencePath> for PathGeometry<'a> {
+    fn from(path: &'a ReferencePath) -> Self {
+        Self {
+            id: path.id,
+            center_line: &path.center_line.points,
+            left_boundary: &path.left_boundary.points,
+            right_boundary: &path.right_boundary.points,
+        }
+    }
+}
+
+/// Computes every metric of one run from its recording.
+///
+/// `ref_paths` must hold (at least) every reference path the recording's agents use, found by
+/// their `id` (build them with `PathGeometry::from(&reference_path)`); `vehicle` gives the
+/// footprint (length and width).
+pub fn evaluate(
+    recording: &Recording,
+    ref_paths: &[PathGeometry<'_>],
+    vehicle: &VehicleParams,
+    config: &MetricsConfig,
+) -> Result<RunMetrics, MetricsError> {
+    // Check the parameters and the shape of the recording.
+    config.validate()?;
+    let agent_count = recording.agent_count();
+    if agent_count == 0 || recording.times_s.is_empty() {
+        return Err(MetricsError::EmptyRecording);
+    }
+    if recording.samples.len() != recording.times_s.len() {
+        return Err(MetricsError::RaggedRecording {
+            sample: recording.samples.len().min(recording.times_s.len()),
+            found: recording.samples.len(),
+            expected: recording.times_s.len(),
+        });
+    }
+    for (sample, row) in recording.samples.iter().enumerate() {
+        if row.len() != agent_count {
+            return Err(MetricsError::RaggedRecording {
+                sample,
+                found: row.len(),
+                expected: agent_count,
+            });
+        }
+    }
+    if recording
+        .times_s
+        .windows(2)
+        .any(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater))
+    {
+        return Err(MetricsError::TimesNotIncreasing);
+    }
+
+    // Resample, truncate and (optionally) rotate.
+    let resampled = resample(recording, config.sample_period_s);
+    let kept = config
+        .max_steps
+        .map_or(resampled.samples.len(), |m| m.min(resampled.samples.len()));
+    if kept == 0 {
+        return Err(MetricsError::EmptyRecording);
+    }
+    let rotate = |p: Point| match config.rotate180 {
+        Some(r) => [2.0 * r.centre_m[0] - p[0], 2.0 * r.centre_m[1] - p[1]],
+        None => p,
+    };
+    let states: Vec<Vec<AgentSample>> = resampled.samples[..kept]
+        .iter()
+        .map(|row| {
+            row.iter()
+                .map(|s| match config.rotate180 {
+                    Some(_) => {
+                        let [x_m, y_m] = rotate([s.x_m, s.y_m]);
+                        let yaw_rad = (s.yaw_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU);
+                        AgentSample {
+                            x_m,
+                            y_m,
+                            yaw_rad,
+                            ..*s
+                        }
+                    }
+                    None => *s,
+                })
+                .collect()
+        })
+        .collect();
+
+    // Each agent's centre line and own lane, in the same frame.
+    let mut centre_lines = Vec::with_capacity(agent_count);
+    let mut lanes = Vec::with_capacity(agent_count);
+    for (agent, &id) in recording.ref_paths.iter().enumerate() {
+        let path = ref_paths
+            .iter()
+            .find(|p| p.id == id)
+            .ok_or(MetricsError::UnknownRefPath { agent, id })?;
+        let map = |line: &[Point]| -> Vec<Point> { line.iter().map(|&p| rotate(p)).collect() };
+        centre_lines.push(Polyline::new(map(path.center_line)));
+        lanes.push(Lane::new(map(path.left_boundary), map(path.right_boundary)));
+    }
+
+    // Footprints: the real one for collisions, the one shrunk by the slack for the lane.
+    let slack_m = config.cra_l.slack * vehicle.width_m;
+    let shrunk = VehicleParams {
+        length_m: vehicle.length_m - 2.0 * slack_m,
+        width_m: vehicle.width_m - 2.0 * slack_m,
+        ..*vehicle
+    };
+    let boxes: Vec<Vec<PlacedBox>> = states
+        .iter()
+        .map(|row| {
+            row.iter()
+                .map(|s| PlacedBox::from_pose(vehicle, s.x_m, s.y_m, s.yaw_rad))
+                .collect()
+        })
+        .collect();
+
+    // Agent-agent events per pair, through the hysteresis.
+    let mut pair_events = Vec::new();
+    let mut agent_events = vec![Vec::new(); agent_count];
+    for i in 0..agent_count {
+        for j in i + 1..agent_count {
+            let distances_m: Vec<f64> = boxes
+                .iter()
+                .map(|row| signed_distance_m(config.cra_a.geometry, &row[i], &row[j]))
+                .collect();
+            for sample in event_samples(&distances_m, config.cra_a.hysteresis) {
+                pair_events.push(PairEvent {
+                    agents: [i, j],
+                    sample,
+                });
+                agent_events[i].push(sample);
+                agent_events[j].push(sample);
+            }
+        }
+    }
+    for events in &mut agent_events {
+        events.sort_unstable();
+    }
+
+    // Per agent: step distances, lane violations, centre-line distance, speed.
+    let mut agents = Vec::with_capacity(agent_count);
+    for (agent, events) in agent_events.into_iter().enumerate() {
+        let mut distance_m = 0.0;
+        let mut lane_violation_m = 0.0;
+        let mut violation_samples = Vec::new();
+        let (mut cd_sum_m, mut speed_sum_mps) = (0.0, 0.0);
+        for (k, row) in states.iter().enumerate() {
+            let s = &row[agent];
+            let step_m = if k == 0 {
+                0.0
+            } else {
+                let p = &states[k - 1][agent];
+                dist([s.x_m, s.y_m], [p.x_m, p.y_m])
+            };
+            distance_m += step_m;
+            let footprint = footprint_corners(&shrunk, s.x_m, s.y_m, s.yaw_rad);
+            if lanes[agent].is_violated_by(&footprint) {
+                violation_samples.push(k);
+                lane_violation_m += step_m;
+            }
+            cd_sum_m += centre_lines[agent].distance_m([s.x_m, s.y_m]);
+            speed_sum_mps += s.velocity_mps[0].hypot(s.velocity_mps[1]);
+        }
+        agents.push(AgentMetrics {
+            ref_path: recording.ref_paths[agent],
+            distance_m,
+            lane_violation_m,
+            cd_m: cd_sum_m / kept as f64,
+            as_mps: speed_sum_mps / kept as f64,
+            event_samples: events,
+            violation_samples,
+        });
+    }
+
+    // Totals and the normalised rates (NaN when nothing moved).
+    let distance_m: f64 = agents.iter().map(|a| a.distance_m).sum();
+    let lane_violation_m: f64 = agents.iter().map(|a| a.lane_violation_m).sum();
+    let a2a_events = match config.cra_a.count {
+        EventCount::PerAgent => 2 * pair_events.len(),
+        EventCount::PerPair => pair_events.len(),
+    };
+    let per_distance = |value: f64, per_distance_m: f64| {
+        if distance_m > 0.0 {
+            value / (distance_m / per_distance_m)
+        } else {
+            f64::NAN
+        }
+    };
+    let n = agent_count as f64;
+    Ok(RunMetrics {
+        num_samples: kept,
+        num_agents: agent_count,
+        cra_a: per_distance(a2a_events as f64, config.cra_a.per_distance_m),
+        cra_l: per_distance(lane_violation_m, config.cra_l.per_distance_m),
+        cd_m: agents.iter().map(|a| a.cd_m).sum::<f64>() / n,
+        as_mps: agents.iter().map(|a| a.as_mps).sum::<f64>() / n,
+        a2a_events,
+        distance_m,
+        lane_violation_m,
+        config: *config,
+        pair_events,
+        agents,
+    })
+}

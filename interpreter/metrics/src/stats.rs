@@ -1,0 +1,1 @@
+//! Statistics over runs (placeholder until implemented below).
