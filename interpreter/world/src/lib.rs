@@ -4,9 +4,34 @@
 //!
 //! This crate owns geometry of the road. It knows nothing of vehicles' dynamics, policies or
 //! metrics; it never reads a spec.
+//!
+//! Modules: `commonroad` and `osm` read map files into [`Lanelet`]s; `paths` builds
+//! reference paths with SigmaRL's recipe; `cpm_lab` holds SigmaRL's hard-coded tables of the
+//! CPM Lab map; `generic` numbers paths of other maps; `builtin` writes this project's maps;
+//! `map` ties them into [`Map`]; `nearest` and `geometry` answer the simulator's and the
+//! validator's queries.
 
+pub mod builtin;
+pub mod commonroad;
+pub mod cpm_lab;
+mod error;
+pub mod generic;
+mod geometry;
+mod lanelet;
+mod map;
+mod nearest;
+mod numerics;
+pub mod osm;
+mod paths;
 pub mod polyline;
 
+pub use error::{LineIndex, MapError, PathError, SourceLocation};
+pub use geometry::{Polygon, band_polygon, point_in_polygon, segments_cross};
+pub use lanelet::{Adjacent, DrivingDirection, Incoming, Intersection, Lanelet, LaneletId};
+pub use map::{Bounds, Map, MapFormat, MapKind, PathSet};
+pub use nearest::{PathIndex, SegmentGrid};
+pub use numerics::Numerics;
+pub use paths::{PathBuilder, SharedRule};
 pub use polyline::{Point, Polyline, SegmentDistance};
 
 /// A reference path: the lane an agent follows, with its own-lane and shared (road) boundaries.
@@ -28,4 +53,7 @@ pub struct ReferencePath {
     pub left_boundary_shared: Polyline,
     /// Outer right boundary of the multi-lane road.
     pub right_boundary_shared: Polyline,
+    /// Yaw of each centre-line segment, `atan2(dy, dx)` of the segment vector computed in the
+    /// map's precision (one value per segment) [rad].
+    pub center_line_yaw_rad: Vec<f64>,
 }

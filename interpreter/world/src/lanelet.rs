@@ -1,0 +1,91 @@
+//! Lanelets and intersections as read from a map file: geometry, topology and markings.
+//! Pure data; loaders fill it, the path builder reads it.
+
+use crate::error::SourceLocation;
+use crate::polyline::Polyline;
+
+/// A lanelet id as written in the map file.
+pub type LaneletId = u32;
+
+/// Driving direction of an adjacent lanelet relative to this one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DrivingDirection {
+    /// Same direction (a parallel lane).
+    Same,
+    /// Opposite direction (oncoming lane).
+    Opposite,
+}
+
+/// A lanelet beside this one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Adjacent {
+    /// The neighbour's id.
+    pub id: LaneletId,
+    /// Its driving direction relative to this lanelet.
+    pub direction: DrivingDirection,
+}
+
+/// One lanelet: two boundaries with the same number of points and its neighbours.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Lanelet {
+    /// Its id.
+    pub id: LaneletId,
+    /// Left boundary (in driving direction).
+    pub left_boundary: Polyline,
+    /// Right boundary (in driving direction).
+    pub right_boundary: Polyline,
+    /// Point-wise mean of the boundaries.
+    pub center_line: Polyline,
+    /// Line marking of the left boundary (`solid`, `dashed`, ... as written), if any.
+    pub left_line_marking: Option<String>,
+    /// Line marking of the right boundary, if any.
+    pub right_line_marking: Option<String>,
+    /// Lanelets this one continues (in file order).
+    pub predecessors: Vec<LaneletId>,
+    /// Lanelets that continue this one (in file order).
+    pub successors: Vec<LaneletId>,
+    /// The lanelet to the left, if any.
+    pub adjacent_left: Option<Adjacent>,
+    /// The lanelet to the right, if any.
+    pub adjacent_right: Option<Adjacent>,
+    /// Lanelet types as written (`urban`, `highway`, ...).
+    pub lanelet_types: Vec<String>,
+    /// Where the lanelet is defined in the map file.
+    pub location: SourceLocation,
+}
+
+/// One approach of an intersection and where it leads.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Incoming {
+    /// The incoming element's id.
+    pub id: u32,
+    /// The lanelets that enter the intersection.
+    pub incoming_lanelets: Vec<LaneletId>,
+    /// Lanelets that turn right.
+    pub successors_right: Vec<LaneletId>,
+    /// Lanelets that go straight.
+    pub successors_straight: Vec<LaneletId>,
+    /// Lanelets that turn left.
+    pub successors_left: Vec<LaneletId>,
+}
+
+impl Incoming {
+    /// Every lanelet this incoming names.
+    pub fn lanelet_ids(&self) -> impl Iterator<Item = LaneletId> + '_ {
+        self.incoming_lanelets
+            .iter()
+            .chain(&self.successors_right)
+            .chain(&self.successors_straight)
+            .chain(&self.successors_left)
+            .copied()
+    }
+}
+
+/// An intersection element of a map.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Intersection {
+    /// Its id.
+    pub id: u32,
+    /// Its approaches.
+    pub incomings: Vec<Incoming>,
+}
