@@ -1,0 +1,322 @@
+//! SigmaRL's observation design (`stdlib:sigmarl`): the 32-value ego-view observation of
+//! `ScenarioRoadTraffic` with its parameters as fields and its quirks as explicit options.
+//!
+//! This module owns the layout and its numerics (f64 geometry, f32 output). It reads states
+//! and prepared paths only; it never steps a vehicle and keeps no state between calls.
+
+use cpmx_vehicle::{Footprint, VehicleParams, footprint_corners};
+
+use crate::geometry::{AgentPaths, PreparedPath};
+
+/// What the observation (and any policy) needs to know about one agent at one instant.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct AgentState {
+    /// Centre, x [m].
+    pub x_m: f64,
+    /// Centre, y [m].
+    pub y_m: f64,
+    /// Heading [rad] (wrapped or not: only its sine and cosine are used).
+    pub yaw_rad: f64,
+    /// Signed longitudinal speed [m/s].
+    pub speed_mps: f64,
+    /// Velocity vector in the map frame [m/s] (SigmaRL observes its norm).
+    pub velocity_mps: [f64; 2],
+}
+
+impl AgentState {
+    /// Norm of the velocity vector [m/s] (always >= 0, also when reversing).
+    pub fn velocity_norm_mps(&self) -> f64 {
+        self.velocity_mps[0].hypot(self.velocity_mps[1])
+    }
+}
+
+/// Everything a policy sees at one step: all agents' states, their prepared reference
+/// paths and the vehicle geometry, plus the corners of the previous step for SigmaRL's lag.
+#[derive(Debug, Clone, Copy)]
+pub struct ObservationInput<'a> {
+    /// State of every agent, in agent order.
+    pub agents: &'a [AgentState],
+    /// Reference path of every agent, in agent order.
+    pub paths: &'a AgentPaths,
+    /// Geometry of the vehicles (all agents share it).
+    pub vehicle: &'a VehicleParams,
+    /// Footprint corners of every agent at the previous observation (`None` right after a
+    /// reset). Only used by [`BoundaryCorners::LaggedForFirstAgent`].
+    pub previous_corners: Option<&'a [Footprint]>,
+}
+
+/// Which corners enter the boundary distances.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BoundaryCorners {
+    /// SigmaRL's code: agent 0's corner distances are computed before the corners of the step
+    /// are updated, so agent 0 (only) uses the previous observation's corners (the current
+    /// ones right after a reset).
+    #[default]
+    LaggedForFirstAgent,
+    /// Every agent uses its current corners (what the paper describes).
+    Current,
+}
+
+/// Parameters of SigmaRL's observation. [`SigmarlObservation::default`] is the configuration
+/// the published policies were trained with (32 values).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SigmarlObservation {
+    /// Number of observed neighbours (the nearest ones by centre distance).
+    pub neighbours: usize,
+    /// Number of short-term reference points.
+    pub reference_points: usize,
+    /// Index stride between short-term reference points on the centre line.
+    pub reference_point_stride: usize,
+    /// Normaliser of positions [m] (SigmaRL: 10 vehicle lengths).
+    pub position_norm_m: f64,
+    /// Normaliser of speeds [m/s] (SigmaRL: maximum speed).
+    pub speed_norm_mps: f64,
+    /// Normaliser of distances to centre line, boundaries and other agents [m]
+    /// (SigmaRL: 3 lane widths; its own agent-distance normaliser is not used).
+    pub distance_norm_m: f64,
+    /// Distance an agent has to itself before neighbours are chosen [m]
+    /// (SigmaRL: the map diagonal, 6.0208).
+    pub own_distance_placeholder_m: f64,
+    /// Observe the distance to the own centre line (1 value).
+    pub observe_center_line_distance: bool,
+    /// Observe the distances to the left and right shared boundaries (2 values).
+    pub observe_boundary_distances: bool,
+    /// Observe each neighbour's centre distance (1 value per neighbour).
+    pub observe_neighbour_distance: bool,
+    /// Which corners enter the boundary distances.
+    pub boundary_corners: BoundaryCorners,
+}
+
+impl Default for SigmarlObservation {
+    fn default() -> Self {
+        SigmarlObservation {
+            neighbours: 2,
+            reference_points: 3,
+            reference_point_stride: 2,
+            position_norm_m: 2.2,
+            speed_norm_mps: 1.0,
+            distance_norm_m: 0.45,
+            own_distance_placeholder_m: 6.0208,
+            observe_center_line_distance: true,
+            observe_boundary_distances: true,
+            observe_neighbour_distance: true,
+            boundary_corners: BoundaryCorners::LaggedForFirstAgent,
+        }
+    }
+}
+
+/// Errors of an observation call (the caller's buffers or inputs do not fit together).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ObservationError {
+    /// The output buffer does not hold `agents * size` values.
+    #[error("observation buffer holds {found} values, expected {expected} ({agents} agents x {size})")]
+    BufferSize {
+        found: usize,
+        expected: usize,
+        agents: usize,
+        size: usize,
+    },
+    /// The number of reference paths differs from the number of agents.
+    #[error("{paths} reference paths for {agents} agents")]
+    PathCount { paths: usize, agents: usize },
+    /// The previous corners do not cover every agent.
+    #[error("previous corners for {found} agents, expected {agents}")]
+    CornerCount { found: usize, agents: usize },
+    /// A reference path has fewer than two centre-line or boundary points.
+    #[error("reference path {id} has a centre line or shared boundary with fewer than two points")]
+    DegeneratePath { id: usize },
+}
+
+/// Values per neighbour: 4 corners, velocity (2), optionally the distance.
+const NEIGHBOUR_BASE: usize = 8 + 2;
+
+/// Most neighbours the allocation-free selection supports.
+pub const MAX_NEIGHBOURS: usize = 8;
+
+impl SigmarlObservation {
+    /// Number of values per agent (32 for the default parameters).
+    pub fn size(&self) -> usize {
+        1 + 2 * self.reference_points
+            + usize::from(self.observe_center_line_distance)
+            + 2 * usize::from(self.observe_boundary_distances)
+            + self.neighbours * (NEIGHBOUR_BASE + usize::from(self.observe_neighbour_distance))
+    }
+
+    /// Observations of all agents into `out` (`agents * size()` values, agent-major).
+    /// Allocation-free.
+    pub fn observe_all(&self, input: &ObservationInput<'_>, out: &mut [f32]) -> Result<(), ObservationError> {
+        // Check that the inputs fit together.
+        let (n, size) = (input.agents.len(), self.size());
+        if out.len() != n * size {
+            return Err(ObservationError::BufferSize {
+                found: out.len(),
+                expected: n * size,
+                agents: n,
+                size,
+            });
+        }
+        if input.paths.len() != n {
+            return Err(ObservationError::PathCount {
+                paths: input.paths.len(),
+                agents: n,
+            });
+        }
+        if let Some(prev) = input.previous_corners
+            && prev.len() != n
+        {
+            return Err(ObservationError::CornerCount {
+                found: prev.len(),
+                agents: n,
+            });
+        }
+        for path in &input.paths.paths {
+            if path.center.is_empty() || path.left_shared.is_empty() || path.right_shared.is_empty() {
+                return Err(ObservationError::DegeneratePath { id: path.id });
+            }
+        }
+
+        for (i, chunk) in out.chunks_exact_mut(size).enumerate() {
+            self.observe_one(input, i, chunk);
+        }
+        Ok(())
+    }
+
+    /// Observation of agent `ego` (inputs already checked).
+    fn observe_one(&self, input: &ObservationInput<'_>, ego: usize, out: &mut [f32]) {
+        let me = &input.agents[ego];
+        let path: &PreparedPath = &input.paths.paths[ego];
+        let frame = EgoFrame::new(me);
+        let mut w = Writer { out, at: 0 };
+
+        // Own speed.
+        w.push(me.velocity_norm_mps() / self.speed_norm_mps);
+
+        // Short-term reference points, from the closest centre-line point onward.
+        let nearest = path.center.nearest([me.x_m, me.y_m]);
+        let (center_distance_m, closest_index) = nearest.map_or((0.0, 0), |n| (n.distance_m, n.segment + 1));
+        for k in 0..self.reference_points {
+            let q = frame.to_ego(path.center_point(closest_index + 1 + k * self.reference_point_stride));
+            w.push(q[0] / self.position_norm_m);
+            w.push(q[1] / self.position_norm_m);
+        }
+
+        // Distance to the own centre line.
+        if self.observe_center_line_distance {
+            w.push(center_distance_m / self.distance_norm_m);
+        }
+
+        // Distances to the shared road boundaries: the centre minus half the width, and the corners.
+        if self.observe_boundary_distances {
+            let corners = match (self.boundary_corners, input.previous_corners) {
+                (BoundaryCorners::LaggedForFirstAgent, Some(prev)) if ego == 0 => prev[0],
+                _ => footprint_corners(input.vehicle, me.x_m, me.y_m, me.yaw_rad),
+            };
+            let half_width = input.vehicle.width_m / 2.0;
+            for side in [&path.left_shared, &path.right_shared] {
+                let centre = side.distance_m([me.x_m, me.y_m]) - half_width;
+                let d = corners.iter().map(|&c| side.distance_m(c)).fold(centre, f64::min);
+                w.push(d / self.distance_norm_m);
+            }
+        }
+
+        // Nearest neighbours by centre distance, ascending (the agent itself at the placeholder).
+        let mut chosen = [(f64::INFINITY, 0usize); MAX_NEIGHBOURS];
+        let k = self.neighbours.min(MAX_NEIGHBOURS);
+        for (j, other) in input.agents.iter().enumerate() {
+            let d = if j == ego {
+                self.own_distance_placeholder_m
+            } else {
+                (other.x_m - me.x_m).hypot(other.y_m - me.y_m)
+            };
+            insert_sorted(&mut chosen[..k], (d, j));
+        }
+        for &(distance_m, j) in chosen[..k].iter().filter(|e| e.0.is_finite()) {
+            let other = &input.agents[j];
+            for c in footprint_corners(input.vehicle, other.x_m, other.y_m, other.yaw_rad) {
+                let q = frame.to_ego(c);
+                w.push(q[0] / self.position_norm_m);
+                w.push(q[1] / self.position_norm_m);
+            }
+            let (speed, heading) = (other.velocity_norm_mps(), other.yaw_rad - me.yaw_rad);
+            w.push(speed * heading.cos() / self.speed_norm_mps);
+            w.push(speed * heading.sin() / self.speed_norm_mps);
+            if self.observe_neighbour_distance {
+                w.push(distance_m / self.distance_norm_m);
+            }
+        }
+        // More neighbours requested than agents exist (or than supported): zeros.
+        w.fill_rest();
+    }
+}
+
+/// Insert `item` into the ascending list `list` (keeping its length), stable on ties.
+fn insert_sorted(list: &mut [(f64, usize)], item: (f64, usize)) {
+    let Some(pos) = list.iter().position(|e| item.0 < e.0) else {
+        return;
+    };
+    list[pos..].rotate_right(1);
+    list[pos] = item;
+}
+
+/// The ego frame of an agent: map points relative to its centre, rotated by minus its yaw.
+struct EgoFrame {
+    origin: [f64; 2],
+    cos: f64,
+    sin: f64,
+}
+
+impl EgoFrame {
+    fn new(me: &AgentState) -> Self {
+        let (sin, cos) = me.yaw_rad.sin_cos();
+        EgoFrame {
+            origin: [me.x_m, me.y_m],
+            cos,
+            sin,
+        }
+    }
+
+    fn to_ego(&self, p: [f64; 2]) -> [f64; 2] {
+        let (dx, dy) = (p[0] - self.origin[0], p[1] - self.origin[1]);
+        [dx * self.cos + dy * self.sin, -dx * self.sin + dy * self.cos]
+    }
+}
+
+/// Sequential writer into one agent's slice.
+struct Writer<'a> {
+    out: &'a mut [f32],
+    at: usize,
+}
+
+impl Writer<'_> {
+    fn push(&mut self, v: f64) {
+        if let Some(slot) = self.out.get_mut(self.at) {
+            *slot = v as f32;
+        }
+        self.at += 1;
+    }
+
+    fn fill_rest(&mut self) {
+        if let Some(rest) = self.out.get_mut(self.at..) {
+            rest.fill(0.0);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_layout_has_32_values() {
+        assert_eq!(SigmarlObservation::default().size(), 32);
+    }
+
+    #[test]
+    fn insertion_keeps_the_smallest_in_order_and_first_on_ties() {
+        let mut l = [(f64::INFINITY, 0); 2];
+        for (d, j) in [(3.0, 0), (1.0, 1), (2.0, 2), (1.0, 3)] {
+            insert_sorted(&mut l, (d, j));
+        }
+        assert_eq!(l, [(1.0, 1), (1.0, 3)]);
+    }
+}
