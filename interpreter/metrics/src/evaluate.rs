@@ -232,3 +232,143 @@ pub fn evaluate(
         agents,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::CollisionGeometry;
+    use proptest::prelude::*;
+
+    /// A straight 0.15 m wide lane along +x from 0 to 20 m.
+    struct Straight {
+        centre: Vec<Point>,
+        left: Vec<Point>,
+        right: Vec<Point>,
+    }
+
+    impl Straight {
+        fn new() -> Self {
+            let xs = [0.0, 10.0, 20.0];
+            Self {
+                centre: xs.iter().map(|&x| [x, 0.0]).collect(),
+                left: xs.iter().map(|&x| [x, 0.075]).collect(),
+                right: xs.iter().map(|&x| [x, -0.075]).collect(),
+            }
+        }
+
+        fn geometry(&self) -> [PathGeometry<'_>; 1] {
+            [PathGeometry {
+                id: 0,
+                center_line: &self.centre,
+                left_boundary: &self.left,
+                right_boundary: &self.right,
+            }]
+        }
+    }
+
+    fn sample(x_m: f64, y_m: f64, yaw_rad: f64) -> AgentSample {
+        AgentSample {
+            x_m,
+            y_m,
+            yaw_rad,
+            velocity_mps: [1.0, 0.0],
+            steering_rad: f64::NAN,
+        }
+    }
+
+    /// Agents on path 0 whose poses are `rows[k][agent]`, every 0.1 s.
+    fn recording(rows: Vec<Vec<AgentSample>>) -> Recording {
+        Recording {
+            times_s: (0..rows.len()).map(|k| k as f64 * 0.1).collect(),
+            ref_paths: vec![0; rows.first().map_or(0, Vec::len)],
+            samples: rows,
+        }
+    }
+
+    #[test]
+    fn a_lateral_offset_within_the_slack_is_no_violation() {
+        let lane = Straight::new();
+        // 2.15 cm of room per side; an offset of 3 cm leaves the lane by 0.85 cm < 0.1 W.
+        let r = recording(
+            (0..10)
+                .map(|k| vec![sample(1.0 + 0.1 * k as f64, 0.03, 0.0)])
+                .collect(),
+        );
+        let mut config = MetricsConfig::sigmarl_script(100.0);
+        let strict = evaluate(&r, &lane.geometry(), &VehicleParams::MU_CAR, &config).unwrap();
+        assert_eq!(strict.agents[0].violation_samples.len(), 10);
+        assert!((strict.lane_violation_m - 0.9).abs() < 1e-12);
+        assert!((strict.cra_l - 100.0).abs() < 1e-9);
+        config.cra_l.slack = 0.10;
+        let slack = evaluate(&r, &lane.geometry(), &VehicleParams::MU_CAR, &config).unwrap();
+        assert!(slack.agents[0].violation_samples.is_empty());
+        assert!((slack.cd_m - 0.03).abs() < 1e-12);
+        assert!((slack.as_mps - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn nothing_moving_gives_nan_rates() {
+        let lane = Straight::new();
+        let r = recording(vec![vec![sample(1.0, 0.0, 0.0)]; 4]);
+        let m = evaluate(
+            &r,
+            &lane.geometry(),
+            &VehicleParams::MU_CAR,
+            &MetricsConfig::default(),
+        )
+        .unwrap();
+        assert_eq!(m.distance_m, 0.0);
+        assert!(m.cra_a.is_nan() && m.cra_l.is_nan());
+    }
+
+    #[test]
+    fn bad_inputs_are_errors() {
+        let lane = Straight::new();
+        let vehicle = VehicleParams::MU_CAR;
+        let config = MetricsConfig::default();
+        let mut r = recording(vec![vec![sample(1.0, 0.0, 0.0)]; 4]);
+        r.ref_paths = vec![7];
+        assert_eq!(
+            evaluate(&r, &lane.geometry(), &vehicle, &config),
+            Err(MetricsError::UnknownRefPath { agent: 0, id: 7 })
+        );
+        let mut ragged = recording(vec![vec![sample(1.0, 0.0, 0.0)]; 4]);
+        ragged.samples[2].clear();
+        assert!(matches!(
+            evaluate(&ragged, &lane.geometry(), &vehicle, &config),
+            Err(MetricsError::RaggedRecording { sample: 2, .. })
+        ));
+        let empty = recording(vec![]);
+        assert_eq!(
+            evaluate(&empty, &lane.geometry(), &vehicle, &config),
+            Err(MetricsError::EmptyRecording)
+        );
+    }
+
+    proptest! {
+        #[test]
+        fn per_pair_counts_are_half_the_per_agent_counts(
+            rows in proptest::collection::vec(
+                proptest::collection::vec((0.0..0.6f64, -0.1..0.1f64, -0.5..0.5f64), 3),
+                1..40,
+            ),
+            geometry in prop_oneof![Just(CollisionGeometry::Mtv), Just(CollisionGeometry::SigmarlMtv)],
+        ) {
+            let lane = Straight::new();
+            let r = recording(
+                rows.into_iter()
+                    .map(|row| row.into_iter().map(|(x, y, yaw)| sample(1.0 + x, y, yaw)).collect())
+                    .collect(),
+            );
+            let mut config = MetricsConfig::default();
+            config.cra_a.geometry = geometry;
+            let per_agent = evaluate(&r, &lane.geometry(), &VehicleParams::MU_CAR, &config).unwrap();
+            config.cra_a.count = EventCount::PerPair;
+            let per_pair = evaluate(&r, &lane.geometry(), &VehicleParams::MU_CAR, &config).unwrap();
+            prop_assert_eq!(per_agent.a2a_events, 2 * per_pair.a2a_events);
+            prop_assert_eq!(per_pair.a2a_events, per_pair.pair_events.len());
+            let listed: usize = per_agent.agents.iter().map(|a| a.event_samples.len()).sum();
+            prop_assert_eq!(listed, per_agent.a2a_events);
+        }
+    }
+}

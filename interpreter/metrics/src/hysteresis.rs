@@ -77,4 +77,49 @@ mod tests {
         assert!(event_samples(&[0.0, 0.0, 0.0, 0.0], SCRIPT).is_empty());
         assert_eq!(overlap_episodes(&pattern(".xx..x.xxx")), 3);
     }
+
+    mod properties {
+        use super::*;
+        use proptest::prelude::*;
+
+        /// Overlap (true) / free (false) patterns and a hysteresis.
+        fn case() -> impl Strategy<Value = (Vec<bool>, Hysteresis)> {
+            (
+                proptest::collection::vec(any::<bool>(), 0..80),
+                1..6usize,
+                1..8usize,
+            )
+                .prop_map(|(p, enter, exit)| (p, Hysteresis { enter, exit }))
+        }
+
+        fn distances(pattern: &[bool]) -> Vec<f64> {
+            pattern.iter().map(|&o| if o { -0.01 } else { 0.0 }).collect()
+        }
+
+        proptest! {
+            #[test]
+            fn runs_shorter_than_enter_never_count((pattern, h) in case()) {
+                let longest = pattern
+                    .split(|o| !o)
+                    .map(<[bool]>::len)
+                    .max()
+                    .unwrap_or(0);
+                if longest < h.enter {
+                    prop_assert!(event_samples(&distances(&pattern), h).is_empty());
+                }
+            }
+
+            #[test]
+            fn events_never_exceed_overlap_episodes((pattern, h) in case()) {
+                let d = distances(&pattern);
+                let events = event_samples(&d, h);
+                prop_assert!(events.len() <= overlap_episodes(&d));
+                // Each event is stamped at an overlapping sample that ends a run of `enter`.
+                for &k in &events {
+                    prop_assert!(k + 1 >= h.enter);
+                    prop_assert!(pattern[k + 1 - h.enter..=k].iter().all(|&o| o));
+                }
+            }
+        }
+    }
 }

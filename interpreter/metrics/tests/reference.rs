@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 
 use common::*;
 use cpmx_metrics::collision::{PlacedBox, sigmarl_mtv_distance_m};
-use cpmx_metrics::{MetricsConfig, PathGeometry, Rotate180, RunMetrics, evaluate};
+use cpmx_metrics::{CollisionGeometry, MetricsConfig, PathGeometry, Rotate180, RunMetrics, evaluate};
 use cpmx_vehicle::VehicleParams;
 use serde_json::Value;
 
@@ -217,4 +217,57 @@ fn the_rollout_agrees_with_the_script() {
     }
     eprintln!("largest errors on the rollout: {worst:#?}");
     assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+/// The paper's variants on the same cases: the 10 % slack only removes violation samples.
+/// (The event counts of both geometries are printed; on these cases they are equal.)
+#[test]
+fn the_paper_variants_relax_the_script_consistently() {
+    let map = read_json(MAP);
+    let lines = reference_paths(&map);
+    let paths: Vec<PathGeometry> = lines.iter().map(PathLines::geometry).collect();
+    let cases = read_json(CASES);
+    for case in cases["cases"].as_array().expect("cases") {
+        if case["rotate180"].as_bool().unwrap() {
+            continue;
+        }
+        let name = case["name"].as_str().unwrap();
+        let ids = case["ref_path_ids"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap() as usize)
+            .collect();
+        let recording = recording(&case["pos"], &case["rot"], &case["vel"], ids);
+        let mut config = MetricsConfig::sigmarl_script(100.0);
+        config.max_steps = case["max_steps"].as_u64().map(|m| m as usize);
+        let script = evaluate(&recording, &paths, &VehicleParams::MU_CAR, &config).unwrap();
+        config.cra_l.slack = 0.10;
+        config.cra_a.geometry = CollisionGeometry::Mtv;
+        let paper = evaluate(&recording, &paths, &VehicleParams::MU_CAR, &config).unwrap();
+        for (s, p) in script.agents.iter().zip(&paper.agents) {
+            assert!(
+                p.violation_samples
+                    .iter()
+                    .all(|k| s.violation_samples.contains(k)),
+                "{name}: slack adds violations"
+            );
+        }
+        assert!(paper.lane_violation_m <= script.lane_violation_m, "{name}");
+        eprintln!(
+            "{name}: events script {} / mtv {}; violation samples script {} / slack 0.1 {}",
+            script.a2a_events,
+            paper.a2a_events,
+            script
+                .agents
+                .iter()
+                .map(|a| a.violation_samples.len())
+                .sum::<usize>(),
+            paper
+                .agents
+                .iter()
+                .map(|a| a.violation_samples.len())
+                .sum::<usize>(),
+        );
+    }
 }
