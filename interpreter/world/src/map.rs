@@ -99,6 +99,8 @@ pub struct Map {
     region: Option<String>,
     bounds: Bounds,
     path_set: PathSet,
+    /// Paths a built-in map brings (its [`PathSet::Entire`]).
+    fixed_paths: Option<Vec<ReferencePath>>,
     paths: BTreeMap<usize, ReferencePath>,
     indexes: BTreeMap<usize, PathIndex>,
 }
@@ -218,13 +220,11 @@ impl Map {
             region: None,
             bounds,
             path_set: PathSet::Entire,
+            fixed_paths: parts.paths,
             paths: BTreeMap::new(),
             indexes: BTreeMap::new(),
         };
-        match parts.paths {
-            Some(paths) => map.set_paths(paths),
-            None => map.set_paths(map.number_paths(PathSet::Entire)?),
-        }
+        map.set_paths(map.number_paths(PathSet::Entire)?);
         Ok(map)
     }
 
@@ -248,7 +248,7 @@ impl Map {
             (MapKind::CpmLab, PathSet::MergeIn) => to_vecs(&cpm_lab::MERGE_IN_PATHS),
             (MapKind::CpmLab, PathSet::MergeOut) => to_vecs(&cpm_lab::MERGE_OUT_PATHS),
             (MapKind::Builtin(_), PathSet::Entire) => {
-                return Ok(self.paths.values().cloned().collect());
+                return Ok(self.fixed_paths.clone().unwrap_or_default());
             }
             (_, PathSet::Entire) => generic::generic_path_lanelets(&self.all_lanelets),
             (_, set) => {
@@ -462,7 +462,7 @@ fn lanelet_bounds<'a>(lanelets: impl Iterator<Item = &'a Lanelet>) -> Option<Bou
 }
 
 /// Regions from intersection elements: `intersection` (all of them) and `intersection-<id>`.
-fn intersection_regions(intersections: &[Intersection]) -> BTreeMap<String, Vec<LaneletId>> {
+pub(crate) fn intersection_regions(intersections: &[Intersection]) -> BTreeMap<String, Vec<LaneletId>> {
     let mut regions = BTreeMap::new();
     let mut all = Vec::new();
     for i in intersections {
