@@ -1,1 +1,66 @@
-fn main() {}
+//! `cpmx`: the command line over the spec and interpreter crates. Thin by design: it parses
+//! arguments, calls the crates, renders diagnostics and maps outcomes to exit codes
+//! (0 success, 1 invalid input, 2 usage error, 3 some runs failed).
+
+mod commands;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Reproducible sim-to-real experiments for multi-agent motion planners in the CPM Lab.
+#[derive(Debug, Parser)]
+#[command(name = "cpmx", version, about, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+/// Where relative files of a spec are looked up besides the spec's folder.
+#[derive(Debug, Clone, clap::Args)]
+pub struct DataArgs {
+    /// A folder to look up maps, weights and run folders in (repeatable; after the spec's
+    /// folder, before `CPMX_DATA`).
+    #[arg(long = "data", value_name = "DIR")]
+    pub data: Vec<PathBuf>,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Check specs against the schema and for meaning; print every problem.
+    Validate {
+        /// The spec files.
+        #[arg(required = true)]
+        specs: Vec<PathBuf>,
+        #[command(flatten)]
+        data: DataArgs,
+    },
+    /// Print the run matrix of a spec.
+    Plan {
+        spec: PathBuf,
+        /// Output format.
+        #[arg(long, value_enum, default_value_t = commands::plan::PlanFormat::Table)]
+        format: commands::plan::PlanFormat,
+        #[command(flatten)]
+        data: DataArgs,
+    },
+    /// Print the JSON Schema of the language (draft 2020-12).
+    Schema,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let outcome = match cli.command {
+        Command::Validate { specs, data } => commands::validate::run(&specs, &data),
+        Command::Plan { spec, format, data } => commands::plan::run(&spec, format, &data),
+        Command::Schema => {
+            print!("{}", cpmx_spec::schema::json_schema_text());
+            Ok(())
+        }
+    };
+    match outcome {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(code) => ExitCode::from(code as u8),
+    }
+}

@@ -1,1 +1,145 @@
-//! placeholder
+//! The cpmx experiment language: types, YAML with spans, the JSON Schema, meaning checks with
+//! miette diagnostics, `stdlib:` resolution, and the run matrix with its seeds.
+//!
+//! This crate is the syntax layer: it knows nothing about simulation. The interpreter adds the
+//! checks that need a map or a network through [`InterpreterChecks`].
+//!
+//! ```text
+//! text ──parse──► spanned JSON ──expand presets──► schema ──► typed Spec ──► meaning checks
+//! ```
+
+mod check;
+mod diagnostic;
+pub mod matrix;
+pub mod model;
+mod paths;
+mod resolve;
+pub mod schema;
+mod yaml;
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+pub use check::{CheckContext, InterpreterChecks, Resources};
+pub use diagnostic::{ByteSpan, Level, Problem, SpecDiagnostic, render};
+pub use matrix::{ConfigurationSource, NamedConfiguration, RunPlan};
+pub use model::Spec;
+pub use paths::DataPath;
+pub use resolve::STDLIB_PREFIX;
+pub use yaml::{NodeSpans, SpannedDocument};
+
+/// A spec as read from disk (or given in memory).
+#[derive(Debug, Clone)]
+pub struct SpecSource {
+    /// The name diagnostics show (usually the path as given).
+    pub name: String,
+    /// The folder relative files are resolved against first.
+    pub dir: PathBuf,
+    pub text: String,
+}
+
+impl SpecSource {
+    /// Reads a spec file. Bytes that are not UTF-8 are a diagnostic, not a panic.
+    pub fn read(path: &Path) -> Result<SpecSource, std::io::Error> {
+        let bytes = std::fs::read(path)?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            std::io::Error::new(std::io::ErrorKind::InvalidData, format!("not UTF-8 text ({e})"))
+        })?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let dir = if dir.as_os_str().is_empty() {
+            PathBuf::from(".")
+        } else {
+            dir
+        };
+        Ok(SpecSource {
+            name: path.display().to_string(),
+            dir,
+            text,
+        })
+    }
+}
+
+/// A spec that passed every check.
+#[derive(Debug, Clone)]
+pub struct CheckedSpec {
+    pub spec: Spec,
+    /// The spec with every preset expanded and every default filled in.
+    pub resolved: serde_json::Value,
+    pub resources: Resources,
+    pub configurations: Vec<NamedConfiguration>,
+    /// Problems that do not stop the spec (e.g. fidelities this build cannot run).
+    pub warnings: Vec<SpecDiagnostic>,
+}
+
+impl CheckedSpec {
+    /// The run matrix.
+    pub fn plan(&self) -> Vec<RunPlan> {
+        matrix::expand(&self.spec, &self.configurations)
+    }
+}
+
+/// Reads and checks a spec: syntax, presets, schema, meaning, files, and the interpreter's own
+/// checks. Returns every problem found at the stage where checking had to stop.
+pub fn check(
+    source: &SpecSource,
+    data: &DataPath,
+    interpreter: &dyn InterpreterChecks,
+) -> Result<CheckedSpec, Vec<SpecDiagnostic>> {
+    let named = Arc::new(miette::NamedSource::new(&source.name, source.text.clone()).with_language("yaml"));
+    let attach = |problems: Vec<Problem>| -> Vec<SpecDiagnostic> {
+        problems
+            .into_iter()
+            .map(|p| SpecDiagnostic::new(p, named.clone()))
+            .collect()
+    };
+
+    // Parse, keeping every node's place.
+    let mut doc = yaml::parse(&source.text).map_err(&attach)?;
+
+    // Expand presets, then check the shape of the whole document.
+    let mut problems = resolve::expand_presets(&mut doc);
+    problems.extend(schema::validate(&doc));
+    if !problems.is_empty() {
+        return Err(attach(problems));
+    }
+    let spec: Spec = match serde_json::from_value(doc.value.clone()) {
+        Ok(spec) => spec,
+        Err(e) => {
+            return Err(attach(vec![Problem::error(
+                "cpmx::internal",
+                format!("the spec passed the schema but cannot be read ({e}); please report this"),
+                ByteSpan::new(0, 0),
+                "",
+            )]));
+        }
+    };
+
+    // Check meaning, files, and what only the interpreter knows.
+    let mut ctx = CheckContext::new(&doc);
+    let resources = check::check_meaning(&spec, data, &mut ctx);
+    let before_interpreter = ctx.into_problems();
+    let mut ctx = CheckContext::new(&doc);
+    check::check_capabilities(&spec, interpreter, &mut ctx);
+    if !before_interpreter.iter().any(|p| p.level == Level::Error) {
+        interpreter.check(&spec, &resources, &mut ctx);
+    }
+    let mut problems = before_interpreter;
+    problems.extend(ctx.into_problems());
+    problems.sort_by_key(|p| p.span.offset);
+    let (errors, warnings): (Vec<Problem>, Vec<Problem>) =
+        problems.into_iter().partition(|p| p.level == Level::Error);
+    if !errors.is_empty() {
+        let mut all = errors;
+        all.extend(warnings);
+        return Err(attach(all));
+    }
+
+    let configurations = matrix::configurations(&spec, &resources);
+    Ok(CheckedSpec {
+        spec,
+        resolved: doc.value,
+        resources,
+        configurations,
+        warnings: attach(warnings),
+    })
+}

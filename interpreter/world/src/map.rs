@@ -4,6 +4,7 @@
 
 use std::collections::BTreeMap;
 use std::path::Path;
+use std::sync::OnceLock;
 
 use roxmltree::Document;
 
@@ -102,7 +103,8 @@ pub struct Map {
     /// Paths a built-in map brings (its [`PathSet::Entire`]).
     fixed_paths: Option<Vec<ReferencePath>>,
     paths: BTreeMap<usize, ReferencePath>,
-    indexes: BTreeMap<usize, PathIndex>,
+    /// Nearest-segment grids, built on first use.
+    indexes: BTreeMap<usize, OnceLock<PathIndex>>,
 }
 
 /// The parts a loader or built-in map hands over.
@@ -281,7 +283,7 @@ impl Map {
     }
 
     fn set_paths(&mut self, paths: Vec<ReferencePath>) {
-        self.indexes = paths.iter().map(|p| (p.id, PathIndex::new(p))).collect();
+        self.indexes = paths.iter().map(|p| (p.id, OnceLock::new())).collect();
         self.paths = paths.into_iter().map(|p| (p.id, p)).collect();
     }
 
@@ -291,7 +293,7 @@ impl Map {
     /// boundary-sharing groups).
     pub fn add_reference_path(&mut self, id: usize, lanelets: &[LaneletId]) -> Result<(), PathError> {
         let path = self.builder().build(id, lanelets)?;
-        self.indexes.insert(id, PathIndex::new(&path));
+        self.indexes.insert(id, OnceLock::new());
         self.paths.insert(id, path);
         Ok(())
     }
@@ -398,9 +400,11 @@ impl Map {
         self.paths.keys().copied().collect()
     }
 
-    /// The nearest-segment grids of a path, for fast per-step queries.
+    /// The nearest-segment grids of a path, for fast per-step queries (built on first use,
+    /// a few milliseconds per path; thread-safe).
     pub fn path_index(&self, id: usize) -> Option<&PathIndex> {
-        self.indexes.get(&id)
+        let path = self.paths.get(&id)?;
+        Some(self.indexes.get(&id)?.get_or_init(|| PathIndex::new(path)))
     }
 
     /// The pose at arc length `arc_length_m` along path `path_id`'s centre line: the point by

@@ -1,18 +1,27 @@
-//! A fast nearest-segment query for the simulator's hot path. [`SegmentGrid`] buckets the
-//! segments of one polyline in a uniform grid and searches rings of cells outward from the
-//! query; it returns exactly what [`Polyline::nearest_segment`] returns (same distance, same
-//! first minimising segment, same projection parameter), because it evaluates the same
-//! function on a candidate set that provably holds every segment that could tie or win.
+//! A fast nearest-segment query for the simulator's hot path. [`SegmentGrid`] stores, for
+//! every cell of a uniform grid around one polyline, the few segments that can be nearest to
+//! any point of the cell; a query evaluates only those, in ascending order, with the same
+//! function and the same first-minimum rule as [`Polyline::nearest_segment`], so it returns
+//! exactly the same answer (distance, segment, projection parameter).
+//!
+//! Why the candidate list is complete: let `c` be a cell's centre, `h` its half diagonal and
+//! `d*` the distance from `c` to the polyline. For a point `q` in the cell, its nearest
+//! segment `s` has `|q s| <= d* + h` (the segment nearest `c` is that close), so
+//! `|c s| <= d* + 2h`; every segment tying with `s` satisfies the same bound. The cell keeps
+//! all segments with `|c s| <= d* + 2h` (plus a rounding margin). Points outside the grid fall
+//! back to the plain search.
 
 use crate::polyline::{Point, Polyline, SegmentDistance, point_segment_distance};
 
-/// Largest number of cells along one axis.
-const MAX_CELLS_PER_AXIS: usize = 64;
-/// Safety margin [m] on the ring lower bound, far above floating-point rounding of distances
-/// on map-sized coordinates, so that a segment outside the searched cells can never tie.
-const MARGIN_M: f64 = 1e-7;
+/// Largest number of cells of a grid.
+const MAX_CELLS: usize = 4096;
+/// Margin around the polyline's bounding box covered by the grid, as a fraction of its extent.
+const PAD_FRACTION: f64 = 0.1;
+/// Rounding margin on the candidate bound [m], far above floating-point error of distances on
+/// map-sized coordinates and far below anything geometric.
+const MARGIN_M: f64 = 1e-9;
 
-/// A polyline with its segments bucketed in a uniform grid.
+/// A polyline with, per grid cell, the segments that can be nearest to a point of the cell.
 #[derive(Debug, Clone)]
 pub struct SegmentGrid {
     polyline: Polyline,
@@ -20,57 +29,73 @@ pub struct SegmentGrid {
     cell_m: f64,
     nx: usize,
     ny: usize,
-    /// Segment indices per cell, row-major (`iy * nx + ix`), ascending.
-    cells: Vec<Vec<u32>>,
+    /// Candidate segments per cell, ascending, stored flat: cell `i` owns
+    /// `candidates[starts[i]..starts[i + 1]]`.
+    starts: Vec<u32>,
+    candidates: Vec<u32>,
 }
 
 impl SegmentGrid {
     /// Builds the grid of `polyline`.
     pub fn new(polyline: Polyline) -> Self {
-        // Size the grid: cells about a mean segment long, at most 64 per axis.
-        let pts = &polyline.points;
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for p in pts {
-            for k in 0..2 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
-        }
-        let segments = polyline.segment_count();
-        if segments == 0 || !lo.iter().chain(&hi).all(|v| v.is_finite()) {
-            return Self {
-                polyline,
-                origin: [0.0; 2],
-                cell_m: 1.0,
-                nx: 0,
-                ny: 0,
-                cells: Vec::new(),
-            };
-        }
-        let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]);
-        let mean_segment_m = polyline.length_m() / segments as f64;
-        let cell_m = mean_segment_m
-            .max(extent / MAX_CELLS_PER_AXIS as f64)
-            .max(1e-9 * (1.0 + extent));
-        let cells_along = |span: f64| ((span / cell_m).floor() as usize + 1).min(MAX_CELLS_PER_AXIS);
-        let (nx, ny) = (cells_along(hi[0] - lo[0]), cells_along(hi[1] - lo[1]));
         let mut grid = Self {
             polyline: Polyline::default(),
-            origin: lo,
-            cell_m,
-            nx,
-            ny,
-            cells: vec![Vec::new(); nx * ny],
+            origin: [0.0; 2],
+            cell_m: 1.0,
+            nx: 0,
+            ny: 0,
+            starts: Vec::new(),
+            candidates: Vec::new(),
         };
+        let Some(b) = crate::map::Bounds::of(polyline.points.iter().copied()) else {
+            grid.polyline = polyline;
+            return grid;
+        };
+        let extent = (b.max_x_m - b.min_x_m).max(b.max_y_m - b.min_y_m);
+        if polyline.segment_count() == 0 || !extent.is_finite() || extent <= 0.0 {
+            grid.polyline = polyline;
+            return grid;
+        }
 
-        // Bucket every segment into the cells its bounding box touches.
-        for (i, w) in pts.windows(2).enumerate() {
-            let (ax, ay) = grid.cell_of(w[0]);
-            let (bx, by) = grid.cell_of(w[1]);
-            for iy in ay.min(by)..=ay.max(by) {
-                for ix in ax.min(bx)..=ax.max(bx) {
-                    grid.cells[iy * nx + ix].push(i as u32);
+        // Size the grid: the padded bounding box in at most MAX_CELLS square cells.
+        let pad = PAD_FRACTION * extent;
+        let (w, h) = (
+            b.max_x_m - b.min_x_m + 2.0 * pad,
+            b.max_y_m - b.min_y_m + 2.0 * pad,
+        );
+        let cell_m = (w * h / MAX_CELLS as f64).sqrt();
+        let (nx, ny) = ((w / cell_m).ceil() as usize, (h / cell_m).ceil() as usize);
+        let (nx, ny) = (nx.clamp(1, MAX_CELLS), ny.clamp(1, MAX_CELLS / nx.max(1)).max(1));
+        grid.origin = [b.min_x_m - pad, b.min_y_m - pad];
+        grid.cell_m = cell_m;
+        grid.nx = nx;
+        grid.ny = ny;
+
+        // Keep, per cell, the segments within d* + 2h of its centre.
+        let half_diagonal_m = cell_m * std::f64::consts::FRAC_1_SQRT_2;
+        let pts = &polyline.points;
+        let mut d = vec![0.0; polyline.segment_count()];
+        grid.starts.reserve(nx * ny + 1);
+        grid.starts.push(0);
+        for iy in 0..ny {
+            for ix in 0..nx {
+                let c = [
+                    grid.origin[0] + (ix as f64 + 0.5) * cell_m,
+                    grid.origin[1] + (iy as f64 + 0.5) * cell_m,
+                ];
+                let mut best = f64::INFINITY;
+                for (s, w) in pts.windows(2).enumerate() {
+                    d[s] = point_segment_distance(c, w[0], w[1]).0;
+                    best = best.min(d[s]);
                 }
+                let bound = best + 2.0 * half_diagonal_m + MARGIN_M * (1.0 + best);
+                grid.candidates.extend(
+                    d.iter()
+                        .enumerate()
+                        .filter(|&(_, &ds)| ds <= bound)
+                        .map(|(s, _)| s as u32),
+                );
+                grid.starts.push(grid.candidates.len() as u32);
             }
         }
         grid.polyline = polyline;
@@ -82,80 +107,31 @@ impl SegmentGrid {
         &self.polyline
     }
 
-    /// The cell holding `p`, clamped to the grid.
-    fn cell_of(&self, p: Point) -> (usize, usize) {
-        let c = |v: f64, o: f64, n: usize| {
-            let i = ((v - o) / self.cell_m).floor();
-            if i.is_nan() || i < 0.0 {
-                0
-            } else {
-                (i as usize).min(n - 1)
-            }
-        };
-        (c(p[0], self.origin[0], self.nx), c(p[1], self.origin[1], self.ny))
+    /// The cell holding `p`, if inside the grid.
+    fn cell_of(&self, p: Point) -> Option<usize> {
+        let fx = (p[0] - self.origin[0]) / self.cell_m;
+        let fy = (p[1] - self.origin[1]) / self.cell_m;
+        let inside = fx >= 0.0 && fy >= 0.0 && fx < self.nx as f64 && fy < self.ny as f64;
+        inside.then(|| (fy as usize).min(self.ny - 1) * self.nx + (fx as usize).min(self.nx - 1))
     }
 
     /// Nearest segment to `p`, identical to [`Polyline::nearest_segment`].
     pub fn nearest_segment(&self, p: Point) -> Option<SegmentDistance> {
-        let max_x = self.origin[0] + self.nx as f64 * self.cell_m;
-        let max_y = self.origin[1] + self.ny as f64 * self.cell_m;
-        let inside = p[0] >= self.origin[0] && p[0] <= max_x && p[1] >= self.origin[1] && p[1] <= max_y;
-        if self.nx == 0 || !inside {
-            // Outside the grid (or degenerate): the plain search.
+        let Some(cell) = self.cell_of(p) else {
             return self.polyline.nearest_segment(p);
-        }
+        };
+        let range = self.starts[cell] as usize..self.starts[cell + 1] as usize;
         let pts = &self.polyline.points;
-        let (cx, cy) = self.cell_of(p);
         let mut best: Option<SegmentDistance> = None;
-        for r in 0.. {
-            // Visit the cells of ring r.
-            let (x0, x1) = (cx.saturating_sub(r), (cx + r).min(self.nx - 1));
-            let (y0, y1) = (cy.saturating_sub(r), (cy + r).min(self.ny - 1));
-            for iy in y0..=y1 {
-                let on_edge_row = iy + r == cy || iy == cy + r;
-                let step = if on_edge_row { 1 } else { (x1 - x0).max(1) };
-                let mut ix = x0;
-                while ix <= x1 {
-                    if on_edge_row || ix + r == cx || ix == cx + r {
-                        for &s in &self.cells[iy * self.nx + ix] {
-                            let s = s as usize;
-                            let (distance_m, t) = point_segment_distance(p, pts[s], pts[s + 1]);
-                            let better = best.is_none_or(|b| {
-                                distance_m < b.distance_m || (distance_m == b.distance_m && s < b.segment)
-                            });
-                            if better {
-                                best = Some(SegmentDistance {
-                                    distance_m,
-                                    segment: s,
-                                    t,
-                                });
-                            }
-                        }
-                    }
-                    ix += step;
-                }
-            }
-
-            // Stop when no unvisited cell can hold a segment as close as the best one.
-            let covers_all = x0 == 0 && y0 == 0 && x1 == self.nx - 1 && y1 == self.ny - 1;
-            if covers_all {
-                break;
-            }
-            let mut bound = f64::INFINITY;
-            if x0 > 0 {
-                bound = bound.min(p[0] - (self.origin[0] + x0 as f64 * self.cell_m));
-            }
-            if x1 < self.nx - 1 {
-                bound = bound.min(self.origin[0] + (x1 + 1) as f64 * self.cell_m - p[0]);
-            }
-            if y0 > 0 {
-                bound = bound.min(p[1] - (self.origin[1] + y0 as f64 * self.cell_m));
-            }
-            if y1 < self.ny - 1 {
-                bound = bound.min(self.origin[1] + (y1 + 1) as f64 * self.cell_m - p[1]);
-            }
-            if best.is_some_and(|b| b.distance_m + MARGIN_M < bound) {
-                break;
+        for &s in &self.candidates[range] {
+            let s = s as usize;
+            let (distance_m, t) = point_segment_distance(p, pts[s], pts[s + 1]);
+            if best.is_none_or(|b| distance_m < b.distance_m) {
+                best = Some(SegmentDistance {
+                    distance_m,
+                    segment: s,
+                    t,
+                });
             }
         }
         best

@@ -1,0 +1,105 @@
+//! From raw network outputs to commands: SigmaRL's `NormalParamExtractor` + `TanhNormal`
+//! output mapping, deterministic (mean) or sampled.
+//!
+//! This module owns the output mapping and the only random draws of a policy (from the
+//! caller's ChaCha20 stream); it knows nothing of observations or vehicles.
+
+use rand::Rng;
+use rand_chacha::ChaCha20Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+/// How a command is chosen from the action distribution.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ActionMode {
+    /// The deterministic action `high * clamp(tanh(loc))` (SigmaRL at test time).
+    #[default]
+    Mean,
+    /// A sample `high * clamp(tanh(loc + scale * N(0, 1)))` (SigmaRL in training), with
+    /// N(0, 1) drawn as float32 from a `ChaCha20Rng`, speed before steering, agent by agent.
+    Sample,
+}
+
+/// `log(expm1(0.99))`: the bias of torchrl's `biased_softplus_1.0` (scale 1 for raw 0).
+const SCALE_BIAS: f32 = 0.525_458_7;
+/// Lower bound of the scale.
+const SCALE_MIN: f32 = 1e-4;
+/// `safe_tanh` bound of TanhNormal.
+const TANH_BOUND: f32 = 1.0 - 1e-6;
+
+/// One agent's distribution parameters and chosen action.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ActionOutput {
+    /// Gaussian location `[speed, steering]` (before tanh).
+    pub loc: [f32; 2],
+    /// Gaussian scale `[speed, steering]`.
+    pub scale: [f32; 2],
+    /// The action `[speed m/s, steering rad]`.
+    pub action: [f32; 2],
+}
+
+/// The action box half-ranges of the TanhNormal (the box is symmetric about 0).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ActionHead {
+    /// `[max speed m/s, max steering rad]`.
+    pub high: [f32; 2],
+}
+
+impl Default for ActionHead {
+    /// SigmaRL's box: speed ±1 m/s, steering ±31°.
+    fn default() -> Self {
+        ActionHead {
+            high: [1.0, 0.541_052_04],
+        }
+    }
+}
+
+impl ActionHead {
+    /// Map 4 raw outputs `[loc_v, loc_δ, pre_scale_v, pre_scale_δ]` to an action. `rng` is only
+    /// used by [`ActionMode::Sample`].
+    pub fn map(&self, raw: &[f32; 4], mode: ActionMode, rng: &mut ChaCha20Rng) -> ActionOutput {
+        let loc = [raw[0], raw[1]];
+        let scale = [scale_of(raw[2]), scale_of(raw[3])];
+        let mut action = [0.0; 2];
+        for c in 0..2 {
+            let pre = match mode {
+                ActionMode::Mean => loc[c],
+                ActionMode::Sample => loc[c] + scale[c] * standard_normal(rng),
+            };
+            action[c] = self.high[c] * pre.tanh().clamp(-TANH_BOUND, TANH_BOUND);
+        }
+        ActionOutput { loc, scale, action }
+    }
+}
+
+/// `max(softplus(raw + bias) + 0.01, 1e-4)` with torch's softplus (linear above 20).
+fn scale_of(raw: f32) -> f32 {
+    let x = raw + SCALE_BIAS;
+    let softplus = if x > 20.0 { x } else { x.exp().ln_1p() };
+    (softplus + 0.01).max(SCALE_MIN)
+}
+
+fn standard_normal<R: Rng + ?Sized>(rng: &mut R) -> f32 {
+    StandardNormal.sample(rng)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn zero_raw_output_gives_unit_scale_and_zero_action() {
+        let mut rng = ChaCha20Rng::seed_from_u64(0);
+        let out = ActionHead::default().map(&[0.0; 4], ActionMode::Mean, &mut rng);
+        assert!((out.scale[0] - 1.0).abs() < 1e-6);
+        assert_eq!(out.action, [0.0, 0.0]);
+    }
+
+    #[test]
+    fn actions_stay_inside_the_box() {
+        let mut rng = ChaCha20Rng::seed_from_u64(1);
+        let head = ActionHead::default();
+        let out = head.map(&[50.0, -50.0, 3.0, 3.0], ActionMode::Sample, &mut rng);
+        assert!(out.action[0] < 1.0 && out.action[1] > -head.high[1]);
+    }
+}

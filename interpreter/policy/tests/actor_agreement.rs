@@ -1,0 +1,148 @@
+//! Agreement of the MLP actor and its output mapping with SigmaRL's own `ProbabilisticActor`
+//! (`shared/reference/policy/actor_layout.json`, 36 test vectors), and loading errors.
+
+mod common;
+
+use common::{REFERENCE, json, max_abs_diff, nums};
+use cpmx_policy::{ActionHead, ActionMode, ActorError, MlpActor, MlpLayout};
+use rand::SeedableRng;
+use rand_chacha::ChaCha20Rng;
+
+const TOLERANCE: f64 = 1e-6;
+
+fn weights() -> std::path::PathBuf {
+    format!("{REFERENCE}/policy/actor.safetensors").into()
+}
+
+#[test]
+fn actor_matches_all_36_test_vectors() {
+    let actor = MlpActor::load(&weights(), &MlpLayout::sigmarl()).unwrap();
+    assert_eq!(actor.input_size(), 32);
+    let layout = json("policy/actor_layout.json");
+    let vectors = layout["test_vectors"].as_array().unwrap();
+    assert_eq!(vectors.len(), 36);
+
+    // One batched forward pass over all 36 observations.
+    let obs: Vec<f32> = vectors
+        .iter()
+        .flat_map(|v| nums(&v["obs"]))
+        .map(|x| x as f32)
+        .collect();
+    let mut ws = actor.workspace(vectors.len());
+    let mut raw = vec![0.0f32; vectors.len() * 4];
+    actor.forward(&obs, &mut ws, &mut raw).unwrap();
+
+    let head = ActionHead::default();
+    let mut rng = ChaCha20Rng::seed_from_u64(0);
+    let mut worst = [0.0f64; 4];
+    for (i, v) in vectors.iter().enumerate() {
+        let r: [f32; 4] = raw[i * 4..i * 4 + 4].try_into().unwrap();
+        let out = head.map(&r, ActionMode::Mean, &mut rng);
+        let widen = |s: &[f32]| s.iter().map(|&x| f64::from(x)).collect::<Vec<_>>();
+        let errs = [
+            max_abs_diff(&widen(&r), &nums(&v["raw_output"])),
+            max_abs_diff(&widen(&out.loc), &nums(&v["loc"])),
+            max_abs_diff(&widen(&out.scale), &nums(&v["scale"])),
+            max_abs_diff(&widen(&out.action), &nums(&v["action_deterministic"])),
+        ];
+        for (w, e) in worst.iter_mut().zip(errs) {
+            *w = w.max(e);
+        }
+    }
+    eprintln!("actor max abs errors raw/loc/scale/action: {worst:?}");
+    assert!(worst.iter().all(|&e| e <= TOLERANCE), "{worst:?}");
+}
+
+#[test]
+fn batch_size_does_not_change_results() {
+    let actor = MlpActor::load(&weights(), &MlpLayout::sigmarl()).unwrap();
+    let layout = json("policy/actor_layout.json");
+    let obs: Vec<f32> = layout["test_vectors"].as_array().unwrap()[..5]
+        .iter()
+        .flat_map(|v| nums(&v["obs"]))
+        .map(|x| x as f32)
+        .collect();
+    let mut ws = actor.workspace(5);
+    let mut all = vec![0.0f32; 20];
+    actor.forward(&obs, &mut ws, &mut all).unwrap();
+    for a in 0..5 {
+        let mut one = [0.0f32; 4];
+        actor
+            .forward(&obs[a * 32..(a + 1) * 32], &mut ws, &mut one)
+            .unwrap();
+        assert_eq!(one[..], all[a * 4..a * 4 + 4]);
+    }
+}
+
+#[test]
+fn sampling_is_reproducible_from_a_seed() {
+    let head = ActionHead::default();
+    let raw = [0.3f32, -0.2, -1.0, -1.5];
+    let draw = |seed| {
+        let mut rng = ChaCha20Rng::seed_from_u64(seed);
+        (0..10)
+            .map(|_| head.map(&raw, ActionMode::Sample, &mut rng).action)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(draw(7), draw(7));
+    assert_ne!(draw(7), draw(8));
+    // The mean is unaffected by the draws.
+    let mut rng = ChaCha20Rng::seed_from_u64(7);
+    let mean = head.map(&raw, ActionMode::Mean, &mut rng).action;
+    assert!((mean[0] - 0.3f32.tanh()).abs() < 1e-6);
+}
+
+#[test]
+fn wrong_shapes_and_missing_tensors_are_typed_errors() {
+    let bytes = std::fs::read(weights()).unwrap();
+    let mut layout = MlpLayout::sigmarl();
+    layout.input_size = 30;
+    match MlpActor::from_bytes(&bytes, &layout) {
+        Err(ActorError::Shape {
+            name,
+            expected,
+            found,
+        }) => {
+            assert_eq!(name, "actor.0.weight");
+            assert_eq!(expected, vec![256, 30]);
+            assert_eq!(found, vec![256, 32]);
+        }
+        other => panic!("{other:?}"),
+    }
+    let mut layout = MlpLayout::sigmarl();
+    layout.hidden_sizes.push(256);
+    match MlpActor::from_bytes(&bytes, &layout) {
+        Err(ActorError::Shape { name, .. }) => assert_eq!(name, "actor.3.weight"),
+        other => panic!("{other:?}"),
+    }
+    let mut layout = MlpLayout::sigmarl();
+    layout.prefix = "critic".into();
+    match MlpActor::from_bytes(&bytes, &layout) {
+        Err(err @ ActorError::MissingTensor { .. }) => {
+            assert_eq!(
+                err.to_string(),
+                "tensor `critic.0.weight` is missing (expected shape [256, 32])"
+            )
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(matches!(
+        MlpActor::from_bytes(b"nonsense", &MlpLayout::sigmarl()),
+        Err(ActorError::Format(_))
+    ));
+}
+
+#[test]
+fn a_float64_tensor_is_a_dtype_error() {
+    // A one-tensor safetensors file: 8-byte header length, JSON header, data.
+    let header = r#"{"actor.0.weight":{"dtype":"F64","shape":[256,32],"data_offsets":[0,65536]}}"#;
+    let mut bytes = (header.len() as u64).to_le_bytes().to_vec();
+    bytes.extend(header.as_bytes());
+    bytes.extend(vec![0u8; 65536]);
+    match MlpActor::from_bytes(&bytes, &MlpLayout::sigmarl()) {
+        Err(ActorError::Dtype { name, found }) => {
+            assert_eq!((name.as_str(), found.as_str()), ("actor.0.weight", "F64"))
+        }
+        other => panic!("{other:?}"),
+    }
+}

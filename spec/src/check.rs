@@ -1,0 +1,526 @@
+//! Meaning checks: what the schema cannot say. Duplicate names, horizons, agent counts,
+//! combinations of keys, files that must exist, fidelities this build cannot run, and the
+//! hook through which the interpreter adds the checks that need a map or a network.
+
+use std::collections::HashSet;
+use std::path::PathBuf;
+
+use crate::diagnostic::{ByteSpan, Problem};
+use crate::model::{Control, Fidelity, InitialConfiguration, MapSpec, SimulatedFidelity, Spec};
+use crate::paths::DataPath;
+use crate::schema::describe;
+use crate::yaml::{NodeSpans, SpannedDocument, escape_pointer};
+
+/// Files a spec names, found on the data path.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Resources {
+    /// The map file, when the map is a file.
+    pub map_file: Option<PathBuf>,
+    /// The weights of each policy with an `mlp`, by policy index.
+    pub weights: Vec<Option<PathBuf>>,
+    /// The folder of each `from_runs` entry, by initial-configuration index.
+    pub from_runs: Vec<Option<PathBuf>>,
+}
+
+/// Where checks report problems, with access to the spans of the spec's nodes.
+pub struct CheckContext<'a> {
+    doc: &'a SpannedDocument,
+    problems: Vec<Problem>,
+}
+
+impl<'a> CheckContext<'a> {
+    pub(crate) fn new(doc: &'a SpannedDocument) -> Self {
+        Self {
+            doc,
+            problems: Vec::new(),
+        }
+    }
+
+    /// The spans of the node at a JSON pointer (or its nearest ancestor).
+    pub fn spans(&self, pointer: &str) -> NodeSpans {
+        self.doc.spans_at(pointer)
+    }
+
+    /// The span of the value at a JSON pointer.
+    pub fn span(&self, pointer: &str) -> ByteSpan {
+        self.spans(pointer).value
+    }
+
+    /// Reports a problem.
+    pub fn push(&mut self, problem: Problem) {
+        self.problems.push(problem);
+    }
+
+    pub(crate) fn into_problems(self) -> Vec<Problem> {
+        self.problems
+    }
+}
+
+/// Checks that need the interpreter: the map (reference path ids, starts that overlap or leave
+/// the lane, regions), the networks (weights' shapes, observation size) and which fidelities
+/// this build can run. The `cpmx` binary implements it with the interpreter's crates.
+pub trait InterpreterChecks {
+    /// Why this build cannot run `fidelity`, or `None` when it can.
+    fn cannot_run(&self, fidelity: &Fidelity) -> Option<String>;
+
+    /// Checks that read the map or the weights; called only when the spec passed every other check.
+    fn check(&self, spec: &Spec, resources: &Resources, ctx: &mut CheckContext<'_>);
+}
+
+/// Runs every check that needs only the spec and the file system.
+pub(crate) fn check_meaning(spec: &Spec, data: &DataPath, ctx: &mut CheckContext<'_>) -> Resources {
+    check_version(spec, ctx);
+    check_names(spec, ctx);
+    check_policies(spec, ctx);
+    check_configurations(spec, ctx);
+    check_vehicle(spec, ctx);
+    check_fidelities(spec, ctx);
+    check_report(spec, ctx);
+    find_files(spec, data, ctx)
+}
+
+fn check_version(spec: &Spec, ctx: &mut CheckContext<'_>) {
+    if spec.cpmx != 1 {
+        let span = ctx.span("/cpmx");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::version",
+                format!("language version {} is not known to this cpmx", spec.cpmx),
+                span,
+                "unknown version",
+            )
+            .with_help("this cpmx reads `cpmx: 1`"),
+        );
+    }
+}
+
+/// Reports every name that appears twice in `names` (pointer, name).
+fn report_duplicates(what: &str, names: &[(String, String)], ctx: &mut CheckContext<'_>) {
+    let mut seen = HashSet::new();
+    for (pointer, name) in names {
+        if !seen.insert(name.as_str()) {
+            let span = ctx.span(pointer);
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::duplicate-name",
+                    format!("two {what}s are called `{name}`"),
+                    span,
+                    "second use of this name",
+                )
+                .with_help(format!(
+                    "run keys are made of names, so every {what} needs its own"
+                )),
+            );
+        }
+    }
+}
+
+fn check_names(spec: &Spec, ctx: &mut CheckContext<'_>) {
+    let policies: Vec<(String, String)> = spec
+        .policies
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (format!("/policies/{i}/name"), p.name.clone()))
+        .collect();
+    report_duplicates("policy", &policies, ctx);
+
+    let mut configurations = Vec::new();
+    let mut sample_counter = 0;
+    for (i, c) in spec.initial_configurations.iter().enumerate() {
+        match c {
+            InitialConfiguration::Explicit(e) => {
+                configurations.push((format!("/initial_configurations/{i}/name"), e.name.clone()))
+            }
+            InitialConfiguration::Sampled(s) => {
+                for _ in 0..s.sample.count {
+                    sample_counter += 1;
+                    configurations.push((
+                        format!("/initial_configurations/{i}"),
+                        format!("sample{sample_counter}"),
+                    ));
+                }
+            }
+            InitialConfiguration::FromRuns(_) => {}
+        }
+    }
+    report_duplicates("initial configuration", &configurations, ctx);
+
+    for name in spec.fidelities.keys() {
+        let valid = !name.is_empty()
+            && name
+                .chars()
+                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-')
+            && !name.starts_with('-');
+        if !valid {
+            let spans = ctx.spans(&format!("/fidelities/{}", escape_pointer(name)));
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::name",
+                    format!("fidelity name `{name}` is not a valid name"),
+                    spans.key.unwrap_or(spans.value),
+                    "invalid name",
+                )
+                .with_help("names use lower-case letters, digits and `-`; they become folder names"),
+            );
+        }
+    }
+}
+
+fn check_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
+    for (i, p) in spec.policies.iter().enumerate() {
+        let base = format!("/policies/{i}");
+        match (&p.mlp, &p.builtin) {
+            (Some(_), Some(_)) => {
+                let span = ctx
+                    .spans(&format!("{base}/builtin"))
+                    .key
+                    .unwrap_or(ctx.span(&base));
+                ctx.push(
+                    Problem::error(
+                        "cpmx::check::policy-kind",
+                        format!("policy `{}` has both `mlp` and `builtin`", p.name),
+                        span,
+                        "second kind of policy",
+                    )
+                    .with_help("a policy is either a trained network (`mlp`) or a built-in baseline; split it in two"),
+                );
+            }
+            (None, None) => {
+                let span = ctx.span(&format!("{base}/name"));
+                ctx.push(
+                    Problem::error(
+                        "cpmx::check::policy-kind",
+                        format!("policy `{}` names neither `mlp` nor `builtin`", p.name),
+                        span,
+                        "what drives this policy?",
+                    )
+                    .with_help("add `mlp: {weights: FILE}` or `builtin: lane-follow`"),
+                );
+            }
+            (None, Some(_)) => {
+                for key in ["observation", "action"] {
+                    let present = match key {
+                        "observation" => p.observation.is_some(),
+                        _ => p.action.is_some(),
+                    };
+                    if present {
+                        let spans = ctx.spans(&format!("{base}/{key}"));
+                        ctx.push(
+                            Problem::error(
+                                "cpmx::check::policy-kind",
+                                format!("`{key}` belongs to `mlp` policies, and `{}` is built in", p.name),
+                                spans.key.unwrap_or(spans.value),
+                                "not used by a built-in policy",
+                            )
+                            .with_help(format!("remove `{key}`")),
+                        );
+                    }
+                }
+            }
+            (Some(_), None) => {
+                if p.lane_follow.is_some() {
+                    let spans = ctx.spans(&format!("{base}/lane_follow"));
+                    ctx.push(
+                        Problem::error(
+                            "cpmx::check::policy-kind",
+                            format!(
+                                "`lane_follow` configures the built-in baseline, and `{}` is a network",
+                                p.name
+                            ),
+                            spans.key.unwrap_or(spans.value),
+                            "not used by an mlp policy",
+                        )
+                        .with_help("remove `lane_follow`"),
+                    );
+                }
+            }
+        }
+    }
+}
+
+fn check_configurations(spec: &Spec, ctx: &mut CheckContext<'_>) {
+    for (i, c) in spec.initial_configurations.iter().enumerate() {
+        let InitialConfiguration::Explicit(e) = c else {
+            continue;
+        };
+        let base = format!("/initial_configurations/{i}");
+        if e.agents.len() != spec.agents as usize {
+            let span = ctx.span(&format!("{base}/agents"));
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::agent-count",
+                    format!(
+                        "initial configuration `{}` places {} agent{}, but the spec has `agents: {}`",
+                        e.name,
+                        e.agents.len(),
+                        if e.agents.len() == 1 { "" } else { "s" },
+                        spec.agents
+                    ),
+                    span,
+                    format!("{} entries", e.agents.len()),
+                )
+                .with_help("give one entry per agent, or change `agents`"),
+            );
+        }
+        for (j, a) in e.agents.iter().enumerate() {
+            let agent = format!("{base}/agents/{j}");
+            if a.arc_length.is_some() && a.pose.is_some() {
+                let spans = ctx.spans(&format!("{agent}/pose"));
+                ctx.push(
+                    Problem::error(
+                        "cpmx::check::start",
+                        "a start is given twice: by `arc_length` and by `pose`",
+                        spans.key.unwrap_or(spans.value),
+                        "second start",
+                    )
+                    .with_help("keep one of them"),
+                );
+            }
+            if let Some(pose) = &a.pose
+                && pose.yaw.is_some()
+                && pose.yaw_deg.is_some()
+            {
+                let spans = ctx.spans(&format!("{agent}/pose/yaw"));
+                ctx.push(
+                    Problem::error(
+                        "cpmx::check::start",
+                        "the heading is given twice: as `yaw` and as `yaw_deg`",
+                        spans.key.unwrap_or(spans.value),
+                        "second heading",
+                    )
+                    .with_help("keep one of them"),
+                );
+            }
+        }
+    }
+}
+
+fn check_vehicle(spec: &Spec, ctx: &mut CheckContext<'_>) {
+    let v = &spec.vehicle;
+    if v.rear_axle > v.wheelbase {
+        let span = ctx.span("/vehicle/rear_axle");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::vehicle",
+                format!(
+                    "`rear_axle` ({} m) is longer than the wheelbase ({} m)",
+                    v.rear_axle, v.wheelbase
+                ),
+                span,
+                "behind the rear axle",
+            )
+            .with_help("`rear_axle` is the distance from the centre of gravity to the rear axle"),
+        );
+    }
+    if !(v.accel[0] < 0.0 && v.accel[1] > 0.0) {
+        let span = ctx.span("/vehicle/accel");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::vehicle",
+                format!(
+                    "`accel` must be [braking < 0, accelerating > 0], found [{}, {}]",
+                    v.accel[0], v.accel[1]
+                ),
+                span,
+                "not a range around 0",
+            )
+            .with_help("e.g. `accel: [-5, 5]`"),
+        );
+    }
+}
+
+fn needs_planner(fidelity: &Fidelity) -> bool {
+    match fidelity {
+        Fidelity::Simulated(SimulatedFidelity { control, .. }) => *control == Control::Trajectory,
+        Fidelity::Lab(_) => true,
+    }
+}
+
+fn check_fidelities(spec: &Spec, ctx: &mut CheckContext<'_>) {
+    if let Some(planner) = &spec.planner
+        && planner.control_horizon > planner.prediction_horizon
+    {
+        let span = ctx.span("/planner/control_horizon");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::horizon",
+                format!(
+                    "the control horizon Hc = {} exceeds the prediction horizon Hp = {}",
+                    planner.control_horizon, planner.prediction_horizon
+                ),
+                span,
+                "Hc > Hp",
+            )
+            .with_help("the policy is rolled out for Hc steps inside a trajectory of Hp steps: Hc ≤ Hp"),
+        );
+    }
+    for (name, fidelity) in &spec.fidelities {
+        let pointer = format!("/fidelities/{}", escape_pointer(name));
+        if spec.planner.is_none() && needs_planner(fidelity) {
+            let spans = ctx.spans(&pointer);
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::planner",
+                    format!("fidelity `{name}` plans trajectories, but the spec has no `planner`"),
+                    spans.key.unwrap_or(spans.value),
+                    "needs `planner`",
+                )
+                .with_help("add `planner: {control_horizon: 4, prediction_horizon: 12}`"),
+            );
+        }
+        if let Fidelity::Lab(lab) = fidelity {
+            if lab.vehicle_ids.len() != spec.agents as usize {
+                let span = ctx.span(&format!("{pointer}/vehicle_ids"));
+                ctx.push(
+                    Problem::error(
+                        "cpmx::check::agent-count",
+                        format!(
+                            "fidelity `{name}` names {} vehicle ids for {} agents",
+                            lab.vehicle_ids.len(),
+                            spec.agents
+                        ),
+                        span,
+                        "one id per agent",
+                    )
+                    .with_help("list the lab's vehicle ids in agent order"),
+                );
+            }
+            let mut seen = HashSet::new();
+            for (k, id) in lab.vehicle_ids.iter().enumerate() {
+                if !seen.insert(id) {
+                    let span = ctx.span(&format!("{pointer}/vehicle_ids/{k}"));
+                    ctx.push(Problem::error(
+                        "cpmx::check::duplicate-name",
+                        format!("vehicle id {id} is listed twice"),
+                        span,
+                        "second use",
+                    ));
+                }
+            }
+        }
+    }
+}
+
+fn check_report(spec: &Spec, ctx: &mut CheckContext<'_>) {
+    if let Some(compare) = &spec.report.compare
+        && !spec.fidelities.contains_key(&compare.reference)
+    {
+        let names: Vec<String> = spec.fidelities.keys().cloned().collect();
+        let span = ctx.span("/report/compare/reference");
+        let mut p = Problem::error(
+            "cpmx::check::reference",
+            format!(
+                "`compare.reference` names fidelity `{}`, which the spec does not define",
+                compare.reference
+            ),
+            span,
+            "unknown fidelity",
+        );
+        p = match crate::schema::did_you_mean(&compare.reference, &names) {
+            Some(best) => p.with_help(format!("did you mean `{best}`?")),
+            None => p.with_help(format!("fidelities: {}", names.join(", "))),
+        };
+        ctx.push(p);
+    }
+    let mut seen = HashSet::new();
+    for (i, key) in spec.report.group_by.iter().enumerate() {
+        if !seen.insert(key) {
+            let span = ctx.span(&format!("/report/group_by/{i}"));
+            ctx.push(Problem::error(
+                "cpmx::check::duplicate-name",
+                "grouped twice by the same axis",
+                span,
+                "repeated",
+            ));
+        }
+    }
+}
+
+/// A problem for a file that is on none of the data path's folders.
+fn missing_file(what: &str, file: &str, tried: &[PathBuf], span: ByteSpan) -> Problem {
+    let places: Vec<String> = tried.iter().map(|p| format!("  {}", p.display())).collect();
+    Problem::error(
+        "cpmx::check::missing-file",
+        format!("{what} `{file}` was not found"),
+        span,
+        "not found",
+    )
+    .with_help(format!(
+        "looked in:\n{}\nput it next to the spec, or name its folder with `--data DIR` or `CPMX_DATA`",
+        places.join("\n")
+    ))
+}
+
+fn find_files(spec: &Spec, data: &DataPath, ctx: &mut CheckContext<'_>) -> Resources {
+    let mut resources = Resources::default();
+    if let MapSpec::File(map) = &spec.map {
+        match data.find(&map.file) {
+            Ok(path) => resources.map_file = Some(path),
+            Err(tried) => {
+                let span = ctx.span("/map/file");
+                ctx.push(missing_file("map file", &map.file, &tried, span));
+            }
+        }
+    }
+    for (i, policy) in spec.policies.iter().enumerate() {
+        let found = policy.mlp.as_ref().and_then(|mlp| match data.find(&mlp.weights) {
+            Ok(path) => Some(path),
+            Err(tried) => {
+                let span = ctx.span(&format!("/policies/{i}/mlp/weights"));
+                ctx.push(missing_file("weight file", &mlp.weights, &tried, span));
+                None
+            }
+        });
+        resources.weights.push(found);
+    }
+    for (i, c) in spec.initial_configurations.iter().enumerate() {
+        let found = match c {
+            InitialConfiguration::FromRuns(f) => match data.find(&f.from_runs.dir) {
+                Ok(path) if path.join("matrix.csv").is_file() => Some(path),
+                Ok(path) => {
+                    let span = ctx.span(&format!("/initial_configurations/{i}/from_runs/dir"));
+                    ctx.push(
+                        Problem::error(
+                            "cpmx::check::from-runs",
+                            format!("`{}` is not a run folder of cpmx", path.display()),
+                            span,
+                            "no matrix.csv here",
+                        )
+                        .with_help("name a folder written by `cpmx run`"),
+                    );
+                    None
+                }
+                Err(tried) => {
+                    let span = ctx.span(&format!("/initial_configurations/{i}/from_runs/dir"));
+                    ctx.push(missing_file("run folder", &f.from_runs.dir, &tried, span));
+                    None
+                }
+            },
+            _ => None,
+        };
+        resources.from_runs.push(found);
+    }
+    resources
+}
+
+/// Warns about fidelities this build cannot run (they still plan; `cpmx run` refuses them).
+pub(crate) fn check_capabilities(
+    spec: &Spec,
+    interpreter: &dyn InterpreterChecks,
+    ctx: &mut CheckContext<'_>,
+) {
+    for (name, fidelity) in &spec.fidelities {
+        if let Some(reason) = interpreter.cannot_run(fidelity) {
+            let spans = ctx.spans(&format!("/fidelities/{}", escape_pointer(name)));
+            ctx.push(
+                Problem::warning(
+                    "cpmx::check::unsupported-fidelity",
+                    format!("this build of cpmx cannot run fidelity `{name}`: {reason}"),
+                    spans.key.unwrap_or(spans.value),
+                    "planned, but not runnable here",
+                )
+                .with_help("`cpmx run` refuses it; run the other fidelities with `--only fidelity=NAME,...`"),
+            );
+        }
+    }
+}

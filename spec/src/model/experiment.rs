@@ -1,0 +1,212 @@
+//! The top level of a spec: identity, map, vehicle, timing, the matrix axes and the planner.
+
+use indexmap::IndexMap;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use super::{Fidelity, InitialConfiguration, MetricsSpec, PolicySpec, PresetOr, ReportSpec};
+
+/// A cpmx experiment: a paired matrix of fidelities × policies × initial configurations ×
+/// repetitions, and how to measure every run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+#[schemars(title = "cpmx experiment")]
+pub struct Spec {
+    /// Language version. Only `1` exists.
+    pub cpmx: u32,
+    /// Name of the experiment; names the output folder. Lower-case letters, digits and `-`.
+    #[schemars(regex(pattern = r"^[a-z0-9][a-z0-9-]*$"), length(max = 64))]
+    pub name: String,
+    /// Free text describing the experiment.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub description: Option<String>,
+    /// The road network: a map file (CommonRoad XML or lanelet2 OSM) or a built-in map
+    /// (`stdlib:intersection`).
+    pub map: MapSpec,
+    /// Vehicle geometry and limits. Default: `stdlib:mu-car`, the CPM Lab µCar.
+    #[schemars(with = "PresetOr<VehicleSpec>")]
+    pub vehicle: VehicleSpec,
+    /// Policy step and evaluation horizon.
+    pub timing: Timing,
+    /// Number of agents (vehicles) in every run.
+    #[schemars(range(min = 1, max = 64))]
+    pub agents: u32,
+    /// The policies to compare: one axis of the run matrix.
+    #[schemars(length(min = 1))]
+    pub policies: Vec<PolicySpec>,
+    /// Initial configurations, shared by every fidelity (paired design): one axis of the matrix.
+    #[schemars(length(min = 1))]
+    pub initial_configurations: Vec<InitialConfiguration>,
+    /// Repetitions of every (fidelity, policy, initial configuration): one axis of the matrix.
+    #[schemars(range(min = 1, max = 10000))]
+    pub repetitions: u32,
+    /// Root seed: every random stream of every run derives from it.
+    pub seed: u64,
+    /// Fidelity levels by name, each a stack of layers: one axis of the matrix.
+    #[schemars(length(min = 1))]
+    pub fidelities: IndexMap<String, Fidelity>,
+    /// How a policy becomes a reference trajectory; needed by fidelities with
+    /// `control: trajectory` and by lab fidelities.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub planner: Option<Planner>,
+    /// What happens when two agents collide. Default: `continue`.
+    #[serde(default)]
+    pub on_collision: OnCollision,
+    /// The metrics and their parameters. Default: `stdlib:at25`, the paper's four metrics.
+    #[schemars(with = "PresetOr<MetricsSpec>")]
+    pub metrics: MetricsSpec,
+    /// How results are grouped, summarised and compared.
+    #[serde(default)]
+    pub report: ReportSpec,
+}
+
+/// The road network of an experiment.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(untagged)]
+pub enum MapSpec {
+    /// A built-in map written by cpmx, e.g. `stdlib:intersection`.
+    Builtin(#[schemars(regex(pattern = r"^stdlib:[a-z0-9][a-z0-9-]*$"))] String),
+    /// A map file.
+    File(MapFile),
+}
+
+/// A map read from a file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MapFile {
+    /// Path of the map file, relative to the spec's folder or found on the data path
+    /// (`--data DIR`, `CPMX_DATA`).
+    #[schemars(length(min = 1))]
+    pub file: String,
+    /// File format; detected from the content when omitted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub format: Option<MapFormat>,
+    /// Restrict the map to a named part that the map defines (e.g. `intersection`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub region: Option<String>,
+    /// Reference paths defined by the spec, in addition to the map's own numbering.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ref_paths: Vec<RefPathDefinition>,
+}
+
+/// Map file formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum MapFormat {
+    /// CommonRoad XML (the CPM Lab map).
+    Commonroad,
+    /// lanelet2 OSM XML (as made with JOSM).
+    Lanelet2,
+}
+
+/// A reference path defined by a list of consecutive lanelets.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RefPathDefinition {
+    /// The id agents use to name this path; must not clash with the map's own ids.
+    pub id: u32,
+    /// Lanelet ids in driving order; each must be a successor of the one before.
+    #[schemars(length(min = 1))]
+    pub lanelets: Vec<u32>,
+}
+
+/// Vehicle geometry and limits (the µCar: 0.22 m × 0.107 m, wheelbase 0.15 m).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct VehicleSpec {
+    /// Body length [m].
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub length: f64,
+    /// Body width [m].
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub width: f64,
+    /// Distance between the axles [m].
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub wheelbase: f64,
+    /// Distance from the centre of gravity to the rear axle [m]; at most the wheelbase.
+    #[schemars(range(min = 0))]
+    pub rear_axle: f64,
+    /// Steering limit [deg], symmetric.
+    #[schemars(extend("exclusiveMinimum" = 0, "exclusiveMaximum" = 90))]
+    pub max_steering_deg: f64,
+    /// Steering-rate limit [deg/s], symmetric.
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub max_steering_rate_deg_s: f64,
+    /// Acceleration range [m/s²]: `[min, max]`, min < 0 < max.
+    pub accel: [f64; 2],
+    /// Speed command limit [m/s], symmetric.
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub max_speed: f64,
+}
+
+/// Policy step and evaluation horizon.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Timing {
+    /// Policy step [s] (SigmaRL: 0.1).
+    #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 10))]
+    pub dt: f64,
+    /// Number of policy steps per run (the paper: 180, i.e. 18 s).
+    #[schemars(range(min = 1, max = 1000000))]
+    pub steps: u32,
+}
+
+/// How a policy becomes a timed reference trajectory (`control: trajectory`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Planner {
+    /// Hc: policy steps rolled out on predicted states.
+    #[schemars(range(min = 1, max = 1000))]
+    pub control_horizon: u32,
+    /// Hp: length of the trajectory in policy steps; Hc ≤ Hp.
+    #[schemars(range(min = 1, max = 1000))]
+    pub prediction_horizon: u32,
+    /// What the trajectory does between Hc and Hp.
+    #[serde(default)]
+    pub after_control_horizon: AfterControlHorizon,
+}
+
+/// The rule between Hc and Hp.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AfterControlHorizon {
+    /// Speed after Hc.
+    #[serde(default)]
+    pub speed: SpeedAfterHc,
+    /// Steering after Hc.
+    #[serde(default)]
+    pub steering: SteeringAfterHc,
+}
+
+/// Speed after the control horizon.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum SpeedAfterHc {
+    /// Keep the speed reached at Hc (the paper).
+    #[default]
+    Hold,
+}
+
+/// Steering after the control horizon.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum SteeringAfterHc {
+    /// Bring the steering linearly to zero by Hp (the paper).
+    #[default]
+    LinearToZero,
+    /// Keep the steering reached at Hc.
+    Hold,
+}
+
+/// What happens when two agents collide.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum OnCollision {
+    /// Keep driving through the overlap (SigmaRL's evaluation rollouts).
+    #[default]
+    Continue,
+    /// Put the colliding agents back to their initial state.
+    ResetAgent,
+    /// Stop the run at the first collision.
+    EndRun,
+}

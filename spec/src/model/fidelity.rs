@@ -1,0 +1,172 @@
+//! Fidelity levels: stacks of simulation layers (control, dynamics, sensing, actuation), or the
+//! physical lab reached through its middleware.
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use super::PresetOr;
+
+/// One fidelity level.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(untagged)]
+pub enum Fidelity {
+    /// A simulated stack of layers.
+    Simulated(SimulatedFidelity),
+    /// The physical CPM Lab (or `cpmx lab emulate`).
+    Lab(LabFidelity),
+}
+
+/// A simulated fidelity: control × dynamics × sensing × actuation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SimulatedFidelity {
+    /// How the policy's action reaches the vehicle.
+    pub control: Control,
+    /// The vehicle model.
+    pub dynamics: DynamicsLayer,
+    /// How the agents' states are measured. Default: `ideal`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensing: Option<SensingLayer>,
+    /// How commands reach the actuators. Default: `ideal`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub actuation: Option<ActuationLayer>,
+}
+
+/// How the policy's action reaches the vehicle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum Control {
+    /// The action is applied to the vehicle model every `dt` (SigmaRL's simulation).
+    Direct,
+    /// The policy plans a timed trajectory over Hc/Hp that a vehicle-side MPC follows (the lab).
+    Trajectory,
+}
+
+/// The vehicle model layer.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(untagged)]
+pub enum DynamicsLayer {
+    /// `kinematic`: the kinematic bicycle as SigmaRL integrates it.
+    Kinematic(KinematicKeyword),
+    /// The identified grey-box µCar model (`stdlib:mu-car-greybox`).
+    GreyBox(#[schemars(with = "PresetOr<GreyBoxModel>")] GreyBoxModel),
+}
+
+/// The keyword `kinematic`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum KinematicKeyword {
+    /// The kinematic bicycle.
+    Kinematic,
+}
+
+/// The CPM Lab's identified vehicle model (cpm-lab-interface.md §4).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GreyBoxModel {
+    /// p1..p10 of the lab's `VehicleModel.cxx`.
+    pub parameters: [f64; 10],
+    /// Euler integration step [s] (the lab: 0.02).
+    #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 1))]
+    pub euler_step_s: f64,
+    /// Battery voltage [V] (the lab's simulated vehicles: 7.8).
+    #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 20))]
+    pub battery_voltage_v: f64,
+}
+
+/// The sensing layer.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(untagged)]
+pub enum SensingLayer {
+    /// `ideal`: exact states, no delay.
+    Ideal(IdealKeyword),
+    /// An indoor positioning system with latency, noise and drops (`stdlib:cpm-ips`).
+    Model(#[schemars(with = "PresetOr<SensingModel>")] SensingModel),
+}
+
+/// The keyword `ideal`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum IdealKeyword {
+    /// No imperfection.
+    Ideal,
+}
+
+/// The CPM Lab's indoor positioning system and the on-car fusion (cpm-lab-interface.md §5).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SensingModel {
+    /// Frame rate [Hz].
+    #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 1000))]
+    pub rate_hz: f64,
+    /// Delay between a frame and its arrival on the car [ms].
+    #[schemars(range(min = 0.0, max = 10000.0))]
+    pub latency_ms: f64,
+    /// Half-width of the uniform position noise [m].
+    #[schemars(range(min = 0.0))]
+    pub noise_position_m: f64,
+    /// Half-width of the uniform heading noise [rad].
+    #[schemars(range(min = 0.0))]
+    pub noise_yaw_rad: f64,
+    /// Probability that a frame is dropped.
+    #[schemars(range(min = 0.0, max = 1.0))]
+    pub drop_probability: f64,
+    /// Gain of the on-car blend toward a positioning fix (the lab: 0.3).
+    #[schemars(range(min = 0.0, max = 1.0))]
+    pub fusion_gain: f64,
+}
+
+/// The actuation layer.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(untagged)]
+pub enum ActuationLayer {
+    /// `ideal`: commands act at once.
+    Ideal(IdealKeyword),
+    /// Commands act after a delay.
+    Model(ActuationModel),
+}
+
+/// Actuation imperfections.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ActuationModel {
+    /// Delay of throttle and steering [ms] (the lab's simulated vehicles: 80).
+    #[schemars(range(min = 0.0, max = 10000.0))]
+    pub delay_ms: f64,
+}
+
+/// The physical lab, reached through its DDS middleware.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct LabFidelity {
+    /// The driver. Only `cpm-dds` exists.
+    pub driver: LabDriver,
+    /// DDS domain of the lab's vehicle network.
+    #[schemars(range(min = 0, max = 232))]
+    pub domain: u32,
+    /// The lab's vehicle ids, one per agent in agent order.
+    #[schemars(length(min = 1))]
+    pub vehicle_ids: Vec<u8>,
+    /// Unicast discovery peers (`host` or `host:port`); the lab disables multicast.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub initial_peers: Vec<String>,
+    /// Network interface to use (name or address); default: all.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interface: Option<String>,
+    /// How long to wait for the lab before giving up [s].
+    #[serde(default = "default_lab_timeout_s")]
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub timeout_s: f64,
+}
+
+fn default_lab_timeout_s() -> f64 {
+    30.0
+}
+
+/// Lab drivers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum LabDriver {
+    /// The CPM Lab's DDS topics and message types.
+    CpmDds,
+}

@@ -1,0 +1,34 @@
+//! The experiment language as Rust types: one struct per section of spec-language.md.
+//!
+//! These types are the contract. Their doc comments become the JSON Schema's descriptions,
+//! and serde reads them from a spec whose `stdlib:` references are already expanded (see
+//! `crate::resolve`), so a field that takes a preset has the preset's own type here and is
+//! marked for the schema with `PresetOr<T>`.
+
+mod experiment;
+mod fidelity;
+mod metrics;
+mod policy;
+mod preset;
+mod start;
+
+pub use experiment::{
+    AfterControlHorizon, MapFile, MapFormat, MapSpec, OnCollision, Planner, RefPathDefinition, Spec,
+    SpeedAfterHc, SteeringAfterHc, Timing, VehicleSpec,
+};
+pub use fidelity::{
+    ActuationLayer, ActuationModel, Control, DynamicsLayer, Fidelity, GreyBoxModel, IdealKeyword,
+    KinematicKeyword, LabDriver, LabFidelity, SensingLayer, SensingModel, SimulatedFidelity,
+};
+pub use metrics::{
+    AsSpec, Bootstrap, CdSpec, CollisionCount, CollisionGeometry, Compare, CraASpec, CraLSpec, GroupKey,
+    Hysteresis, MetricsSpec, PairedTest, ReportSpec, Statistic,
+};
+pub use policy::{
+    ActionMode, BuiltinPolicy, LaneFollowParams, MlpSpec, ObservationDesign, ObservationSpec, PolicySpec,
+};
+pub use preset::PresetOr;
+pub use start::{
+    AgentStart, ExplicitConfiguration, FromRuns, FromRunsSpec, InitialConfiguration, Pose, SampleSpec,
+    SampledStarts,
+};

@@ -1,0 +1,152 @@
+//! Policies: a SigmaRL MLP actor with its observation design, or a built-in baseline.
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use super::PresetOr;
+
+/// One policy of the matrix. Exactly one of `mlp` and `builtin` is given.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PolicySpec {
+    /// Name of the policy in run keys and tables. Lower-case letters, digits and `-`.
+    #[schemars(regex(pattern = r"^[a-z0-9][a-z0-9-]*$"))]
+    pub name: String,
+    /// A trained actor network in SigmaRL's layout.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mlp: Option<MlpSpec>,
+    /// The observation design the network was trained with. Default: `stdlib:sigmarl`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(with = "Option<PresetOr<ObservationSpec>>")]
+    pub observation: Option<ObservationSpec>,
+    /// How the network's output distribution becomes an action. Default: `mean`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub action: Option<ActionMode>,
+    /// A rule-based policy shipped with cpmx.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub builtin: Option<BuiltinPolicy>,
+    /// Parameters of the `lane-follow` baseline.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lane_follow: Option<LaneFollowParams>,
+}
+
+/// A multi-layer perceptron actor stored as safetensors.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MlpSpec {
+    /// The safetensors file (SigmaRL actor layout: `actor.{0..3}.{weight,bias}`), relative to
+    /// the spec's folder or found on the data path.
+    #[schemars(length(min = 1))]
+    pub weights: String,
+}
+
+/// Deterministic or stochastic actions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum ActionMode {
+    /// The mean of the TanhNormal, as SigmaRL evaluates (deterministic).
+    #[default]
+    Mean,
+    /// A sample of the TanhNormal, drawn from the run's `policy` stream.
+    Sample,
+}
+
+/// Built-in baseline policies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum BuiltinPolicy {
+    /// Follows its reference path at a target speed, keeps a time gap to the agent ahead and
+    /// yields inside the intersection.
+    LaneFollow,
+}
+
+/// Parameters of the `lane-follow` baseline.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct LaneFollowParams {
+    /// Target speed [m/s].
+    #[serde(default = "default_target_speed")]
+    #[schemars(range(min = 0.0, max = 5.0))]
+    pub target_speed: f64,
+    /// Time gap kept to the agent ahead [s].
+    #[serde(default = "default_time_gap")]
+    #[schemars(range(min = 0.0, max = 10.0))]
+    pub time_gap_s: f64,
+    /// Pure-pursuit look-ahead distance [m].
+    #[serde(default = "default_look_ahead")]
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub look_ahead_m: f64,
+}
+
+fn default_target_speed() -> f64 {
+    0.5
+}
+fn default_time_gap() -> f64 {
+    1.0
+}
+fn default_look_ahead() -> f64 {
+    0.25
+}
+
+impl Default for LaneFollowParams {
+    fn default() -> Self {
+        Self {
+            target_speed: default_target_speed(),
+            time_gap_s: default_time_gap(),
+            look_ahead_m: default_look_ahead(),
+        }
+    }
+}
+
+/// SigmaRL's observation design (ego view, partial observation), with its parameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ObservationSpec {
+    /// The design. Only `sigmarl` exists.
+    pub design: ObservationDesign,
+    /// Number of nearest other agents observed.
+    #[schemars(range(min = 0, max = 16))]
+    pub observed_agents: u32,
+    /// Number of short-term reference points.
+    #[schemars(range(min = 1, max = 32))]
+    pub ref_points: u32,
+    /// Index stride between short-term reference points on the centre line.
+    #[schemars(range(min = 1, max = 32))]
+    pub ref_point_stride: u32,
+    /// Position normaliser [m] (SigmaRL: 10 × vehicle length).
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub position_scale_m: f64,
+    /// Speed normaliser [m/s] (SigmaRL: maximum speed).
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub speed_scale_mps: f64,
+    /// Distance normaliser for centre line, boundaries and other agents [m]
+    /// (SigmaRL: 3 × lane width).
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub distance_scale_m: f64,
+    /// Observe the distances to the road's boundaries.
+    pub boundary_distances: bool,
+    /// Observe the distance to the own centre line.
+    pub center_line_distance: bool,
+    /// SigmaRL's quirk: agent 0's corner-based boundary distances use the previous step's
+    /// corners. `true` reproduces SigmaRL's code; `false` uses the current corners.
+    pub agent0_boundary_lag: bool,
+}
+
+/// Observation designs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum ObservationDesign {
+    /// SigmaRL's observation.
+    Sigmarl,
+}
+
+impl ObservationSpec {
+    /// Length of the observation vector.
+    pub fn size(&self) -> usize {
+        let own = 1
+            + 2 * self.ref_points as usize
+            + usize::from(self.center_line_distance)
+            + 2 * usize::from(self.boundary_distances);
+        own + 11 * self.observed_agents as usize
+    }
+}

@@ -1,0 +1,171 @@
+//! Expanding `stdlib:NAME` references and `extends:` overrides into the presets' content, and
+//! filling in the preset-valued defaults (`vehicle`, `metrics`, `observation`).
+//!
+//! Expansion works on the JSON document before the schema sees it, so that a preset is checked
+//! exactly like the same object written inline; a problem inside expanded content points at
+//! the reference.
+
+use cpmx_stdlib::PresetKind;
+use serde_json::Value;
+
+use crate::diagnostic::Problem;
+use crate::yaml::{SpannedDocument, escape_pointer};
+
+/// The prefix of a standard-library reference.
+pub const STDLIB_PREFIX: &str = "stdlib:";
+
+/// Where presets may appear: (pointer of the field, kind).
+fn preset_fields(doc: &Value) -> Vec<(String, PresetKind)> {
+    let mut fields = vec![
+        ("/vehicle".to_owned(), PresetKind::Vehicle),
+        ("/metrics".to_owned(), PresetKind::Metrics),
+    ];
+    if let Some(policies) = doc.get("policies").and_then(Value::as_array) {
+        for (i, _) in policies.iter().enumerate() {
+            fields.push((format!("/policies/{i}/observation"), PresetKind::Observation));
+        }
+    }
+    if let Some(fidelities) = doc.get("fidelities").and_then(Value::as_object) {
+        for name in fidelities.keys() {
+            let base = format!("/fidelities/{}", escape_pointer(name));
+            fields.push((format!("{base}/dynamics"), PresetKind::Dynamics));
+            fields.push((format!("{base}/sensing"), PresetKind::Sensing));
+        }
+    }
+    fields
+}
+
+/// Inserts the preset-valued defaults where the spec leaves them out.
+fn insert_defaults(doc: &mut Value) {
+    let Some(root) = doc.as_object_mut() else { return };
+    root.entry("vehicle")
+        .or_insert_with(|| Value::from("stdlib:mu-car"));
+    root.entry("metrics")
+        .or_insert_with(|| Value::from("stdlib:at25"));
+    if let Some(policies) = root.get_mut("policies").and_then(Value::as_array_mut) {
+        for policy in policies.iter_mut().filter_map(Value::as_object_mut) {
+            if policy.contains_key("mlp") {
+                policy
+                    .entry("observation")
+                    .or_insert_with(|| Value::from("stdlib:sigmarl"));
+            }
+        }
+    }
+}
+
+/// Expands every preset reference of `doc` in place; unknown names are problems.
+pub fn expand_presets(doc: &mut SpannedDocument) -> Vec<Problem> {
+    insert_defaults(&mut doc.value);
+    let mut problems = Vec::new();
+    for (pointer, kind) in preset_fields(&doc.value) {
+        let Some(node) = doc.value.pointer(&pointer).cloned() else {
+            continue;
+        };
+        let spans = doc.spans_at(&pointer);
+        let expanded = match &node {
+            Value::String(s) if s.starts_with(STDLIB_PREFIX) => {
+                load_preset(kind, &s[STDLIB_PREFIX.len()..]).map_err(|help| (spans.value, s.clone(), help))
+            }
+            Value::Object(map) => match map.get("extends") {
+                Some(Value::String(s)) if s.starts_with(STDLIB_PREFIX) => {
+                    let extends_span = doc.spans_at(&format!("{pointer}/extends")).value;
+                    load_preset(kind, &s[STDLIB_PREFIX.len()..])
+                        .map(|mut base| {
+                            let mut overrides = map.clone();
+                            overrides.remove("extends");
+                            merge(&mut base, Value::Object(overrides));
+                            base
+                        })
+                        .map_err(|help| (extends_span, s.clone(), help))
+                }
+                _ => continue,
+            },
+            _ => continue,
+        };
+        match expanded {
+            Ok(value) => {
+                if let Some(slot) = doc.value.pointer_mut(&pointer) {
+                    *slot = value;
+                }
+            }
+            Err((span, reference, help)) => problems.push(
+                Problem::error(
+                    "cpmx::stdlib::unknown",
+                    format!(
+                        "the standard library has no {} called `{reference}`",
+                        kind.label()
+                    ),
+                    span,
+                    "unknown preset",
+                )
+                .with_help(help),
+            ),
+        }
+    }
+    problems
+}
+
+/// The JSON content of a preset, or the help text that lists the available names.
+fn load_preset(kind: PresetKind, name: &str) -> Result<Value, String> {
+    match cpmx_stdlib::preset(kind, name) {
+        Some(preset) => serde_saphyr::from_str::<Value>(preset.yaml)
+            .map_err(|e| format!("the shipped preset `stdlib:{name}` is broken ({e}); please report this")),
+        None => Err(available_help(kind)),
+    }
+}
+
+/// "available: stdlib:a, stdlib:b" for a kind.
+pub fn available_help(kind: PresetKind) -> String {
+    let names: Vec<String> = cpmx_stdlib::names(kind)
+        .into_iter()
+        .map(|n| format!("{STDLIB_PREFIX}{n}"))
+        .collect();
+    format!("available {}s: {}", kind.label(), names.join(", "))
+}
+
+/// Overrides `base` with `overrides`, recursively for objects.
+fn merge(base: &mut Value, overrides: Value) {
+    match (base, overrides) {
+        (Value::Object(b), Value::Object(o)) => {
+            for (k, v) in o {
+                match b.get_mut(&k) {
+                    Some(slot) => merge(slot, v),
+                    None => {
+                        b.insert(k, v);
+                    }
+                }
+            }
+        }
+        (slot, v) => *slot = v,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::yaml::parse;
+
+    #[test]
+    fn every_shipped_preset_parses() {
+        for p in cpmx_stdlib::PRESETS.iter().filter(|p| p.kind != PresetKind::Map) {
+            assert!(load_preset(p.kind, p.name).unwrap().is_object(), "{}", p.name);
+        }
+    }
+
+    #[test]
+    fn extends_overrides_single_fields() {
+        let mut doc = parse("vehicle: {extends: stdlib:mu-car, width: 0.2}\n").unwrap();
+        assert!(expand_presets(&mut doc).is_empty());
+        assert_eq!(doc.value["vehicle"]["width"], 0.2);
+        assert_eq!(doc.value["vehicle"]["length"], 0.22);
+        assert!(doc.value["vehicle"].get("extends").is_none());
+    }
+
+    #[test]
+    fn unknown_names_list_the_available_ones() {
+        let mut doc = parse("vehicle: stdlib:mu-cat\n").unwrap();
+        let problems = expand_presets(&mut doc);
+        assert_eq!(problems.len(), 1);
+        assert!(problems[0].help.as_deref().unwrap().contains("stdlib:mu-car"));
+    }
+}

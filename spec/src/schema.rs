@@ -1,0 +1,400 @@
+//! The JSON Schema of the language, and schema validation mapped back to spans.
+//!
+//! The published schema (`cpmx schema`, `cpmx.schema.json`) lets preset fields be a
+//! `stdlib:NAME` string or an `extends` object. cpmx validates *after* expanding presets, with
+//! a strict variant in which every such field is its inline object only, so a problem inside a
+//! preset override is reported against the object's own fields.
+
+use std::sync::OnceLock;
+
+use jsonschema::error::{TypeKind, ValidationErrorKind};
+use jsonschema::{ValidationError, Validator};
+use serde_json::Value;
+
+use crate::diagnostic::Problem;
+use crate::model::Spec;
+use crate::yaml::{SpannedDocument, escape_pointer};
+
+/// The published JSON Schema (draft 2020-12), as `cpmx schema` prints it.
+pub fn json_schema() -> Value {
+    let mut schema = schemars::schema_for!(Spec).to_value();
+    if let Some(root) = schema.as_object_mut() {
+        root.insert(
+            "$id".into(),
+            Value::from("https://cpmx.dev/schema/v1/cpmx.schema.json"),
+        );
+    }
+    schema
+}
+
+/// The published schema as pretty-printed text with a final newline (`cpmx.schema.json`).
+pub fn json_schema_text() -> String {
+    let mut text = serde_json::to_string_pretty(&json_schema()).unwrap_or_default();
+    text.push('\n');
+    text
+}
+
+/// The strict schema: every preset field reduced to its inline object.
+fn strict_schema() -> &'static (Value, Option<Validator>) {
+    static STRICT: OnceLock<(Value, Option<Validator>)> = OnceLock::new();
+    STRICT.get_or_init(|| {
+        let mut schema = json_schema();
+        reduce_presets(&mut schema);
+        let validator = jsonschema::options()
+            .should_validate_formats(false)
+            .build(&schema)
+            .ok();
+        (schema, validator)
+    })
+}
+
+fn reduce_presets(node: &mut Value) {
+    match node {
+        Value::Object(map) => {
+            if map.get("x-cpmx-preset") == Some(&Value::Bool(true)) {
+                let inline = map
+                    .get("anyOf")
+                    .and_then(|a| a.get(0))
+                    .cloned()
+                    .unwrap_or(Value::Bool(true));
+                *node = inline;
+                reduce_presets(node);
+                return;
+            }
+            map.values_mut().for_each(reduce_presets);
+        }
+        Value::Array(items) => items.iter_mut().for_each(reduce_presets),
+        _ => {}
+    }
+}
+
+/// Validates the expanded document against the strict schema; every error becomes a problem.
+pub fn validate(doc: &SpannedDocument) -> Vec<Problem> {
+    let (schema, validator) = strict_schema();
+    let Some(validator) = validator else {
+        return vec![Problem::error(
+            "cpmx::internal",
+            "cpmx's own schema does not compile; please report this",
+            crate::diagnostic::ByteSpan::new(0, 0),
+            "",
+        )];
+    };
+    let mut problems = Vec::new();
+    for error in validator.iter_errors(&doc.value) {
+        map_error(schema, doc, &error, &mut problems);
+    }
+    problems.sort_by_key(|p| (p.span.offset, p.code));
+    problems.dedup();
+    problems
+}
+
+fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>, out: &mut Vec<Problem>) {
+    let pointer = error.instance_path().as_str().to_owned();
+    let spans = doc.spans_at(&pointer);
+    let field = field_name(&pointer);
+    let instance = error.instance();
+    let problem = match error.kind() {
+        ValidationErrorKind::AdditionalProperties { unexpected } => {
+            let allowed = allowed_properties(schema, error.schema_path().as_str());
+            for key in unexpected {
+                let key_spans = doc.spans_at(&format!("{pointer}/{}", escape_pointer(key)));
+                let span = key_spans.key.unwrap_or(key_spans.value);
+                let mut p = Problem::error(
+                    "cpmx::schema::unknown-key",
+                    format!("unknown key `{key}` in {}", describe(&pointer)),
+                    span,
+                    "not a key of the language",
+                );
+                p = match did_you_mean(key, &allowed) {
+                    Some(best) => p.with_help(format!("did you mean `{best}`?")),
+                    None if !allowed.is_empty() => {
+                        p.with_help(format!("allowed keys: {}", allowed.join(", ")))
+                    }
+                    None => p,
+                };
+                out.push(p);
+            }
+            return;
+        }
+        ValidationErrorKind::AnyOf { context } | ValidationErrorKind::OneOfNotValid { context } => {
+            if let Some(branch) = best_branch(context, &pointer) {
+                for e in branch {
+                    map_error(schema, doc, e, out);
+                }
+                return;
+            }
+            Problem::error(
+                "cpmx::schema::shape",
+                format!("{} has none of the accepted forms", describe(&pointer)),
+                spans.value,
+                "unexpected form",
+            )
+        }
+        ValidationErrorKind::Required { property } => {
+            let name = property.as_str().unwrap_or_default();
+            Problem::error(
+                "cpmx::schema::missing",
+                format!("{} needs `{name}`", describe(&pointer)),
+                spans.key.unwrap_or(spans.value),
+                format!("`{name}` missing here"),
+            )
+            .with_help(format!("add `{name}:`; `cpmx schema` describes every key"))
+        }
+        ValidationErrorKind::Type { kind } => Problem::error(
+            "cpmx::schema::type",
+            format!(
+                "`{field}` must be {}, found {}",
+                type_name(kind),
+                value_kind(instance)
+            ),
+            spans.value,
+            format!("expected {}", type_name(kind)),
+        ),
+        ValidationErrorKind::Enum { options } => {
+            let names: Vec<String> = options
+                .as_array()
+                .map_or(vec![], |o| o.iter().map(plain).collect());
+            let mut p = Problem::error(
+                "cpmx::schema::choice",
+                format!("`{field}` must be one of {}", names.join(", ")),
+                spans.value,
+                format!("{} is not one of them", plain(instance)),
+            );
+            if let Some(best) = did_you_mean(&plain(instance), &names) {
+                p = p.with_help(format!("did you mean `{best}`?"));
+            }
+            p
+        }
+        ValidationErrorKind::Constant { expected_value } => Problem::error(
+            "cpmx::schema::choice",
+            format!("`{field}` must be {}", plain(expected_value)),
+            spans.value,
+            "other value",
+        ),
+        ValidationErrorKind::Minimum { limit } => range(field, spans.value, "at least", limit, instance),
+        ValidationErrorKind::Maximum { limit } => range(field, spans.value, "at most", limit, instance),
+        ValidationErrorKind::ExclusiveMinimum { limit } => {
+            range(field, spans.value, "greater than", limit, instance)
+        }
+        ValidationErrorKind::ExclusiveMaximum { limit } => {
+            range(field, spans.value, "less than", limit, instance)
+        }
+        ValidationErrorKind::MinItems { limit } => Problem::error(
+            "cpmx::schema::length",
+            format!(
+                "`{field}` needs at least {limit} item{}",
+                if *limit == 1 { "" } else { "s" }
+            ),
+            spans.value,
+            "too few items",
+        ),
+        ValidationErrorKind::MaxItems { limit } => Problem::error(
+            "cpmx::schema::length",
+            format!("`{field}` takes at most {limit} items"),
+            spans.value,
+            "too many items",
+        ),
+        ValidationErrorKind::MinLength { .. } => Problem::error(
+            "cpmx::schema::length",
+            format!("`{field}` must not be empty"),
+            spans.value,
+            "empty",
+        ),
+        ValidationErrorKind::MaxLength { limit } => Problem::error(
+            "cpmx::schema::length",
+            format!("`{field}` is longer than {limit} characters"),
+            spans.value,
+            "too long",
+        ),
+        ValidationErrorKind::MinProperties { .. } => Problem::error(
+            "cpmx::schema::length",
+            format!("`{field}` must not be empty"),
+            spans.value,
+            "empty mapping",
+        ),
+        ValidationErrorKind::Pattern { .. } => Problem::error(
+            "cpmx::schema::name",
+            format!("`{field}`: {} is not a valid name", plain(instance)),
+            spans.value,
+            "invalid name",
+        )
+        .with_help("names use lower-case letters, digits and `-`, and start with a letter or digit"),
+        other => Problem::error(
+            "cpmx::schema::other",
+            format!("{}: {}", describe(&pointer), other.keyword()),
+            spans.value,
+            "here",
+        ),
+    };
+    out.push(problem);
+}
+
+fn range(
+    field: &str,
+    span: crate::diagnostic::ByteSpan,
+    relation: &str,
+    limit: &Value,
+    found: &Value,
+) -> Problem {
+    Problem::error(
+        "cpmx::schema::range",
+        format!("`{field}` must be {relation} {limit}, found {}", plain(found)),
+        span,
+        format!("out of range (must be {relation} {limit})"),
+    )
+}
+
+/// The branch of an `anyOf` whose errors best explain the value: branches that reject the
+/// value's type outright lose to branches that only object to its content; then fewer errors win.
+fn best_branch<'a>(
+    context: &'a [Vec<ValidationError<'static>>],
+    pointer: &str,
+) -> Option<&'a [ValidationError<'static>]> {
+    context
+        .iter()
+        .enumerate()
+        .min_by_key(|(i, errors)| {
+            let rejects_type = errors.iter().any(|e| {
+                e.instance_path().as_str() == pointer
+                    && matches!(
+                        e.kind(),
+                        ValidationErrorKind::Type { .. } | ValidationErrorKind::Enum { .. }
+                    )
+            });
+            (rejects_type, errors.len(), *i)
+        })
+        .map(|(_, errors)| errors.as_slice())
+}
+
+/// The property names the schema allows where an `additionalProperties` error arose.
+fn allowed_properties(schema: &Value, schema_path: &str) -> Vec<String> {
+    let parent = schema_path.rsplit_once('/').map_or("", |(p, _)| p);
+    let mut node = schema;
+    for segment in parent.split('/').filter(|s| !s.is_empty()) {
+        let segment = segment.replace("~1", "/").replace("~0", "~");
+        node = match node {
+            Value::Object(map) if segment == "$ref" => {
+                let target = map.get("$ref").and_then(Value::as_str).unwrap_or("");
+                match schema.pointer(target.trim_start_matches('#')) {
+                    Some(n) => n,
+                    None => return vec![],
+                }
+            }
+            Value::Object(map) => match map.get(&segment) {
+                Some(n) => n,
+                None => return vec![],
+            },
+            Value::Array(items) => match segment.parse::<usize>().ok().and_then(|i| items.get(i)) {
+                Some(n) => n,
+                None => return vec![],
+            },
+            _ => return vec![],
+        };
+    }
+    if let Some(target) = node.get("$ref").and_then(Value::as_str) {
+        node = schema.pointer(target.trim_start_matches('#')).unwrap_or(node);
+    }
+    node.get("properties")
+        .and_then(Value::as_object)
+        .map_or(vec![], |p| p.keys().cloned().collect())
+}
+
+/// The closest candidate to `word`, if it is close enough to be a likely typo.
+pub fn did_you_mean(word: &str, candidates: &[String]) -> Option<String> {
+    candidates
+        .iter()
+        .map(|c| (strsim::jaro_winkler(word, c), c))
+        .filter(|(score, _)| *score > 0.8)
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, c)| c.clone())
+}
+
+/// The last key of a pointer ("the spec" for the root).
+fn field_name(pointer: &str) -> &str {
+    let mut segments = pointer.rsplit('/');
+    let last = segments.next().unwrap_or("");
+    if last.parse::<usize>().is_ok() {
+        segments.next().unwrap_or(last)
+    } else {
+        last
+    }
+}
+
+/// "`vehicle`", "`policies[1]`", "the spec" for messages.
+pub fn describe(pointer: &str) -> String {
+    if pointer.is_empty() {
+        return "the spec".into();
+    }
+    let mut out = String::new();
+    for segment in pointer.split('/').skip(1) {
+        if segment.parse::<usize>().is_ok() {
+            out.push_str(&format!("[{segment}]"));
+        } else {
+            if !out.is_empty() {
+                out.push('.');
+            }
+            out.push_str(&segment.replace("~1", "/").replace("~0", "~"));
+        }
+    }
+    format!("`{out}`")
+}
+
+fn type_name(kind: &TypeKind) -> String {
+    let name = |t: &jsonschema::JsonType| match t.to_string().as_str() {
+        "object" => "a mapping".to_owned(),
+        "array" => "a list".to_owned(),
+        "integer" => "a whole number".to_owned(),
+        "number" => "a number".to_owned(),
+        "string" => "a text".to_owned(),
+        "boolean" => "true or false".to_owned(),
+        "null" => "empty".to_owned(),
+        other => other.to_owned(),
+    };
+    match kind {
+        TypeKind::Single(t) => name(t),
+        TypeKind::Multiple(ts) => ts.iter().map(|t| name(&t)).collect::<Vec<_>>().join(" or "),
+    }
+}
+
+fn value_kind(v: &Value) -> String {
+    match v {
+        Value::Null => "nothing".into(),
+        Value::Bool(b) => format!("`{b}`"),
+        Value::Number(n) => format!("`{n}`"),
+        Value::String(s) => format!("the text `{s}`"),
+        Value::Array(_) => "a list".into(),
+        Value::Object(_) => "a mapping".into(),
+    }
+}
+
+fn plain(v: &Value) -> String {
+    match v {
+        Value::String(s) => s.clone(),
+        other => other.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_schema_is_draft_2020_12_and_compiles() {
+        let schema = json_schema();
+        assert_eq!(schema["$schema"], "https://json-schema.org/draft/2020-12/schema");
+        assert!(strict_schema().1.is_some());
+    }
+
+    #[test]
+    fn typos_find_their_key() {
+        let keys = ["repetitions".to_string(), "seed".to_string()];
+        assert_eq!(did_you_mean("repetitons", &keys).as_deref(), Some("repetitions"));
+        assert_eq!(did_you_mean("zzz", &keys), None);
+    }
+
+    #[test]
+    fn pointers_read_as_paths() {
+        assert_eq!(describe("/policies/1/mlp"), "`policies[1].mlp`");
+        assert_eq!(describe(""), "the spec");
+    }
+}

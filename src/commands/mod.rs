@@ -1,0 +1,50 @@
+//! One module per subcommand, and what they share: reading and checking a spec.
+
+pub mod plan;
+pub mod validate;
+
+use std::io::IsTerminal;
+use std::path::Path;
+
+use cpmx_spec::{CheckedSpec, DataPath, SpecSource};
+
+use crate::DataArgs;
+
+/// How a command ends when it does not succeed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Failure {
+    /// Invalid input: a spec, map, weights or recording (exit 1).
+    InvalidInput = 1,
+}
+
+/// Reads and checks a spec; on failure prints every diagnostic to stderr.
+pub fn load_checked(path: &Path, data: &DataArgs) -> Result<CheckedSpec, Failure> {
+    let source = match SpecSource::read(path) {
+        Ok(source) => source,
+        Err(e) => {
+            eprintln!("error: cannot read spec `{}`: {e}", path.display());
+            return Err(Failure::InvalidInput);
+        }
+    };
+    let cpmx_data = std::env::var("CPMX_DATA").ok();
+    let data_path = DataPath::new(&source.dir, &data.data, cpmx_data.as_deref());
+    let colour = std::io::stderr().is_terminal();
+    match cpmx_spec::check(&source, &data_path, &cpmx_engine::BuildChecks) {
+        Ok(checked) => {
+            if !checked.warnings.is_empty() {
+                eprint!("{}", cpmx_spec::render(&checked.warnings, colour));
+            }
+            Ok(checked)
+        }
+        Err(diagnostics) => {
+            eprint!("{}", cpmx_spec::render(&diagnostics, colour));
+            let errors = diagnostics.iter().filter(|d| d.is_error()).count();
+            eprintln!(
+                "{}: {errors} error{}",
+                path.display(),
+                if errors == 1 { "" } else { "s" }
+            );
+            Err(Failure::InvalidInput)
+        }
+    }
+}
