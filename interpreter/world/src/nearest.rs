@@ -192,9 +192,12 @@ mod tests {
     }
 
     proptest! {
+        // Each case builds a full grid; a few dozen cases keep the suite fast.
+        #![proptest_config(ProptestConfig::with_cases(48))]
+
         #[test]
         fn grid_equals_brute_force(line in polyline_strategy(),
-                                   qs in prop::collection::vec((-1.0f64..3.0, -1.0f64..3.0), 1..20)) {
+                                   qs in prop::collection::vec((-1.0f64..3.0, -1.0f64..3.0), 1..60)) {
             let grid = SegmentGrid::new(line.clone());
             for (x, y) in qs {
                 prop_assert_eq!(grid.nearest_segment([x, y]), line.nearest_segment([x, y]));
