@@ -6,6 +6,7 @@ pub type Point = [f64; 2];
 /// An ordered list of points; segment `i` joins point `i` and point `i + 1`.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Polyline {
+    /// The points, in order.
     pub points: Vec<Point>,
 }
 
@@ -28,14 +29,17 @@ impl SegmentDistance {
 }
 
 impl Polyline {
+    /// A polyline through `points`.
     pub fn new(points: Vec<Point>) -> Self {
         Self { points }
     }
 
+    /// Number of points.
     pub fn len(&self) -> usize {
         self.points.len()
     }
 
+    /// Whether it has no points.
     pub fn is_empty(&self) -> bool {
         self.points.is_empty()
     }
