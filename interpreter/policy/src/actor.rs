@@ -86,6 +86,13 @@ pub struct ActorWorkspace {
     pong: Vec<f32>,
 }
 
+impl ActorWorkspace {
+    /// Largest batch these buffers serve.
+    pub fn capacity(&self) -> usize {
+        self.capacity
+    }
+}
+
 impl MlpActor {
     /// Load an actor with `layout` from a safetensors file.
     pub fn load(path: &Path, layout: &MlpLayout) -> Result<Self, ActorError> {

@@ -1,0 +1,209 @@
+//! The interface the engines call ([`Policy`]) and its learned implementation
+//! ([`MlpPolicy`]: SigmaRL observation -> MLP actor -> TanhNormal head).
+//!
+//! A policy is built once per run and then called once per step with all agents; it owns
+//! its buffers, its random stream and SigmaRL's one-step memory of footprint corners.
+
+use std::path::Path;
+
+use cpmx_vehicle::{Command, Footprint, footprint_corners};
+use rand_chacha::ChaCha20Rng;
+
+use crate::action::{ActionHead, ActionMode, ActionOutput};
+use crate::actor::{ActorError, ActorWorkspace, MlpActor, MlpLayout};
+use crate::observation::{ObservationError, ObservationInput, SigmarlObservation};
+
+/// Errors of building or calling a policy.
+#[derive(Debug, thiserror::Error)]
+pub enum PolicyError {
+    /// The observation could not be formed.
+    #[error(transparent)]
+    Observation(#[from] ObservationError),
+    /// The network could not be loaded or run.
+    #[error(transparent)]
+    Actor(#[from] ActorError),
+    /// The observation design and the network disagree on the input size.
+    #[error("the observation has {observation} values but the network expects {network} inputs")]
+    InputSize { observation: usize, network: usize },
+    /// The network does not produce SigmaRL's 4 raw outputs (2 locations, 2 pre-scales).
+    #[error("the network has {found} outputs, expected 4 (2 locations + 2 pre-scales)")]
+    OutputSize { found: usize },
+    /// The command buffer does not hold one command per agent.
+    #[error("{found} command slots for {agents} agents")]
+    CommandCount { found: usize, agents: usize },
+}
+
+/// A decision maker for all agents of a run, called once per policy step.
+pub trait Policy {
+    /// Choose one command per agent (`out[i]` for `input.agents[i]`).
+    fn act(&mut self, input: &ObservationInput<'_>, out: &mut [Command]) -> Result<(), PolicyError>;
+
+    /// Forget everything carried between steps (call when the run restarts).
+    fn reset(&mut self);
+}
+
+/// Check that the command buffer fits the agents.
+pub(crate) fn check_commands(input: &ObservationInput<'_>, out: &[Command]) -> Result<(), PolicyError> {
+    if out.len() == input.agents.len() {
+        Ok(())
+    } else {
+        Err(PolicyError::CommandCount {
+            found: out.len(),
+            agents: input.agents.len(),
+        })
+    }
+}
+
+/// A SigmaRL policy: observation design, MLP actor and action head.
+#[derive(Debug, Clone)]
+pub struct MlpPolicy {
+    observation: SigmarlObservation,
+    actor: MlpActor,
+    head: ActionHead,
+    mode: ActionMode,
+    rng: ChaCha20Rng,
+    workspace: ActorWorkspace,
+    observations: Vec<f32>,
+    raw: Vec<f32>,
+    outputs: Vec<ActionOutput>,
+    /// Corners of the states seen at the previous call (empty after a reset).
+    previous_corners: Vec<Footprint>,
+    current_corners: Vec<Footprint>,
+}
+
+impl MlpPolicy {
+    /// Combine a loaded actor with an observation design; fails if their sizes differ.
+    /// `rng` is the run's policy-sampling stream (only drawn from in [`ActionMode::Sample`]).
+    pub fn new(
+        actor: MlpActor,
+        observation: SigmarlObservation,
+        mode: ActionMode,
+        rng: ChaCha20Rng,
+    ) -> Result<Self, PolicyError> {
+        check_input_size(&observation, &actor)?;
+        if actor.output_size() != 4 {
+            return Err(PolicyError::OutputSize {
+                found: actor.output_size(),
+            });
+        }
+        Ok(MlpPolicy {
+            workspace: actor.workspace(0),
+            observation,
+            actor,
+            head: ActionHead::default(),
+            mode,
+            rng,
+            observations: Vec::new(),
+            raw: Vec::new(),
+            outputs: Vec::new(),
+            previous_corners: Vec::new(),
+            current_corners: Vec::new(),
+        })
+    }
+
+    /// Load SigmaRL actor weights (safetensors, [`MlpLayout::sigmarl`] with the observation's
+    /// size as input) and build the policy.
+    pub fn from_file(
+        weights: &Path,
+        observation: SigmarlObservation,
+        mode: ActionMode,
+        rng: ChaCha20Rng,
+    ) -> Result<Self, PolicyError> {
+        let layout = MlpLayout {
+            input_size: observation.size(),
+            ..MlpLayout::sigmarl()
+        };
+        Self::new(MlpActor::load(weights, &layout)?, observation, mode, rng)
+    }
+
+    /// Distribution parameters and actions of the last call, one per agent.
+    pub fn outputs(&self) -> &[ActionOutput] {
+        &self.outputs
+    }
+
+    /// Observations of the last call (`agents * size` values, agent-major).
+    pub fn observations(&self) -> &[f32] {
+        &self.observations
+    }
+
+    /// Size buffers for `agents` (allocates only when the agent count grows).
+    fn prepare(&mut self, agents: usize) {
+        self.observations.resize(agents * self.observation.size(), 0.0);
+        self.raw.resize(agents * self.actor.output_size(), 0.0);
+        self.outputs.resize(agents, ActionOutput::default());
+        self.current_corners.resize(agents, Footprint::default());
+        if self.previous_corners.len() != agents {
+            self.previous_corners.clear();
+        }
+        if self.workspace_capacity() < agents {
+            self.workspace = self.actor.workspace(agents);
+        }
+    }
+
+    fn workspace_capacity(&self) -> usize {
+        self.workspace.capacity()
+    }
+}
+
+/// The check `cpmx validate` runs: the observation size must equal the network's input size.
+pub fn check_input_size(observation: &SigmarlObservation, actor: &MlpActor) -> Result<(), PolicyError> {
+    if observation.size() == actor.input_size() {
+        Ok(())
+    } else {
+        Err(PolicyError::InputSize {
+            observation: observation.size(),
+            network: actor.input_size(),
+        })
+    }
+}
+
+impl Policy for MlpPolicy {
+    /// Observe (with the caller's previous corners if given, else the policy's own memory of
+    /// the previous call), run the network for all agents at once, map to commands.
+    fn act(&mut self, input: &ObservationInput<'_>, out: &mut [Command]) -> Result<(), PolicyError> {
+        check_commands(input, out)?;
+        let agents = input.agents.len();
+        self.prepare(agents);
+
+        // Observe all agents.
+        let remembered = (!self.previous_corners.is_empty()).then_some(self.previous_corners.as_slice());
+        let observed = ObservationInput {
+            previous_corners: input.previous_corners.or(remembered),
+            ..*input
+        };
+        self.observation.observe_all(&observed, &mut self.observations)?;
+
+        // Remember this step's corners for the next call.
+        for (slot, a) in self.current_corners.iter_mut().zip(input.agents) {
+            *slot = footprint_corners(input.vehicle, a.x_m, a.y_m, a.yaw_rad);
+        }
+        std::mem::swap(&mut self.previous_corners, &mut self.current_corners);
+        self.current_corners.resize(agents, Footprint::default());
+
+        // Network and action head.
+        self.actor
+            .forward(&self.observations, &mut self.workspace, &mut self.raw)?;
+        for ((raw, output), command) in self
+            .raw
+            .chunks_exact(4)
+            .zip(&mut self.outputs)
+            .zip(out.iter_mut())
+        {
+            let raw: &[f32; 4] = raw.try_into().map_err(|_| ActorError::Buffer {
+                what: "raw output row",
+                found: raw.len(),
+                expected: 4,
+            })?;
+            *output = self.head.map(raw, self.mode, &mut self.rng);
+            *command = Command {
+                speed_mps: f64::from(output.action[0]),
+                steering_rad: f64::from(output.action[1]),
+            };
+        }
+        Ok(())
+    }
+
+    fn reset(&mut self) {
+        self.previous_corners.clear();
+    }
+}
