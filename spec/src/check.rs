@@ -41,9 +41,9 @@ impl<'a> CheckContext<'a> {
         self.doc.spans_at(pointer)
     }
 
-    /// The span of the value at a JSON pointer.
+    /// Where to label the node at a JSON pointer: the value, or the key of a collection.
     pub fn span(&self, pointer: &str) -> ByteSpan {
-        self.spans(pointer).value
+        self.doc.label_span(pointer)
     }
 
     /// Reports a problem.

@@ -172,13 +172,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn run_seeds_are_stable_across_releases() {
-        // Changing this value changes every published experiment's numbers.
-        assert_eq!(
-            run_seed(2026, "seed1", "init1", 1),
-            run_seed(2026, "seed1", "init1", 1)
-        );
-        insta::assert_snapshot!(format!("{:016x}", run_seed(2026, "seed1", "init1", 1)), @"");
+    fn run_seeds_follow_the_documented_hash() {
+        // Computed independently with Python's hashlib from the rule in the module docs;
+        // changing it changes every published experiment's numbers.
+        assert_eq!(run_seed(2026, "seed1", "init1", 1), 12169368804303694282);
     }
 
     #[test]

@@ -83,6 +83,24 @@ pub fn validate(doc: &SpannedDocument) -> Vec<Problem> {
     for error in validator.iter_errors(&doc.value) {
         map_error(schema, doc, &error, &mut problems);
     }
+    // A missing key that an unknown key's "did you mean" already names is the same mistake.
+    let suggested: Vec<String> = problems
+        .iter()
+        .filter(|p| p.code == "cpmx::schema::unknown-key")
+        .filter_map(|p| {
+            p.help
+                .as_deref()?
+                .strip_prefix("did you mean `")?
+                .strip_suffix("`?")
+                .map(str::to_owned)
+        })
+        .collect();
+    problems.retain(|p| {
+        p.code != "cpmx::schema::missing"
+            || !suggested
+                .iter()
+                .any(|s| p.message.ends_with(&format!("needs `{s}`")))
+    });
     problems.sort_by_key(|p| (p.span.offset, p.code));
     problems.dedup();
     problems
@@ -90,7 +108,8 @@ pub fn validate(doc: &SpannedDocument) -> Vec<Problem> {
 
 fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>, out: &mut Vec<Problem>) {
     let pointer = error.instance_path().as_str().to_owned();
-    let spans = doc.spans_at(&pointer);
+    let mut spans = doc.spans_at(&pointer);
+    spans.value = doc.label_span(&pointer);
     let field = field_name(&pointer);
     let instance = error.instance();
     let problem = match error.kind() {
@@ -165,12 +184,19 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
             }
             p
         }
-        ValidationErrorKind::Constant { expected_value } => Problem::error(
-            "cpmx::schema::choice",
-            format!("`{field}` must be {}", plain(expected_value)),
-            spans.value,
-            "other value",
-        ),
+        ValidationErrorKind::Constant { expected_value } => {
+            let expected = plain(expected_value);
+            let mut p = Problem::error(
+                "cpmx::schema::choice",
+                format!("`{field}` must be `{expected}`"),
+                spans.value,
+                format!("{} is not `{expected}`", plain(instance)),
+            );
+            if did_you_mean(&plain(instance), std::slice::from_ref(&expected)).is_some() {
+                p = p.with_help(format!("did you mean `{expected}`?"));
+            }
+            p
+        }
         ValidationErrorKind::Minimum { limit } => range(field, spans.value, "at least", limit, instance),
         ValidationErrorKind::Maximum { limit } => range(field, spans.value, "at most", limit, instance),
         ValidationErrorKind::ExclusiveMinimum { limit } => {

@@ -30,6 +30,16 @@ pub struct SpannedDocument {
 }
 
 impl SpannedDocument {
+    /// Where to point for the node at `pointer`: a collection is labelled at its key (its own
+    /// span only marks where it opens), a scalar at its value.
+    pub fn label_span(&self, pointer: &str) -> ByteSpan {
+        let spans = self.spans_at(pointer);
+        match self.value.pointer(pointer) {
+            Some(Value::Array(_) | Value::Object(_)) => spans.key.unwrap_or(spans.value),
+            _ => spans.value,
+        }
+    }
+
     /// The spans of the node at `pointer`, or of its nearest ancestor that the text has (a value
     /// expanded from a preset points at the preset reference).
     pub fn spans_at(&self, pointer: &str) -> NodeSpans {
@@ -141,6 +151,8 @@ fn options() -> Options {
     let mut options = Options::default();
     options.budget = Some(budget);
     options.with_snippet = false;
+    // Only `true` and `false` are booleans: `y`, `n`, `on`, `off` stay text (YAML 1.2).
+    options.strict_booleans = true;
     options
 }
 

@@ -1,0 +1,276 @@
+//! One wrong spec per class of problem: the rendered diagnostics are snapshot-tested, and the
+//! line and column of the first one are asserted.
+
+use std::path::{Path, PathBuf};
+
+use cpmx_spec::model::Fidelity;
+use cpmx_spec::{CheckContext, DataPath, InterpreterChecks, Resources, Spec, SpecDiagnostic, SpecSource};
+
+/// Stands in for the interpreter: can run only `control: direct` on `kinematic` dynamics.
+struct SimOnly;
+
+impl InterpreterChecks for SimOnly {
+    fn cannot_run(&self, fidelity: &Fidelity) -> Option<String> {
+        match fidelity {
+            Fidelity::Simulated(s) if s.control == cpmx_spec::model::Control::Direct => None,
+            _ => Some("only the sim engine exists in this test".into()),
+        }
+    }
+    fn check(&self, _: &Spec, _: &Resources, _: &mut CheckContext<'_>) {}
+}
+
+const VALID: &str = "\
+cpmx: 1
+name: demo
+map: stdlib:intersection
+timing: {dt: 0.1, steps: 20}
+agents: 2
+policies:
+  - {name: base, builtin: lane-follow}
+initial_configurations:
+  - name: one
+    agents:
+      - {ref_path: 1, arc_length: 0.2}
+      - {ref_path: 4, arc_length: 0.2}
+repetitions: 2
+seed: 5
+fidelities:
+  sim: {control: direct, dynamics: kinematic}
+";
+
+fn check(text: &str) -> Result<cpmx_spec::CheckedSpec, Vec<SpecDiagnostic>> {
+    let source = SpecSource {
+        name: "spec.yaml".into(),
+        dir: PathBuf::from("/nonexistent"),
+        text: text.into(),
+    };
+    let data = DataPath::new(Path::new("/nonexistent"), &[], None);
+    cpmx_spec::check(&source, &data, &SimOnly)
+}
+
+/// The valid spec with `from` replaced by `to` (which must occur).
+fn edit(from: &str, to: &str) -> String {
+    assert!(VALID.contains(from), "{from:?} is not in the base spec");
+    VALID.replacen(from, to, 1)
+}
+
+/// Checks `text`, asserts the first diagnostic's place and returns the rendering.
+fn diagnose(text: &str, line: usize, column: usize) -> String {
+    let diagnostics = check(text).expect_err("the spec should be rejected");
+    assert_eq!(
+        (diagnostics[0].line, diagnostics[0].column),
+        (line, column),
+        "{}",
+        cpmx_spec::render(&diagnostics, false)
+    );
+    cpmx_spec::render(&diagnostics, false)
+}
+
+macro_rules! case {
+    ($name:ident, $text:expr, $line:expr, $column:expr) => {
+        #[test]
+        fn $name() {
+            insta::assert_snapshot!(diagnose(&$text, $line, $column));
+        }
+    };
+}
+
+#[test]
+fn the_base_spec_is_valid() {
+    let checked = check(VALID).unwrap();
+    assert_eq!(checked.plan().len(), 2);
+}
+
+case!(yaml_syntax, edit("agents: 2\n", "agents: [2\n"), 6, 9);
+case!(empty_document, "# nothing here\n", 1, 1);
+case!(duplicate_key, edit("seed: 5\n", "seed: 5\nseed: 6\n"), 15, 1);
+case!(
+    unknown_key_with_suggestion,
+    edit("repetitions: 2", "repetitons: 2"),
+    13,
+    1
+);
+case!(unknown_nested_key, edit("steps: 20", "step: 20"), 4, 19);
+case!(wrong_type, edit("agents: 2", "agents: two"), 5, 9);
+case!(out_of_range, edit("dt: 0.1", "dt: 0"), 4, 14);
+case!(missing_key, edit("seed: 5\n", ""), 1, 1);
+case!(unknown_choice, format!("{VALID}on_collision: crash\n"), 17, 15);
+case!(invalid_name, edit("name: demo", "name: My Demo"), 2, 7);
+case!(
+    unknown_stdlib_name,
+    format!("{VALID}vehicle: stdlib:mu-cat\n"),
+    17,
+    10
+);
+case!(
+    unknown_extended_preset,
+    format!("{VALID}vehicle: {{extends: stdlib:micro-car, width: 0.1}}\n"),
+    17,
+    20
+);
+case!(
+    preset_override_out_of_range,
+    format!("{VALID}vehicle: {{extends: stdlib:mu-car, width: -0.1}}\n"),
+    17,
+    42
+);
+case!(
+    duplicate_policy_name,
+    edit(
+        "  - {name: base, builtin: lane-follow}\n",
+        "  - {name: base, builtin: lane-follow}\n  - {name: base, builtin: lane-follow}\n"
+    ),
+    8,
+    12
+);
+case!(
+    duplicate_configuration_name,
+    format!(
+        "{}",
+        VALID.replace(
+            "repetitions: 2",
+            "  - name: one\n    agents: [{ref_path: 1}, {ref_path: 4}]\nrepetitions: 2"
+        )
+    ),
+    13,
+    11
+);
+case!(
+    control_horizon_exceeds_prediction_horizon,
+    format!("{VALID}planner: {{control_horizon: 8, prediction_horizon: 4}}\n"),
+    17,
+    28
+);
+case!(
+    agent_count,
+    edit("      - {ref_path: 4, arc_length: 0.2}\n", ""),
+    10,
+    5
+);
+case!(
+    missing_map_file,
+    edit("map: stdlib:intersection", "map: {file: maps/nowhere.xml}"),
+    3,
+    13
+);
+case!(
+    missing_weights,
+    edit(
+        "{name: base, builtin: lane-follow}",
+        "{name: net, mlp: {weights: nets/actor.safetensors}}"
+    ),
+    7,
+    32
+);
+case!(
+    policy_with_two_kinds,
+    edit(
+        "builtin: lane-follow}",
+        "builtin: lane-follow, mlp: {weights: a.safetensors}}"
+    ),
+    7,
+    18
+);
+case!(
+    policy_without_kind,
+    edit("{name: base, builtin: lane-follow}", "{name: base}"),
+    7,
+    12
+);
+case!(
+    observation_on_builtin,
+    edit("builtin: lane-follow}", "builtin: lane-follow, action: sample}"),
+    7,
+    40
+);
+case!(
+    slack_outside_unit_interval,
+    format!("{VALID}metrics: {{sample_period_s: 0.1, cra_l: {{slack: 1.5, per_distance_m: 100}}}}\n"),
+    17,
+    48
+);
+case!(
+    unknown_reference_fidelity,
+    format!("{VALID}report: {{compare: {{reference: simm, test: paired}}}}\n"),
+    17,
+    31
+);
+case!(unknown_language_version, edit("cpmx: 1", "cpmx: 2"), 1, 7);
+case!(
+    start_given_twice,
+    edit(
+        "{ref_path: 1, arc_length: 0.2}",
+        "{ref_path: 1, arc_length: 0.2, pose: {x: 1, y: 1}}"
+    ),
+    11,
+    40
+);
+case!(
+    heading_given_twice,
+    edit(
+        "{ref_path: 1, arc_length: 0.2}",
+        "{ref_path: 1, pose: {x: 1, y: 1, yaw: 0, yaw_deg: 0}}"
+    ),
+    11,
+    42
+);
+case!(non_finite_number, edit("dt: 0.1", "dt: .inf"), 4, 14);
+case!(
+    lab_vehicle_ids,
+    format!(
+        "{VALID}  lab: {{driver: cpm-dds, domain: 21, vehicle_ids: [1, 2, 3]}}\nplanner: {{control_horizon: 4, prediction_horizon: 12}}\n"
+    ),
+    17,
+    38
+);
+case!(
+    planner_missing,
+    format!("{VALID}  mpc: {{control: trajectory, dynamics: kinematic}}\n"),
+    17,
+    3
+);
+case!(
+    empty_list,
+    edit(
+        "policies:\n  - {name: base, builtin: lane-follow}\n",
+        "policies: []\n"
+    ),
+    6,
+    1
+);
+case!(
+    layer_keyword_typo,
+    edit("dynamics: kinematic", "dynamics: kinematc"),
+    16,
+    36
+);
+case!(
+    rear_axle_behind_wheelbase,
+    format!("{VALID}vehicle: {{extends: stdlib:mu-car, rear_axle: 0.3}}\n"),
+    17,
+    46
+);
+case!(
+    alias_bomb,
+    "a: &a [x, x, x, x, x, x, x, x, x, x]\nb: &b [*a, *a, *a, *a, *a, *a, *a, *a, *a, *a]\nc: &c [*b, *b, *b, *b, *b, *b, *b, *b, *b, *b]\nd: &d [*c, *c, *c, *c, *c, *c, *c, *c, *c, *c]\ne: &e [*d, *d, *d, *d, *d, *d, *d, *d, *d, *d]\nf: [*e, *e, *e, *e, *e, *e, *e, *e, *e, *e]\n",
+    5,
+    36
+);
+
+#[test]
+fn unsupported_fidelities_are_warnings_not_errors() {
+    let text = format!(
+        "{VALID}  mpc: {{control: trajectory, dynamics: kinematic}}\nplanner: {{control_horizon: 4, prediction_horizon: 12}}\n"
+    );
+    let checked = check(&text).unwrap();
+    assert_eq!(checked.plan().len(), 4);
+    assert_eq!(checked.warnings.len(), 1);
+    assert_eq!((checked.warnings[0].line, checked.warnings[0].column), (17, 3));
+    insta::assert_snapshot!(cpmx_spec::render(&checked.warnings, false));
+}
+
+#[test]
+fn deep_nesting_is_a_diagnostic() {
+    let text = format!("a: {}{}\n", "[".repeat(500), "]".repeat(500));
+    assert!(check(&text).is_err());
+}
