@@ -57,6 +57,12 @@ impl Segments {
     /// Distance from `(px, py)` to segment `i`, in float32 as torch computes it.
     #[inline(always)]
     fn distance(&self, i: usize, px: f32, py: f32) -> f32 {
+        self.distance2(i, px, py).sqrt()
+    }
+
+    /// Squared distance from `(px, py)` to segment `i` (float32, torch's order).
+    #[inline(always)]
+    fn distance2(&self, i: usize, px: f32, py: f32) -> f32 {
         let (vx, vy) = (self.dir_x[i], self.dir_y[i]);
         let dot = (px - self.start_x[i]) * vx + (py - self.start_y[i]) * vy;
         let len2 = self.len2[i];
@@ -66,13 +72,14 @@ impl Segments {
             0.0
         };
         let (ex, ey) = (self.start_x[i] + vx * t - px, self.start_y[i] + vy * t - py);
-        (ex * ex + ey * ey).sqrt()
+        ex * ex + ey * ey
     }
 
     /// Nearest segment to `p` with SigmaRL's rule (the first one on ties), or `None` when empty.
     pub fn nearest(&self, p: Point) -> Option<Nearest> {
         let (px, py) = (p[0] as f32, p[1] as f32);
         let best = self.min_distance(px, py);
+        // Ties are decided on the rounded distances, as torch compares them.
         let segment = (0..self.len()).find(|&i| self.distance(i, px, py) <= best)?;
         Some(Nearest {
             distance_m: f64::from(best),
@@ -85,14 +92,15 @@ impl Segments {
         f64::from(self.min_distance(p[0] as f32, p[1] as f32))
     }
 
-    /// Smallest distance over all segments (a loop the compiler vectorises).
+    /// Smallest distance over all segments (a loop the compiler vectorises). The square root
+    /// is monotone and correctly rounded, so taking it once at the end gives the same value.
     fn min_distance(&self, px: f32, py: f32) -> f32 {
         let mut best = f32::INFINITY;
         for i in 0..self.len() {
-            let d = self.distance(i, px, py);
-            best = if d < best { d } else { best };
+            let d2 = self.distance2(i, px, py);
+            best = if d2 < best { d2 } else { best };
         }
-        best
+        best.sqrt()
     }
 }
 

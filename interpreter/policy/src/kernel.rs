@@ -38,6 +38,26 @@ impl Dense {
     /// blocked summation like BLAS's (several times less round-off than one running sum over
     /// 256 inputs; agrees with torch to 5e-7), independent of the SIMD width.
     pub(crate) fn apply(&self, x: &[f32], x_stride: usize, rows: usize, y: &mut [f32]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above). The AVX2 build runs the same
+            // operations in the same order (no FMA), so results are bit-identical.
+            unsafe { self.apply_avx2(x, x_stride, rows, y) };
+            return;
+        }
+        self.apply_portable(x, x_stride, rows, y);
+    }
+
+    /// [`Dense::apply_portable`] compiled with 256-bit vectors.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn apply_avx2(&self, x: &[f32], x_stride: usize, rows: usize, y: &mut [f32]) {
+        self.apply_portable(x, x_stride, rows, y);
+    }
+
+    /// The layer for any CPU.
+    #[inline(always)]
+    fn apply_portable(&self, x: &[f32], x_stride: usize, rows: usize, y: &mut [f32]) {
         let n_out = self.out_padded;
         let x_blocks = x.chunks_exact(ROWS * x_stride).take(rows / ROWS);
         for (xb, yb) in x_blocks.zip(y.chunks_exact_mut(ROWS * n_out)) {
