@@ -1,0 +1,237 @@
+//! Grouping runs and summarising each metric per group: n, mean, std, IQM, normal 95 % CI
+//! and, when asked for, stratified bootstrap CIs of the mean and the IQM.
+//!
+//! This module owns the [`Summary`] every renderer reads. It formats nothing and computes
+//! no statistic itself: the formulas live in `cpmx_metrics::stats`.
+
+use cpmx_metrics::stats::{self, Interval};
+use cpmx_spec::RunPlan;
+use cpmx_spec::model::{Bootstrap, GroupKey, ReportSpec, Statistic};
+
+use crate::RunRecord;
+use crate::compare::{Comparison, compare};
+use crate::metric::{Metric, Units};
+
+/// Confidence of every interval of the report.
+pub const CONFIDENCE: f64 = 0.95;
+
+/// Everything the tables and plots show, computed once from the runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Summary {
+    /// The experiment's name (the spec's `name`).
+    pub experiment: String,
+    /// The axes that define a group (`report.group_by`).
+    pub group_by: Vec<GroupKey>,
+    /// The statistics the spec asked for (`report.statistics`); the tables show these.
+    pub statistics: Vec<Statistic>,
+    /// Resamples and seed of every bootstrap interval (stratified and paired).
+    pub bootstrap: Bootstrap,
+    /// The rates' normalising distances.
+    pub units: Units,
+    /// The groups, in order of their first run (matrix order).
+    pub groups: Vec<Group>,
+    /// The paired comparison with the reference fidelity, when `report.compare` is set.
+    pub comparison: Option<Comparison>,
+}
+
+impl Summary {
+    /// Whether the spec asked for this statistic.
+    pub fn shows(&self, statistic: Statistic) -> bool {
+        self.statistics.contains(&statistic)
+    }
+}
+
+/// The runs that share their values of the `group_by` axes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Group {
+    /// One value per `group_by` axis, in that order.
+    pub key: Vec<String>,
+    /// Runs in the group (NaN values included).
+    pub runs: usize,
+    /// One summary per metric, in [`Metric::ALL`] order.
+    pub metrics: Vec<MetricSummary>,
+}
+
+impl Group {
+    /// The summary of one metric.
+    pub fn metric(&self, metric: Metric) -> Option<&MetricSummary> {
+        self.metrics.iter().find(|m| m.metric == metric)
+    }
+}
+
+/// One metric over the runs of one group.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MetricSummary {
+    /// Which metric.
+    pub metric: Metric,
+    /// The per-run values in run order, NaN (undefined) included.
+    pub values: Vec<f64>,
+    /// n (NaN excluded), NaN count, mean, std (n − 1), IQM, normal 95 % CI of the mean.
+    pub stats: stats::Summary,
+    /// Stratified bootstrap intervals, when `bootstrap` is among the statistics.
+    pub bootstrap: Option<BootstrapIntervals>,
+}
+
+/// Percentile bootstrap 95 % intervals of a group, resampled within each initial
+/// configuration (the strata), from `ChaCha8Rng::seed_from_u64(bootstrap.seed)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BootstrapIntervals {
+    /// Of the mean.
+    pub mean: Interval,
+    /// Of the interquartile mean.
+    pub iqm: Interval,
+}
+
+/// The name of a grouping axis as `per_run.csv` heads its column.
+pub fn axis_name(axis: GroupKey) -> &'static str {
+    match axis {
+        GroupKey::Fidelity => "fidelity",
+        GroupKey::Policy => "policy",
+        GroupKey::InitialConfiguration => "initial_configuration",
+    }
+}
+
+/// A run's value of a grouping axis.
+pub fn axis_value(plan: &RunPlan, axis: GroupKey) -> &str {
+    match axis {
+        GroupKey::Fidelity => &plan.fidelity,
+        GroupKey::Policy => &plan.policy,
+        GroupKey::InitialConfiguration => &plan.initial_configuration,
+    }
+}
+
+/// Summarises `runs` as `report` asks: groups by `report.group_by` in order of first
+/// appearance, every metric per group, and the paired comparison of `report.compare`.
+///
+/// Total: no runs, empty groups, single runs and NaN values all give a summary (with NaN
+/// statistics where they are undefined).
+pub fn summarize(experiment: &str, runs: &[RunRecord], report: &ReportSpec) -> Summary {
+    let with_bootstrap = report.statistics.contains(&Statistic::Bootstrap);
+    let groups = group_runs(runs, &report.group_by)
+        .into_iter()
+        .map(|(key, members)| summarize_group(key, &members, with_bootstrap.then_some(&report.bootstrap)))
+        .collect();
+    Summary {
+        experiment: experiment.to_owned(),
+        group_by: report.group_by.clone(),
+        statistics: report.statistics.clone(),
+        bootstrap: report.bootstrap.clone(),
+        units: Units::of_runs(runs.iter().map(|r| &r.metrics)),
+        groups,
+        comparison: report
+            .compare
+            .as_ref()
+            .map(|c| compare(runs, &c.reference, &report.bootstrap)),
+    }
+}
+
+/// The runs of each group, groups in order of their first run.
+fn group_runs<'a>(runs: &'a [RunRecord], axes: &[GroupKey]) -> Vec<(Vec<String>, Vec<&'a RunRecord>)> {
+    let mut groups: Vec<(Vec<String>, Vec<&RunRecord>)> = Vec::new();
+    for run in runs {
+        let key: Vec<String> = axes
+            .iter()
+            .map(|&a| axis_value(&run.plan, a).to_owned())
+            .collect();
+        match groups.iter_mut().find(|(k, _)| *k == key) {
+            Some((_, members)) => members.push(run),
+            None => groups.push((key, vec![run])),
+        }
+    }
+    groups
+}
+
+fn summarize_group(key: Vec<String>, members: &[&RunRecord], bootstrap: Option<&Bootstrap>) -> Group {
+    let metrics = Metric::ALL
+        .iter()
+        .map(|&metric| {
+            let values: Vec<f64> = members.iter().map(|r| metric.of(&r.metrics)).collect();
+            MetricSummary {
+                metric,
+                stats: stats::summarize(&values),
+                bootstrap: bootstrap.map(|b| bootstrap_intervals(members, metric, b)),
+                values,
+            }
+        })
+        .collect();
+    Group {
+        key,
+        runs: members.len(),
+        metrics,
+    }
+}
+
+/// Stratified bootstrap intervals of one metric; strata are the initial configurations
+/// in order of first appearance.
+fn bootstrap_intervals(members: &[&RunRecord], metric: Metric, settings: &Bootstrap) -> BootstrapIntervals {
+    let mut strata: Vec<(&str, Vec<f64>)> = Vec::new();
+    for run in members {
+        let configuration = run.plan.initial_configuration.as_str();
+        let value = metric.of(&run.metrics);
+        match strata.iter_mut().find(|(c, _)| *c == configuration) {
+            Some((_, values)) => values.push(value),
+            None => strata.push((configuration, vec![value])),
+        }
+    }
+    let slices: Vec<&[f64]> = strata.iter().map(|(_, v)| v.as_slice()).collect();
+    let interval = |statistic| {
+        stats::stratified_bootstrap_ci(
+            &slices,
+            statistic,
+            settings.resamples as usize,
+            settings.seed,
+            CONFIDENCE,
+        )
+    };
+    BootstrapIntervals {
+        mean: interval(stats::Statistic::Mean),
+        iqm: interval(stats::Statistic::Iqm),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::{record, spec};
+
+    #[test]
+    fn groups_keep_matrix_order_and_exclude_nan() {
+        let runs = vec![
+            record("twin", "p1", "init1", 1, [1.0, 40.0, 0.04, 0.7]),
+            record("sim", "p1", "init1", 1, [0.0, 45.0, 0.05, 0.75]),
+            record("twin", "p1", "init2", 1, [f64::NAN, f64::NAN, 0.05, 0.0]),
+            record("twin", "p1", "init3", 1, [3.0, 42.0, 0.06, 0.8]),
+        ];
+        let summary = summarize("x", &runs, &spec(&[GroupKey::Fidelity], false, None));
+        let keys: Vec<&str> = summary.groups.iter().map(|g| g.key[0].as_str()).collect();
+        assert_eq!(keys, ["twin", "sim"]);
+        let cra_a = summary.groups[0].metric(Metric::CraA).unwrap();
+        assert_eq!((cra_a.stats.n, cra_a.stats.nan_count), (2, 1));
+        assert_eq!(cra_a.stats.mean, 2.0);
+        assert!(cra_a.bootstrap.is_none());
+        assert_eq!(summary.groups[0].runs, 3);
+    }
+
+    #[test]
+    fn bootstrap_uses_the_spec_seed_and_is_reproducible() {
+        let runs: Vec<RunRecord> = (0..6)
+            .map(|i| {
+                let init = if i % 2 == 0 { "init1" } else { "init2" };
+                record("sim", "p1", init, 1 + i / 2, [i as f64, 1.0, 0.1, 0.5])
+            })
+            .collect();
+        let report = spec(&[GroupKey::Fidelity], true, None);
+        let a = summarize("x", &runs, &report);
+        let b = summarize("x", &runs, &report);
+        assert_eq!(a, b);
+        let ci = a.groups[0].metric(Metric::CraA).unwrap().bootstrap.unwrap();
+        assert!(ci.mean.low < 2.5 && 2.5 < ci.mean.high, "{ci:?}");
+    }
+
+    #[test]
+    fn no_runs_give_no_groups() {
+        let summary = summarize("x", &[], &spec(&[GroupKey::Policy], true, Some("sim")));
+        assert!(summary.groups.is_empty());
+        assert!(summary.comparison.unwrap().fidelities.is_empty());
+    }
+}

@@ -1,0 +1,158 @@
+//! The paired comparison of every fidelity with a reference fidelity, over runs that share
+//! their policy, initial configuration and repetition (`RunPlan::pair_key`).
+//!
+//! This module owns which runs are paired and which way a difference points (test minus
+//! reference); the statistics come from `cpmx_metrics::stats`.
+
+use cpmx_metrics::stats::{self, Interval};
+use cpmx_spec::model::Bootstrap;
+
+use crate::RunRecord;
+use crate::aggregate::CONFIDENCE;
+use crate::metric::Metric;
+
+/// Every other fidelity compared with the reference.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Comparison {
+    /// The reference fidelity (`report.compare.reference`).
+    pub reference: String,
+    /// Runs of the reference fidelity found (0 when it is missing from the runs).
+    pub reference_runs: usize,
+    /// One entry per other fidelity, in order of first appearance.
+    pub fidelities: Vec<FidelityComparison>,
+}
+
+/// One fidelity against the reference.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FidelityComparison {
+    /// The compared ("test") fidelity.
+    pub fidelity: String,
+    /// One entry per metric, in [`Metric::ALL`] order.
+    pub metrics: Vec<PairedMetric>,
+}
+
+/// One metric of one fidelity against the reference, over matched runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PairedMetric {
+    /// Which metric.
+    pub metric: Metric,
+    /// Matched pairs used (no NaN on either side).
+    pub pairs: usize,
+    /// Runs whose pair key is present on one side only.
+    pub unmatched: usize,
+    /// Matched pairs dropped because a value was NaN.
+    pub nan_pairs: usize,
+    /// Mean of `test − reference` over the pairs (NaN without pairs).
+    pub mean_difference: f64,
+    /// Paired percentile bootstrap 95 % CI of that mean.
+    pub ci95_bootstrap: Interval,
+    /// Two-sided Wilcoxon signed-rank p-value of the differences.
+    pub wilcoxon_p: f64,
+    /// Probability that a paired run of the test fidelity is better than one of the
+    /// reference (Mann-Whitney over the paired values; the direction is the metric's:
+    /// lower CRA-A, CRA-L, CD, higher AS). 0.5 means no difference.
+    pub probability_of_improvement: f64,
+}
+
+/// Compares every fidelity of `runs` other than `reference` with it.
+///
+/// Each bootstrap interval uses `ChaCha8Rng::seed_from_u64(bootstrap.seed)` afresh, so any
+/// interval can be recomputed from the printed seed alone.
+pub fn compare(runs: &[RunRecord], reference: &str, bootstrap: &Bootstrap) -> Comparison {
+    let mut fidelities: Vec<&str> = Vec::new();
+    for run in runs {
+        let fidelity = run.plan.fidelity.as_str();
+        if fidelity != reference && !fidelities.contains(&fidelity) {
+            fidelities.push(fidelity);
+        }
+    }
+    Comparison {
+        reference: reference.to_owned(),
+        reference_runs: runs.iter().filter(|r| r.plan.fidelity == reference).count(),
+        fidelities: fidelities
+            .into_iter()
+            .map(|fidelity| FidelityComparison {
+                fidelity: fidelity.to_owned(),
+                metrics: Metric::ALL
+                    .iter()
+                    .map(|&metric| paired_metric(runs, fidelity, reference, metric, bootstrap))
+                    .collect(),
+            })
+            .collect(),
+    }
+}
+
+fn paired_metric(
+    runs: &[RunRecord],
+    test: &str,
+    reference: &str,
+    metric: Metric,
+    bootstrap: &Bootstrap,
+) -> PairedMetric {
+    let side = |fidelity: &str| -> Vec<(String, f64)> {
+        runs.iter()
+            .filter(|r| r.plan.fidelity == fidelity)
+            .map(|r| (r.plan.pair_key(), metric.of(&r.metrics)))
+            .collect()
+    };
+    let pairs = stats::match_pairs(side(test), side(reference));
+    let differences: Vec<f64> = pairs.a.iter().zip(&pairs.b).map(|(t, r)| t - r).collect();
+    PairedMetric {
+        metric,
+        pairs: pairs.keys.len(),
+        unmatched: pairs.unmatched,
+        nan_pairs: pairs.nan_pairs,
+        mean_difference: stats::mean(&differences),
+        ci95_bootstrap: stats::paired_bootstrap_ci(
+            &pairs.a,
+            &pairs.b,
+            bootstrap.resamples as usize,
+            bootstrap.seed,
+            CONFIDENCE,
+        ),
+        wilcoxon_p: stats::wilcoxon_signed_rank_p(&pairs.a, &pairs.b),
+        probability_of_improvement: stats::probability_of_improvement(&pairs.a, &pairs.b, metric.direction()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::record;
+
+    fn settings() -> Bootstrap {
+        Bootstrap {
+            resamples: 200,
+            seed: 7,
+        }
+    }
+
+    #[test]
+    fn differences_point_from_reference_to_test() {
+        let runs = vec![
+            record("sim", "p", "i", 1, [0.0, 40.0, 0.05, 0.70]),
+            record("sim", "p", "i", 2, [1.0, 41.0, 0.05, 0.71]),
+            record("lab", "p", "i", 2, [3.0, 44.0, 0.06, 0.69]),
+            record("lab", "p", "i", 1, [2.0, 42.0, 0.06, 0.65]),
+            record("lab", "p", "i", 3, [9.0, 42.0, 0.06, 0.65]),
+        ];
+        let c = compare(&runs, "sim", &settings());
+        assert_eq!(c.reference_runs, 2);
+        let cra_a = &c.fidelities[0].metrics[0];
+        assert_eq!((cra_a.pairs, cra_a.unmatched), (2, 1));
+        assert_eq!(cra_a.mean_difference, 2.0);
+        // Lab collides more in both pairs: never an improvement on a ↓ metric.
+        assert_eq!(cra_a.probability_of_improvement, 0.0);
+        // AS: the lab is slower in both pairs: never an improvement on a ↑ metric either.
+        assert_eq!(c.fidelities[0].metrics[3].probability_of_improvement, 0.0);
+    }
+
+    #[test]
+    fn a_missing_reference_gives_zero_pairs() {
+        let runs = vec![record("lab", "p", "i", 1, [1.0, 1.0, 1.0, 1.0])];
+        let c = compare(&runs, "sim", &settings());
+        let m = &c.fidelities[0].metrics[0];
+        assert_eq!((m.pairs, m.unmatched, c.reference_runs), (0, 1, 0));
+        assert!(m.mean_difference.is_nan() && m.wilcoxon_p.is_nan() && m.ci95_bootstrap.low.is_nan());
+    }
+}

@@ -1,0 +1,39 @@
+//! Summaries of cpmx runs: grouped statistics, paired comparisons between fidelities, the
+//! tables of a run folder (`per_run.csv`, `summary.md`, `summary.csv`, `summary.json`, and a
+//! LaTeX `tabular` shaped like the paper's Table 2) and SVG plots.
+//!
+//! Modules: `metric` (names, units, directions, precision), `aggregate` (groups and their
+//! statistics), `compare` (paired differences with the reference fidelity), `table` (text
+//! renderers), `svg` (plots written as SVG text).
+//!
+//! Every renderer is a pure function of its input and byte-stable: fixed number formats,
+//! no hash-map order, no clock. This crate reads no files and runs no engine; the
+//! statistics' formulas live in `cpmx_metrics::stats`.
+
+mod aggregate;
+mod compare;
+mod metric;
+mod svg;
+mod table;
+#[cfg(test)]
+mod testing;
+
+pub use aggregate::{
+    BootstrapIntervals, CONFIDENCE, Group, MetricSummary, Summary, axis_name, axis_value, summarize,
+};
+pub use compare::{Comparison, FidelityComparison, PairedMetric};
+pub use metric::{Metric, Units};
+pub use svg::{distribution_svg, trajectory_svg};
+pub use table::{Format, per_run_csv, render};
+
+use cpmx_metrics::RunMetrics;
+use cpmx_spec::RunPlan;
+
+/// One finished run: where it sits in the matrix and its metrics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunRecord {
+    /// Its row of the run matrix.
+    pub plan: RunPlan,
+    /// Its metrics (`metrics.json`).
+    pub metrics: RunMetrics,
+}

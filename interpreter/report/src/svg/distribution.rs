@@ -1,0 +1,188 @@
+//! The distribution of one metric: per group, every run's value as a dot (jittered
+//! sideways by a fixed sequence, so the plot is reproducible), the mean as a solid bar and
+//! the IQM as a dashed bar. Undefined (NaN) runs are counted under the group's label.
+
+use std::fmt::Write;
+
+use super::{colour, escape, open, px};
+use crate::Summary;
+use crate::metric::Metric;
+use crate::table::fixed;
+
+/// Width of one group's column [px].
+const COLUMN_PX: f64 = 110.0;
+/// Height of the value axis [px].
+const PLOT_PX: f64 = 240.0;
+/// Space left of the axis for tick labels [px].
+const LEFT_PX: f64 = 70.0;
+/// Space above the plot for the title [px].
+const TOP_PX: f64 = 40.0;
+/// Space below the plot for group labels [px].
+const BOTTOM_PX: f64 = 50.0;
+/// Ticks on the value axis.
+const TICKS: usize = 5;
+
+/// The SVG of `metric`'s per-run values in every group of `summary`.
+pub fn distribution_svg(summary: &Summary, metric: Metric) -> String {
+    let axis = Axis::of(summary, metric);
+    let width_px = LEFT_PX + COLUMN_PX * summary.groups.len().max(1) as f64 + 20.0;
+    let mut out = open(width_px, TOP_PX + PLOT_PX + BOTTOM_PX);
+    let title = format!(
+        "{} {} [{}]: runs (dots), mean (solid), IQM (dashed)",
+        metric.label(),
+        metric.arrow(),
+        summary.units.text(metric)
+    );
+    let _ = writeln!(out, "<title>{}</title>", escape(&title));
+    let _ = writeln!(
+        out,
+        "<text x=\"{}\" y=\"20\">{}</text>",
+        px(LEFT_PX),
+        escape(&title)
+    );
+    value_axis(&mut out, &axis, metric, width_px);
+
+    for (index, group) in summary.groups.iter().enumerate() {
+        let Some(m) = group.metric(metric) else {
+            continue;
+        };
+        let centre_px = LEFT_PX + COLUMN_PX * (index as f64 + 0.5);
+        let _ = writeln!(
+            out,
+            "<g class=\"group\" data-group=\"{}\">",
+            escape(&group.key.join("/"))
+        );
+        for (j, &value) in m.values.iter().filter(|v| v.is_finite()).enumerate() {
+            let _ = writeln!(
+                out,
+                "<circle class=\"run\" cx=\"{}\" cy=\"{}\" r=\"3\" fill=\"{}\" fill-opacity=\"0.7\"/>",
+                px(centre_px + jitter(j) * COLUMN_PX * 0.5),
+                px(axis.to_px(value)),
+                colour(index)
+            );
+        }
+        bar(&mut out, centre_px, axis.to_px(m.stats.mean), "mean", "");
+        bar(
+            &mut out,
+            centre_px,
+            axis.to_px(m.stats.iqm),
+            "iqm",
+            " stroke-dasharray=\"5 3\"",
+        );
+        let label_y = TOP_PX + PLOT_PX + 20.0;
+        let _ = writeln!(
+            out,
+            "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{}</text>",
+            px(centre_px),
+            px(label_y),
+            escape(&group.key.join(" / "))
+        );
+        let count = match m.stats.nan_count {
+            0 => format!("n = {}", m.stats.n),
+            nan => format!("n = {} ({nan} NaN)", m.stats.n),
+        };
+        let _ = writeln!(
+            out,
+            "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\" font-size=\"10\">{count}</text>\n</g>",
+            px(centre_px),
+            px(label_y + 15.0)
+        );
+    }
+    out.push_str("</svg>\n");
+    out
+}
+
+/// A horizontal mark across the middle of a column (nothing for an undefined value).
+fn bar(out: &mut String, centre_px: f64, y_px: f64, class: &str, style: &str) {
+    if !y_px.is_finite() {
+        return;
+    }
+    let half = COLUMN_PX * 0.3;
+    let _ = writeln!(
+        out,
+        "<line class=\"{class}\" x1=\"{}\" y1=\"{y}\" x2=\"{}\" y2=\"{y}\" stroke=\"black\" stroke-width=\"2\"{style}/>",
+        px(centre_px - half),
+        px(centre_px + half),
+        y = px(y_px)
+    );
+}
+
+/// The `j`-th sideways offset in [−0.5, 0.5): the fractional parts of `j · φ` (golden
+/// ratio), evenly spread and the same on every run.
+fn jitter(j: usize) -> f64 {
+    const PHI: f64 = 0.618_033_988_749_895;
+    (j as f64 * PHI).fract() - 0.5
+}
+
+/// The value range of the plot.
+struct Axis {
+    low: f64,
+    high: f64,
+}
+
+impl Axis {
+    /// The range of every finite value of `metric`, padded by 5 % (a constant or missing
+    /// sample gets a small range around it).
+    fn of(summary: &Summary, metric: Metric) -> Axis {
+        let values = summary
+            .groups
+            .iter()
+            .filter_map(|g| g.metric(metric))
+            .flat_map(|m| m.values.iter().copied())
+            .filter(|v| v.is_finite());
+        let (low, high) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(v), h.max(v))
+        });
+        if low > high {
+            return Axis { low: 0.0, high: 1.0 };
+        }
+        let pad = if high > low {
+            0.05 * (high - low)
+        } else {
+            (0.1 * low.abs()).max(1e-3)
+        };
+        Axis {
+            low: low - pad,
+            high: high + pad,
+        }
+    }
+
+    fn to_px(&self, value: f64) -> f64 {
+        TOP_PX + PLOT_PX * (self.high - value) / (self.high - self.low)
+    }
+}
+
+/// The axis line, tick marks, labels and light grid lines.
+fn value_axis(out: &mut String, axis: &Axis, metric: Metric, width_px: f64) {
+    let _ = writeln!(
+        out,
+        "<line class=\"axis\" x1=\"{x}\" y1=\"{}\" x2=\"{x}\" y2=\"{}\" stroke=\"black\"/>",
+        px(TOP_PX),
+        px(TOP_PX + PLOT_PX),
+        x = px(LEFT_PX)
+    );
+    for k in 0..TICKS {
+        let value = axis.low + (axis.high - axis.low) * k as f64 / (TICKS - 1) as f64;
+        let y = px(axis.to_px(value));
+        let _ = writeln!(
+            out,
+            "<line x1=\"{}\" y1=\"{y}\" x2=\"{}\" y2=\"{y}\" stroke=\"#e0e0e0\"/>\
+             <text x=\"{}\" y=\"{y}\" text-anchor=\"end\" dominant-baseline=\"middle\">{}</text>",
+            px(LEFT_PX),
+            px(width_px - 20.0),
+            px(LEFT_PX - 6.0),
+            fixed(value, metric.decimals() + 1)
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn jitter_stays_in_its_lane() {
+        assert!((0..100).map(jitter).all(|j| (-0.5..0.5).contains(&j)));
+        assert_eq!(jitter(0), -0.5);
+    }
+}

@@ -1,0 +1,75 @@
+//! Plots as hand-written SVG text: the map with each agent's trajectory, and the per-run
+//! distribution of a metric per group.
+//!
+//! This module owns the SVG helpers (number format, colours, escaping). Coordinates are
+//! written with one decimal of a pixel, so the bytes are stable; no fonts are embedded
+//! (text uses the viewer's sans-serif).
+
+mod distribution;
+mod trajectory;
+
+pub use distribution::distribution_svg;
+pub use trajectory::trajectory_svg;
+
+/// Agent colours (the Tableau 10 palette), cycled.
+const PALETTE: [&str; 10] = [
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
+    "#17becf",
+];
+
+/// The colour of agent or group `index`.
+fn colour(index: usize) -> &'static str {
+    PALETTE[index % PALETTE.len()]
+}
+
+/// A pixel coordinate with one decimal (`-0.0` written as `0.0`).
+fn px(value: f64) -> String {
+    let text = format!("{value:.1}");
+    if text == "-0.0" { "0.0".into() } else { text }
+}
+
+/// Text with XML's special characters escaped.
+fn escape(text: &str) -> String {
+    text.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// The opening `<svg>` tag of a `width_px` x `height_px` drawing with a white background.
+fn open(width_px: f64, height_px: f64) -> String {
+    let (w, h) = (px(width_px), px(height_px));
+    format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" viewBox=\"0 0 {w} {h}\" \
+         font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"{w}\" height=\"{h}\" fill=\"white\"/>\n"
+    )
+}
+
+/// A path through `points` (`M x y L x y ...`); empty for no points.
+fn path_data(points: impl IntoIterator<Item = (f64, f64)>) -> String {
+    let mut d = String::new();
+    for (i, (x, y)) in points.into_iter().enumerate() {
+        if i > 0 {
+            d.push(' ');
+        }
+        d.push(if i == 0 { 'M' } else { 'L' });
+        d.push_str(&px(x));
+        d.push(' ');
+        d.push_str(&px(y));
+    }
+    d
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn helpers_write_stable_text() {
+        assert_eq!(px(-0.04), "0.0");
+        assert_eq!(px(12.345), "12.3");
+        assert_eq!(path_data([(0.0, 1.0), (2.0, 3.0)]), "M0.0 1.0 L2.0 3.0");
+        assert_eq!(escape("a<b & \"c\""), "a&lt;b &amp; &quot;c&quot;");
+        assert_eq!(colour(11), colour(1));
+    }
+}

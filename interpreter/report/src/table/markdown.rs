@@ -1,0 +1,222 @@
+//! `summary.md`: the paper's Table 2 as a Markdown table (rows: groups; columns: metrics
+//! with unit and ↑/↓; cells `mean ± std (IQM)`), then the confidence intervals, then the
+//! paired comparison with the reference fidelity.
+
+use std::fmt::Write;
+
+use cpmx_spec::model::Statistic;
+
+use super::{CellParts, best_groups, exclusions, fixed, p_value, pairs_text};
+use crate::aggregate::axis_name;
+use crate::compare::Comparison;
+use crate::metric::Metric;
+use crate::{Group, Summary};
+
+/// The whole Markdown summary.
+pub fn render(summary: &Summary) -> String {
+    let mut out = format!("# {}\n\n", summary.experiment);
+    main_table(&mut out, summary);
+    if summary.shows(Statistic::Ci95) || summary.shows(Statistic::Bootstrap) {
+        interval_table(&mut out, summary);
+    }
+    if let Some(comparison) = &summary.comparison {
+        comparison_table(&mut out, summary, comparison);
+    }
+    out
+}
+
+/// Table 2: one row per group.
+fn main_table(out: &mut String, summary: &Summary) {
+    let parts = CellParts::of(summary);
+    let _ = writeln!(
+        out,
+        "Per group: {} over its runs. ↓ lower is better, ↑ higher is better; bold: the best mean of a column.\n",
+        parts.caption()
+    );
+    let mut header = group_header(summary);
+    header.push("runs".into());
+    let mut align = vec![":--"; summary.group_by.len()];
+    align.push("--:");
+    for metric in Metric::ALL {
+        header.push(format!(
+            "{} {} [{}]",
+            metric.label(),
+            metric.arrow(),
+            summary.units.text(metric)
+        ));
+        align.push("--:");
+    }
+    row(out, &header);
+    row(out, &align);
+
+    let best = best_groups(summary);
+    for (index, group) in summary.groups.iter().enumerate() {
+        let mut cells = group_cells(group);
+        cells.push(group.runs.to_string());
+        for (metric, best) in Metric::ALL.into_iter().zip(&best) {
+            let bold = |s: String| {
+                if *best == Some(index) {
+                    format!("**{s}**")
+                } else {
+                    s
+                }
+            };
+            cells.push(
+                group
+                    .metric(metric)
+                    .map_or_else(String::new, |m| parts.cell(&m.stats, metric, " ± ", &bold)),
+            );
+        }
+        row(out, &cells);
+    }
+    let excluded = exclusions(summary);
+    if !excluded.is_empty() {
+        let _ = writeln!(
+            out,
+            "\nExcluded as undefined (no distance travelled): {}.",
+            excluded.join("; ")
+        );
+    }
+}
+
+/// One row per group and metric: the requested 95 % intervals.
+fn interval_table(out: &mut String, summary: &Summary) {
+    let (normal, bootstrap) = (
+        summary.shows(Statistic::Ci95),
+        summary.shows(Statistic::Bootstrap),
+    );
+    let _ = writeln!(out, "\n## 95 % confidence intervals\n");
+    if normal {
+        let _ = writeln!(out, "Normal: mean ± 1.96 · std / √n.");
+    }
+    if bootstrap {
+        let _ = writeln!(
+            out,
+            "Bootstrap: percentile, resampled within each initial configuration; {} resamples, seed {}.",
+            summary.bootstrap.resamples, summary.bootstrap.seed
+        );
+    }
+    out.push('\n');
+    let mut header = group_header(summary);
+    header.extend(["metric".into(), "n".into()]);
+    if normal {
+        header.push("mean (normal)".into());
+    }
+    if bootstrap {
+        header.extend(["mean (bootstrap)".into(), "IQM (bootstrap)".into()]);
+    }
+    let mut align = vec![":--"; summary.group_by.len() + 1];
+    align.resize(header.len(), "--:");
+    row(out, &header);
+    row(out, &align);
+    for group in &summary.groups {
+        for m in &group.metrics {
+            let d = m.metric.decimals();
+            let mut cells = group_cells(group);
+            cells.extend([metric_name(summary, m.metric), m.stats.n.to_string()]);
+            if normal {
+                cells.push(interval(m.stats.ci95, d));
+            }
+            if bootstrap {
+                let (mean, iqm) = m.bootstrap.map_or((String::new(), String::new()), |b| {
+                    (interval(b.mean, d), interval(b.iqm, d))
+                });
+                cells.extend([mean, iqm]);
+            }
+            row(out, &cells);
+        }
+    }
+}
+
+/// One row per compared fidelity and metric.
+fn comparison_table(out: &mut String, summary: &Summary, comparison: &Comparison) {
+    let _ = writeln!(out, "\n## Paired comparison with `{}`\n", comparison.reference);
+    let _ = writeln!(
+        out,
+        "Differences fidelity − {} over runs with the same policy, initial configuration and repetition. \
+         CI: paired percentile bootstrap, {} resamples, seed {}. p: two-sided Wilcoxon signed-rank test. \
+         P(better): probability that a run of the fidelity is better than one of the reference \
+         (by the metric's arrow; 0.5: no difference).\n",
+        comparison.reference, summary.bootstrap.resamples, summary.bootstrap.seed
+    );
+    if comparison.reference_runs == 0 {
+        let _ = writeln!(out, "The reference fidelity has no runs.\n");
+    }
+    row(
+        out,
+        &[
+            "fidelity",
+            "metric",
+            "pairs",
+            "difference",
+            "95 % CI",
+            "p",
+            "P(better)",
+        ]
+        .map(String::from),
+    );
+    row(
+        out,
+        &[":--", ":--", "--:", "--:", "--:", "--:", "--:"].map(String::from),
+    );
+    for fidelity in &comparison.fidelities {
+        for m in &fidelity.metrics {
+            let d = m.metric.decimals();
+            row(
+                out,
+                &[
+                    escape(&fidelity.fidelity),
+                    metric_name(summary, m.metric),
+                    pairs_text(m),
+                    fixed(m.mean_difference, d),
+                    interval(m.ci95_bootstrap, d),
+                    p_value(m.wilcoxon_p),
+                    fixed(m.probability_of_improvement, 2),
+                ],
+            );
+        }
+    }
+}
+
+fn group_header(summary: &Summary) -> Vec<String> {
+    summary
+        .group_by
+        .iter()
+        .map(|&a| axis_name(a).to_owned())
+        .collect()
+}
+
+fn group_cells(group: &Group) -> Vec<String> {
+    group.key.iter().map(|k| escape(k)).collect()
+}
+
+fn metric_name(summary: &Summary, metric: Metric) -> String {
+    format!(
+        "{} {} [{}]",
+        metric.label(),
+        metric.arrow(),
+        summary.units.text(metric)
+    )
+}
+
+fn interval(i: cpmx_metrics::stats::Interval, decimals: usize) -> String {
+    if i.low.is_nan() || i.high.is_nan() {
+        return super::UNDEFINED.into();
+    }
+    format!("[{}, {}]", fixed(i.low, decimals), fixed(i.high, decimals))
+}
+
+/// A table cell's text with `|` escaped.
+fn escape(text: &str) -> String {
+    text.replace('|', "\\|")
+}
+
+fn row<S: AsRef<str>>(out: &mut String, cells: &[S]) {
+    out.push('|');
+    for cell in cells {
+        out.push(' ');
+        out.push_str(cell.as_ref());
+        out.push_str(" |");
+    }
+    out.push('\n');
+}

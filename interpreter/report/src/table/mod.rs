@@ -1,0 +1,253 @@
+//! Text renderers of a [`Summary`]: Markdown, CSV, JSON and a LaTeX `tabular`, plus
+//! `per_run.csv` of the runs themselves.
+//!
+//! This module owns the number formats of the tables. Every renderer is a pure function:
+//! the same summary gives the same bytes on every machine (fixed decimals or
+//! [`format_float`], no hash-map order, no timestamps). Nothing here computes a statistic.
+
+mod csv;
+mod json;
+mod latex;
+mod markdown;
+
+pub use csv::per_run_csv;
+
+use crate::Summary;
+use crate::metric::Metric;
+
+/// The formats of `cpmx report --format` and the summary files of a run folder.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Format {
+    /// `summary.md`: Table 2 as Markdown, then the CI and comparison tables.
+    Markdown,
+    /// `summary.csv`: one row per group and metric, every statistic a column.
+    Csv,
+    /// `summary.json`: everything, machine-readable.
+    Json,
+    /// A LaTeX `tabular` shaped like the paper's Table 2 (not written to the run folder).
+    Latex,
+}
+
+impl Format {
+    /// Every format.
+    pub const ALL: [Format; 4] = [Format::Markdown, Format::Csv, Format::Json, Format::Latex];
+
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Markdown => "markdown",
+            Format::Csv => "csv",
+            Format::Json => "json",
+            Format::Latex => "latex",
+        }
+    }
+
+    /// The format with this command-line name.
+    pub fn from_name(name: &str) -> Option<Format> {
+        Format::ALL.into_iter().find(|f| f.name() == name)
+    }
+
+    /// The summary file of a run folder in this format (`None`: LaTeX is printed only).
+    pub fn file_name(self) -> Option<&'static str> {
+        match self {
+            Format::Markdown => Some("summary.md"),
+            Format::Csv => Some("summary.csv"),
+            Format::Json => Some("summary.json"),
+            Format::Latex => None,
+        }
+    }
+}
+
+/// The summary in `format`: exactly the bytes of the run folder's summary file.
+pub fn render(summary: &Summary, format: Format) -> String {
+    match format {
+        Format::Markdown => markdown::render(summary),
+        Format::Csv => csv::summary_csv(summary),
+        Format::Json => json::render(summary),
+        Format::Latex => latex::render(summary),
+    }
+}
+
+/// What an undefined statistic shows in the text tables.
+const UNDEFINED: &str = "n/a";
+
+/// `value` with `decimals` fixed decimals (`-0.00` shows as `0.00`); NaN is [`UNDEFINED`].
+pub(crate) fn fixed(value: f64, decimals: usize) -> String {
+    if value.is_nan() {
+        return UNDEFINED.into();
+    }
+    let text = format!("{value:.decimals$}");
+    match text.strip_prefix('-') {
+        Some(rest) if rest.chars().all(|c| c == '0' || c == '.') => rest.to_owned(),
+        _ => text,
+    }
+}
+
+/// A p-value: three decimals, or `< 0.001`.
+fn p_value(p: f64) -> String {
+    if p < 0.001 { "< 0.001".into() } else { fixed(p, 3) }
+}
+
+/// The three parts of a Table 2 cell that the spec asked for.
+#[derive(Debug, Clone, Copy)]
+struct CellParts {
+    mean: bool,
+    std: bool,
+    iqm: bool,
+}
+
+impl CellParts {
+    fn of(summary: &Summary) -> CellParts {
+        use cpmx_spec::model::Statistic;
+        let (std, iqm) = (summary.shows(Statistic::Std), summary.shows(Statistic::Iqm));
+        // The mean is the cell's anchor: shown when asked for or when nothing else is.
+        let mean = summary.shows(Statistic::Mean) || !(std || iqm);
+        CellParts { mean, std, iqm }
+    }
+
+    /// How the caption names the cell, e.g. `mean ± std (IQM)`.
+    fn caption(self) -> String {
+        self.join("mean".into(), "std".into(), "IQM".into(), " ± ")
+    }
+
+    /// A cell; `emphasise` wraps the mean (bold in Markdown and LaTeX).
+    fn cell(
+        self,
+        stats: &cpmx_metrics::stats::Summary,
+        metric: Metric,
+        pm: &str,
+        emphasise: &dyn Fn(String) -> String,
+    ) -> String {
+        let d = metric.decimals();
+        self.join(
+            emphasise(fixed(stats.mean, d)),
+            fixed(stats.std, d),
+            fixed(stats.iqm, d),
+            pm,
+        )
+    }
+
+    fn join(self, mean: String, std: String, iqm: String, pm: &str) -> String {
+        let mut parts = Vec::new();
+        if self.mean {
+            parts.push(mean);
+        }
+        if self.std {
+            parts.push(if self.mean { format!("{pm}{std}") } else { std });
+        }
+        if self.iqm {
+            parts.push(format!("({iqm})"));
+        }
+        let mut text = String::new();
+        for part in parts {
+            if !text.is_empty() && !part.starts_with(pm) {
+                text.push(' ');
+            }
+            text.push_str(&part);
+        }
+        text
+    }
+}
+
+/// For each metric, the index of the group with the best mean (none with fewer than two
+/// groups with a finite mean, or when every finite mean is equal).
+fn best_groups(summary: &Summary) -> Vec<Option<usize>> {
+    use cpmx_metrics::stats::Direction;
+    Metric::ALL
+        .iter()
+        .map(|&metric| {
+            let means: Vec<(usize, f64)> = summary
+                .groups
+                .iter()
+                .enumerate()
+                .filter_map(|(i, g)| g.metric(metric).map(|m| (i, m.stats.mean)))
+                .filter(|(_, v)| v.is_finite())
+                .collect();
+            let better = |a: f64, b: f64| match metric.direction() {
+                Direction::LowerIsBetter => a < b,
+                Direction::HigherIsBetter => a > b,
+            };
+            let (best, value) = means
+                .iter()
+                .copied()
+                .reduce(|b, c| if better(c.1, b.1) { c } else { b })?;
+            let distinct = means.iter().any(|&(_, v)| v != value);
+            (means.len() >= 2 && distinct).then_some(best)
+        })
+        .collect()
+}
+
+/// Runs excluded as undefined per group and metric, e.g. `twin: CRA-A 1, CRA-L 1`
+/// (empty when none were).
+fn exclusions(summary: &Summary) -> Vec<String> {
+    summary
+        .groups
+        .iter()
+        .filter_map(|g| {
+            let parts: Vec<String> = g
+                .metrics
+                .iter()
+                .filter(|m| m.stats.nan_count > 0)
+                .map(|m| format!("{} {}", m.metric.label(), m.stats.nan_count))
+                .collect();
+            (!parts.is_empty()).then(|| format!("{}: {}", g.key.join(" / "), parts.join(", ")))
+        })
+        .collect()
+}
+
+/// How many pairs a comparison used, e.g. `25 (2 unmatched, 1 NaN)`.
+fn pairs_text(m: &crate::PairedMetric) -> String {
+    let mut notes = Vec::new();
+    if m.unmatched > 0 {
+        notes.push(format!("{} unmatched", m.unmatched));
+    }
+    if m.nan_pairs > 0 {
+        notes.push(format!("{} NaN", m.nan_pairs));
+    }
+    if notes.is_empty() {
+        m.pairs.to_string()
+    } else {
+        format!("{} ({})", m.pairs, notes.join(", "))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fixed_rounds_and_drops_negative_zero() {
+        assert_eq!(fixed(0.375, 2), "0.38");
+        assert_eq!(fixed(-0.0004, 3), "0.000");
+        assert_eq!(fixed(-0.5, 1), "-0.5");
+        assert_eq!(fixed(f64::NAN, 2), "n/a");
+        assert_eq!(p_value(0.0004), "< 0.001");
+        assert_eq!(p_value(0.0625), "0.062");
+    }
+
+    #[test]
+    fn cells_show_what_was_asked_for() {
+        let all = CellParts {
+            mean: true,
+            std: true,
+            iqm: true,
+        };
+        assert_eq!(all.caption(), "mean ± std (IQM)");
+        let iqm_only = CellParts {
+            mean: false,
+            std: false,
+            iqm: true,
+        };
+        assert_eq!(iqm_only.caption(), "(IQM)");
+        let no_std = CellParts { std: false, ..all };
+        assert_eq!(no_std.caption(), "mean (IQM)");
+    }
+
+    #[test]
+    fn formats_round_trip_their_names() {
+        for f in Format::ALL {
+            assert_eq!(Format::from_name(f.name()), Some(f));
+        }
+        assert_eq!(Format::from_name("html"), None);
+    }
+}
