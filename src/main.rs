@@ -45,6 +45,8 @@ enum Command {
         #[command(flatten)]
         data: DataArgs,
     },
+    /// Execute the run matrix and write the run folder.
+    Run(commands::run::RunArgs),
     /// Print the JSON Schema of the language (draft 2020-12).
     Schema,
 }
@@ -54,6 +56,7 @@ fn main() -> ExitCode {
     let outcome = match cli.command {
         Command::Validate { specs, data } => commands::validate::run(&specs, &data),
         Command::Plan { spec, format, data } => commands::plan::run(&spec, format, &data),
+        Command::Run(args) => commands::run::run(&args),
         Command::Schema => {
             print!("{}", cpmx_spec::schema::json_schema_text());
             Ok(())

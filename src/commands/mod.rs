@@ -1,6 +1,7 @@
 //! One module per subcommand, and what they share: reading and checking a spec.
 
 pub mod plan;
+pub mod run;
 pub mod validate;
 
 use std::io::IsTerminal;
@@ -15,6 +16,10 @@ use crate::DataArgs;
 pub enum Failure {
     /// Invalid input: a spec, map, weights or recording (exit 1).
     InvalidInput = 1,
+    /// A usage error (exit 2).
+    Usage = 2,
+    /// Some runs failed; the others are kept (exit 3).
+    RunsFailed = 3,
 }
 
 /// Reads and checks a spec; on failure prints every diagnostic to stderr.

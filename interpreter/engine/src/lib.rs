@@ -1,6 +1,20 @@
-//! Executes cpmx runs: the engines (sim today), the checks that need the interpreter, and the
-//! run folder.
+//! Executes cpmx runs: an [`Experiment`] prepared once from a checked spec, one [`Engine`] per
+//! kind of fidelity (the sim engine today), the runner that executes a matrix in parallel, and
+//! the run folder it writes. Engines produce recordings; metrics are computed from recordings
+//! only.
 
 mod checks;
+mod engine;
+mod experiment;
+pub mod folder;
+mod runner;
+mod sim;
+mod starts;
+pub mod store;
 
 pub use checks::BuildChecks;
+pub use engine::{Engine, RunError, RunInputs, engine_for};
+pub use experiment::{Experiment, PrepareError, PreparedPolicy, load_map, metrics_config, vehicle_params};
+pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, simulate};
+pub use sim::SimEngine;
+pub use starts::InitialState;

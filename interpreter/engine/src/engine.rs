@@ -1,0 +1,88 @@
+//! The one interface every engine implements: given a run, produce its `Recording`.
+//! Engines know nothing of each other, of metrics or of files.
+
+use cpmx_policy::{LaneFollow, LaneFollowParams, MlpPolicy, Policy, PolicyError};
+use cpmx_recording::Recording;
+use cpmx_spec::RunPlan;
+use cpmx_spec::matrix::stream_key;
+use cpmx_spec::model::{Control, DynamicsLayer, Fidelity, SimulatedFidelity};
+use rand::SeedableRng;
+use rand_chacha::ChaCha20Rng;
+
+use crate::experiment::{Experiment, PreparedPolicy};
+use crate::starts::InitialState;
+
+/// Why a run failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    #[error("the map has no reference path {0}")]
+    UnknownRefPath(usize),
+    #[error("the policy failed: {0}")]
+    Policy(#[from] PolicyError),
+    #[error("the spec has no policy `{0}`")]
+    UnknownPolicy(String),
+    #[error("the spec has no initial configuration `{0}`")]
+    UnknownConfiguration(String),
+    #[error("fidelity `{0}` cannot run in this build: {1}")]
+    Unsupported(String, String),
+}
+
+/// What one run needs: the experiment, the run's plan and its initial states.
+#[derive(Debug, Clone, Copy)]
+pub struct RunInputs<'a> {
+    pub experiment: &'a Experiment,
+    pub plan: &'a RunPlan,
+    pub starts: &'a [InitialState],
+}
+
+impl RunInputs<'_> {
+    /// A fresh policy for this run, with its random stream (`policy`) from the run's seed.
+    pub fn policy(&self) -> Result<Box<dyn Policy>, RunError> {
+        let prepared = self
+            .experiment
+            .policy(&self.plan.policy)
+            .ok_or_else(|| RunError::UnknownPolicy(self.plan.policy.clone()))?;
+        Ok(match prepared {
+            PreparedPolicy::Mlp {
+                actor,
+                observation,
+                sample,
+            } => {
+                let rng = ChaCha20Rng::from_seed(stream_key(self.plan.seed, "policy"));
+                let mode = if *sample {
+                    cpmx_policy::ActionMode::Sample
+                } else {
+                    cpmx_policy::ActionMode::Mean
+                };
+                Box::new(MlpPolicy::new(actor.as_ref().clone(), *observation, mode, rng)?)
+            }
+            PreparedPolicy::LaneFollow(p) => Box::new(LaneFollow::new(LaneFollowParams {
+                target_speed_mps: p.target_speed,
+                time_gap_s: p.time_gap_s,
+                look_ahead_m: p.look_ahead_m,
+                ..LaneFollowParams::default()
+            })),
+        })
+    }
+}
+
+/// An engine: produces a run's recording.
+pub trait Engine: Sync {
+    fn run(&self, inputs: &RunInputs<'_>) -> Result<Recording, RunError>;
+}
+
+/// The engine of a fidelity, or why this build has none.
+pub fn engine_for(name: &str, fidelity: &Fidelity) -> Result<&'static dyn Engine, RunError> {
+    match fidelity {
+        Fidelity::Simulated(SimulatedFidelity {
+            control: Control::Direct,
+            dynamics: DynamicsLayer::Kinematic(_),
+            sensing: None | Some(cpmx_spec::model::SensingLayer::Ideal(_)),
+            actuation: None | Some(cpmx_spec::model::ActuationLayer::Ideal(_)),
+        }) => Ok(&crate::sim::SimEngine),
+        other => Err(RunError::Unsupported(
+            name.to_owned(),
+            crate::checks::unsupported_reason(other).unwrap_or_else(|| "no engine".into()),
+        )),
+    }
+}

@@ -1,0 +1,160 @@
+//! Executing a run matrix: the runs of a shard in parallel (rayon, `--jobs` threads), each
+//! engine run followed by its metrics and stored at once, finished runs skipped on `--resume`.
+//! Results come back in matrix order whatever the thread count, so tables are identical.
+
+use std::path::Path;
+
+use cpmx_metrics::{PathGeometry, RunMetrics, evaluate};
+use cpmx_spec::RunPlan;
+use rayon::prelude::*;
+use sha2::{Digest, Sha256};
+
+use crate::engine::{RunError, RunInputs, engine_for};
+use crate::experiment::Experiment;
+use crate::store::{StoredRun, finished_run, store_run};
+
+/// A slice of the matrix: runs whose index `i` (0-based, matrix order) has `i % count == index - 1`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    /// 1-based.
+    pub index: usize,
+    pub count: usize,
+}
+
+impl Shard {
+    pub const WHOLE: Shard = Shard { index: 1, count: 1 };
+
+    pub fn contains(&self, run_index: usize) -> bool {
+        run_index % self.count == self.index - 1
+    }
+}
+
+/// How to execute.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    pub jobs: usize,
+    pub shard: Shard,
+    pub resume: bool,
+}
+
+/// What became of one run.
+#[derive(Debug)]
+pub enum RunOutcome {
+    Finished(Box<StoredRun>),
+    /// Skipped by `--resume`: stored earlier with the same inputs.
+    Resumed(Box<StoredRun>),
+    Failed(String),
+}
+
+/// Runs `plans` (already filtered by `--only`) and stores each into `out`; `on_done` is called
+/// as runs finish (for a progress bar).
+pub fn execute(
+    experiment: &Experiment,
+    plans: &[RunPlan],
+    out: &Path,
+    options: &RunOptions,
+    context_hash: &str,
+    on_done: &(dyn Fn(&RunPlan, &RunOutcome) + Sync),
+) -> Result<Vec<(RunPlan, RunOutcome)>, rayon::ThreadPoolBuildError> {
+    let selected: Vec<&RunPlan> = plans
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| options.shard.contains(*i))
+        .map(|(_, p)| p)
+        .collect();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(options.jobs.max(1))
+        .build()?;
+    let outcomes = pool.install(|| {
+        selected
+            .par_iter()
+            .map(|plan| {
+                let outcome = execute_one(experiment, plan, out, options.resume, context_hash);
+                on_done(plan, &outcome);
+                ((*plan).clone(), outcome)
+            })
+            .collect()
+    });
+    Ok(outcomes)
+}
+
+/// The hash of a run's inputs.
+pub fn inputs_hash(context_hash: &str, plan: &RunPlan) -> String {
+    let digest = Sha256::new()
+        .chain_update(context_hash.as_bytes())
+        .chain_update([0])
+        .chain_update(plan.key.as_bytes())
+        .chain_update([0])
+        .chain_update(plan.seed.to_le_bytes())
+        .finalize();
+    digest.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn execute_one(
+    experiment: &Experiment,
+    plan: &RunPlan,
+    out: &Path,
+    resume: bool,
+    context_hash: &str,
+) -> RunOutcome {
+    let hash = inputs_hash(context_hash, plan);
+    if resume && let Some(stored) = finished_run(out, plan, &hash) {
+        return RunOutcome::Resumed(Box::new(stored));
+    }
+    match simulate(experiment, plan) {
+        Ok((recording, metrics)) => {
+            let stored = StoredRun {
+                key: plan.key.clone(),
+                seed: plan.seed,
+                inputs_hash: hash,
+                metrics,
+            };
+            match store_run(out, plan, &recording, &stored) {
+                Ok(()) => RunOutcome::Finished(Box::new(stored)),
+                Err(e) => RunOutcome::Failed(format!("cannot store the run: {e}")),
+            }
+        }
+        Err(e) => RunOutcome::Failed(e),
+    }
+}
+
+/// Runs the engine of the plan's fidelity and measures the recording.
+pub fn simulate(
+    experiment: &Experiment,
+    plan: &RunPlan,
+) -> Result<(cpmx_recording::Recording, RunMetrics), String> {
+    let fidelity = experiment
+        .spec
+        .fidelities
+        .get(&plan.fidelity)
+        .ok_or_else(|| format!("the spec has no fidelity `{}`", plan.fidelity))?;
+    let engine = engine_for(&plan.fidelity, fidelity).map_err(|e| e.to_string())?;
+    let starts = experiment
+        .start(&plan.initial_configuration)
+        .ok_or_else(|| RunError::UnknownConfiguration(plan.initial_configuration.clone()).to_string())?;
+    let recording = engine
+        .run(&RunInputs {
+            experiment,
+            plan,
+            starts,
+        })
+        .map_err(|e| e.to_string())?;
+    let metrics = measure(experiment, &recording)?;
+    Ok((recording, metrics))
+}
+
+/// The spec's metrics of a recording (the same function `cpmx evaluate` and `cpmx report` use).
+pub fn measure(experiment: &Experiment, recording: &cpmx_recording::Recording) -> Result<RunMetrics, String> {
+    let paths: Vec<PathGeometry<'_>> = recording
+        .ref_paths
+        .iter()
+        .map(|&id| {
+            experiment
+                .map
+                .reference_path(id)
+                .map(PathGeometry::from)
+                .ok_or(format!("no reference path {id}"))
+        })
+        .collect::<Result<_, _>>()?;
+    evaluate(recording, &paths, &experiment.vehicle, &experiment.metrics).map_err(|e| e.to_string())
+}

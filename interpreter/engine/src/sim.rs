@@ -1,0 +1,154 @@
+//! The sim engine (`control: direct, dynamics: kinematic`): SigmaRL's loop. Every `dt` the
+//! policy sees all agents' states and its command goes straight into the kinematic bicycle.
+//!
+//! The recording holds the state *before* each action, t = 0 … (steps − 1)·dt, as SigmaRL's
+//! evaluation receives them; so the metrics of a run equal `cpmx evaluate` of its trajectory.
+
+use cpmx_metrics::collision::{PlacedBox, mtv_distance_m};
+use cpmx_policy::{AgentPaths, AgentState, ObservationInput};
+use cpmx_recording::{AgentSample, Recording};
+use cpmx_spec::model::OnCollision;
+use cpmx_vehicle::{BicycleState, Command, KinematicBicycle};
+
+use crate::engine::{Engine, RunError, RunInputs};
+use crate::starts::InitialState;
+
+/// SigmaRL's simulation: direct control of the kinematic bicycle.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SimEngine;
+
+impl Engine for SimEngine {
+    fn run(&self, inputs: &RunInputs<'_>) -> Result<Recording, RunError> {
+        let experiment = inputs.experiment;
+        let spec = &experiment.spec;
+        let model = KinematicBicycle::new(experiment.vehicle);
+        let dt_s = spec.timing.dt;
+
+        // Place the agents and prepare their paths.
+        let starts = inputs.starts;
+        let paths = AgentPaths::new(
+            starts
+                .iter()
+                .map(|s| {
+                    experiment
+                        .map
+                        .reference_path(s.ref_path)
+                        .ok_or(RunError::UnknownRefPath(s.ref_path))
+                })
+                .collect::<Result<Vec<_>, _>>()?,
+        );
+        let mut states: Vec<BicycleState> = starts.iter().map(initial_bicycle_state).collect();
+        let mut velocities: Vec<[f64; 2]> = states.iter().map(|s| model.velocity_mps(s)).collect();
+        let mut policy = inputs.policy()?;
+
+        let mut recording = Recording {
+            times_s: Vec::with_capacity(spec.timing.steps as usize),
+            ref_paths: starts.iter().map(|s| s.ref_path).collect(),
+            samples: Vec::with_capacity(spec.timing.steps as usize),
+        };
+        let mut agents = vec![AgentState::default(); states.len()];
+        let mut commands = vec![Command::default(); states.len()];
+
+        for step in 0..spec.timing.steps {
+            // Record the state the policy acts on.
+            recording.times_s.push(f64::from(step) * dt_s);
+            recording.samples.push(
+                states
+                    .iter()
+                    .zip(&velocities)
+                    .map(|(s, v)| sample(s, *v))
+                    .collect(),
+            );
+
+            // Decide and move.
+            for ((agent, state), velocity) in agents.iter_mut().zip(&states).zip(&velocities) {
+                *agent = AgentState {
+                    x_m: state.x_m,
+                    y_m: state.y_m,
+                    yaw_rad: state.yaw_rad,
+                    speed_mps: state.speed_mps,
+                    velocity_mps: *velocity,
+                };
+            }
+            let input = ObservationInput {
+                agents: &agents,
+                paths: &paths,
+                vehicle: &experiment.vehicle,
+                previous_corners: None,
+            };
+            policy.act(&input, &mut commands)?;
+            for ((state, velocity), command) in states.iter_mut().zip(&mut velocities).zip(&commands) {
+                let out = model.step(state, *command, dt_s);
+                *state = out.state;
+                *velocity = out.velocity_mps;
+            }
+
+            // Collisions, as the spec asks.
+            if spec.on_collision != OnCollision::Continue {
+                let colliding = colliding_agents(&states, &experiment.vehicle);
+                if colliding.iter().any(|&c| c) {
+                    match spec.on_collision {
+                        OnCollision::EndRun => break,
+                        OnCollision::ResetAgent => {
+                            for (i, _) in colliding.iter().enumerate().filter(|(_, c)| **c) {
+                                states[i] = initial_bicycle_state(&starts[i]);
+                                velocities[i] = model.velocity_mps(&states[i]);
+                            }
+                            policy.reset();
+                        }
+                        OnCollision::Continue => {}
+                    }
+                }
+            }
+        }
+        Ok(recording)
+    }
+}
+
+fn initial_bicycle_state(start: &InitialState) -> BicycleState {
+    BicycleState {
+        x_m: start.x_m,
+        y_m: start.y_m,
+        yaw_rad: start.yaw_rad,
+        speed_mps: start.speed_mps,
+        steering_rad: 0.0,
+    }
+}
+
+/// A recorded sample; yaw wrapped to (−π, π] for readers of the file.
+fn sample(state: &BicycleState, velocity_mps: [f64; 2]) -> AgentSample {
+    AgentSample {
+        x_m: state.x_m,
+        y_m: state.y_m,
+        yaw_rad: wrap_pi(state.yaw_rad),
+        velocity_mps,
+        steering_rad: state.steering_rad,
+    }
+}
+
+fn wrap_pi(angle_rad: f64) -> f64 {
+    let wrapped = angle_rad.sin().atan2(angle_rad.cos());
+    if wrapped == -std::f64::consts::PI {
+        std::f64::consts::PI
+    } else {
+        wrapped
+    }
+}
+
+/// Which agents' footprints overlap another's (true minimum-translation-vector distance < 0).
+fn colliding_agents(states: &[BicycleState], vehicle: &cpmx_vehicle::VehicleParams) -> Vec<bool> {
+    let boxes: Vec<PlacedBox> = states
+        .iter()
+        .map(|s| PlacedBox::from_pose(vehicle, s.x_m, s.y_m, s.yaw_rad))
+        .collect();
+    let mut colliding = vec![false; states.len()];
+    for i in 0..boxes.len() {
+        for j in i + 1..boxes.len() {
+            if mtv_distance_m(&boxes[i], &boxes[j]) < 0.0 {
+                colliding[i] = true;
+                colliding[j] = true;
+            }
+        }
+    }
+    colliding
+}

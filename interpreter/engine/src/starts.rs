@@ -1,0 +1,164 @@
+//! Initial states of every named configuration: explicit starts (arc length or pose), starts
+//! sampled on the map from the configuration's own seed, and measured starts of recorded runs.
+
+use std::path::Path;
+
+use cpmx_recording::Recording;
+use cpmx_spec::Resources;
+use cpmx_spec::matrix::{ConfigurationSource, NamedConfiguration, stream_key};
+use cpmx_spec::model::{AgentStart, InitialConfiguration, SampleSpec, Spec};
+use cpmx_vehicle::{VehicleParams, footprint_corners};
+use cpmx_world::Map;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha20Rng;
+
+use crate::experiment::PrepareError;
+
+/// Where one agent starts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InitialState {
+    pub ref_path: usize,
+    pub x_m: f64,
+    pub y_m: f64,
+    pub yaw_rad: f64,
+    pub speed_mps: f64,
+}
+
+/// Initial states of every configuration, by name, in order.
+pub fn initial_states(
+    spec: &Spec,
+    configurations: &[NamedConfiguration],
+    resources: &Resources,
+    map: &Map,
+    vehicle: &VehicleParams,
+) -> Result<Vec<(String, Vec<InitialState>)>, PrepareError> {
+    configurations
+        .iter()
+        .map(|c| {
+            let fail = |reason: String| PrepareError::Start {
+                name: c.name.clone(),
+                reason,
+            };
+            let states = match (&c.source, &spec.initial_configurations) {
+                (ConfigurationSource::Explicit { entry }, entries) => match &entries[*entry] {
+                    InitialConfiguration::Explicit(e) => e
+                        .agents
+                        .iter()
+                        .map(|a| explicit_start(a, map))
+                        .collect::<Result<Vec<_>, _>>()
+                        .map_err(fail)?,
+                    _ => return Err(fail("not an explicit configuration".into())),
+                },
+                (ConfigurationSource::Sampled { entry, index }, entries) => match &entries[*entry] {
+                    InitialConfiguration::Sampled(s) => {
+                        sample_starts(&s.sample, *index, spec.agents as usize, map, vehicle).map_err(fail)?
+                    }
+                    _ => return Err(fail("not a sampled configuration".into())),
+                },
+                (ConfigurationSource::Recorded { entry, run_key }, _) => {
+                    let dir = resources.from_runs.get(*entry).and_then(Option::as_deref);
+                    recorded_start(dir, run_key).map_err(fail)?
+                }
+            };
+            Ok((c.name.clone(), states))
+        })
+        .collect()
+}
+
+/// A start given in the spec.
+pub fn explicit_start(start: &AgentStart, map: &Map) -> Result<InitialState, String> {
+    let ref_path = start.ref_path as usize;
+    let speed_mps = start.speed.unwrap_or(0.0);
+    if let Some(pose) = &start.pose {
+        return Ok(InitialState {
+            ref_path,
+            x_m: pose.x,
+            y_m: pose.y,
+            yaw_rad: pose.yaw_rad(),
+            speed_mps,
+        });
+    }
+    let (x_m, y_m, yaw_rad) = map
+        .pose_at(ref_path, start.arc_length.unwrap_or(0.0))
+        .ok_or_else(|| format!("the map has no reference path {ref_path}"))?;
+    Ok(InitialState {
+        ref_path,
+        x_m,
+        y_m,
+        yaw_rad,
+        speed_mps,
+    })
+}
+
+/// Draw `index` of a sample entry: each agent on a uniformly chosen path at a uniform arc
+/// length, on the road, at least `min_gap` from the others (rejection sampling). The stream is
+/// keyed by the entry's own seed, so configurations do not change with the spec's `seed`.
+pub fn sample_starts(
+    sample: &SampleSpec,
+    index: u32,
+    agents: usize,
+    map: &Map,
+    vehicle: &VehicleParams,
+) -> Result<Vec<InitialState>, String> {
+    const TRIES_PER_AGENT: usize = 10_000;
+    let mut rng = ChaCha20Rng::from_seed(stream_key(sample.seed, &format!("starts/{index}")));
+    let ids = map.valid_path_ids();
+    if ids.is_empty() {
+        return Err("the map has no reference paths".into());
+    }
+    let mut states: Vec<InitialState> = Vec::with_capacity(agents);
+    for agent in 0..agents {
+        let placed = (0..TRIES_PER_AGENT).find_map(|_| {
+            let ref_path = ids[rng.random_range(0..ids.len())];
+            let length_m = map.reference_path(ref_path)?.center_line.length_m();
+            // Keep clear of the path's ends so the car starts on it, heading along it.
+            let margin_m = vehicle.length_m;
+            if length_m <= 2.0 * margin_m {
+                return None;
+            }
+            let arc_length_m = rng.random_range(margin_m..length_m - margin_m);
+            let (x_m, y_m, yaw_rad) = map.pose_at(ref_path, arc_length_m)?;
+            let corners = footprint_corners(vehicle, x_m, y_m, yaw_rad);
+            let clear = states
+                .iter()
+                .all(|s| (s.x_m - x_m).hypot(s.y_m - y_m) >= sample.min_gap.max(vehicle.length_m));
+            (clear && map.footprint_on_road(ref_path, &corners) == Some(true)).then_some(InitialState {
+                ref_path,
+                x_m,
+                y_m,
+                yaw_rad,
+                speed_mps: 0.0,
+            })
+        });
+        match placed {
+            Some(state) => states.push(state),
+            None => {
+                return Err(format!(
+                    "no free place for agent {agent} with min_gap {} m",
+                    sample.min_gap
+                ));
+            }
+        }
+    }
+    Ok(states)
+}
+
+/// The first sample of a recorded run (its measured initial poses and speeds).
+fn recorded_start(dir: Option<&Path>, run_key: &str) -> Result<Vec<InitialState>, String> {
+    let dir = dir.ok_or("the run folder was not found")?;
+    let path = dir.join("runs").join(run_key).join("trajectory.csv");
+    let file = std::fs::File::open(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let recording = Recording::read_csv(file).map_err(|e| format!("{}: {e}", path.display()))?;
+    let first = recording.samples.first().ok_or("the recording is empty")?;
+    Ok(first
+        .iter()
+        .zip(&recording.ref_paths)
+        .map(|(s, &ref_path)| InitialState {
+            ref_path,
+            x_m: s.x_m,
+            y_m: s.y_m,
+            yaw_rad: s.yaw_rad,
+            speed_mps: s.velocity_mps[0].hypot(s.velocity_mps[1]),
+        })
+        .collect())
+}

@@ -1,0 +1,74 @@
+//! The run folder of cli.md: where each file goes, and writing them so that an interrupted run
+//! never leaves something that looks finished. A run counts as finished when its
+//! `metrics.json` exists and names the run's input hash; it is written last, by rename.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use cpmx_metrics::RunMetrics;
+use cpmx_recording::Recording;
+use cpmx_spec::RunPlan;
+use serde::{Deserialize, Serialize};
+
+/// What `metrics.json` holds: the run, the hash of its inputs, and its metrics.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct StoredRun {
+    pub key: String,
+    pub seed: u64,
+    /// SHA-256 of everything the run's result depends on (spec, key, seed, map and weights).
+    pub inputs_hash: String,
+    pub metrics: RunMetrics,
+}
+
+/// The folder of one run.
+pub fn run_dir(out: &Path, plan: &RunPlan) -> PathBuf {
+    out.join("runs").join(&plan.key)
+}
+
+/// Writes `bytes` to `path` atomically: a temporary file in the same folder, then a rename.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent)?;
+    }
+    let file_name = path.file_name().and_then(|n| n.to_str()).unwrap_or("file");
+    let tmp = path.with_file_name(format!(".{file_name}.tmp{}", std::process::id()));
+    {
+        let mut file = std::fs::File::create(&tmp)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+    }
+    std::fs::rename(&tmp, path)
+}
+
+/// Stores a finished run: trajectory first, then `metrics.json` (the "finished" mark).
+pub fn store_run(
+    out: &Path,
+    plan: &RunPlan,
+    recording: &Recording,
+    stored: &StoredRun,
+) -> std::io::Result<()> {
+    let dir = run_dir(out, plan);
+    let mut trajectory = Vec::new();
+    recording
+        .write_csv(&mut trajectory)
+        .map_err(std::io::Error::other)?;
+    write_atomic(&dir.join("trajectory.csv"), &trajectory)?;
+    let json = serde_json::to_vec_pretty(stored).map_err(std::io::Error::other)?;
+    write_atomic(&dir.join("metrics.json"), &json)
+}
+
+/// The stored result of a run, if it finished with the same inputs.
+pub fn finished_run(out: &Path, plan: &RunPlan, inputs_hash: &str) -> Option<StoredRun> {
+    let dir = run_dir(out, plan);
+    let text = std::fs::read_to_string(dir.join("metrics.json")).ok()?;
+    let stored: StoredRun = serde_json::from_str(&text).ok()?;
+    (stored.inputs_hash == inputs_hash && stored.key == plan.key && dir.join("trajectory.csv").is_file())
+        .then_some(stored)
+}
+
+/// Reads a stored run's `metrics.json`.
+pub fn read_stored(dir: &Path) -> Result<StoredRun, String> {
+    let path = dir.join("metrics.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+}
