@@ -1,0 +1,103 @@
+//! Snapshots of every text format for a fixed synthetic experiment, and the edge cases
+//! (no runs, one run, no pairs) that must still render.
+
+mod common;
+
+use cpmx_report::{Format, per_run_csv, render, summarize};
+use cpmx_spec::model::{GroupKey, ReportSpec};
+
+fn fixture() -> cpmx_report::Summary {
+    summarize(
+        "synthetic",
+        &common::runs(),
+        &common::report(&[GroupKey::Fidelity]),
+    )
+}
+
+#[test]
+fn markdown() {
+    insta::assert_snapshot!(render(&fixture(), Format::Markdown));
+}
+
+#[test]
+fn csv() {
+    insta::assert_snapshot!(render(&fixture(), Format::Csv));
+}
+
+#[test]
+fn json() {
+    insta::assert_snapshot!(render(&fixture(), Format::Json));
+}
+
+#[test]
+fn latex() {
+    insta::assert_snapshot!(render(&fixture(), Format::Latex));
+}
+
+#[test]
+fn per_run() {
+    insta::assert_snapshot!(per_run_csv(&common::runs()));
+}
+
+#[test]
+fn markdown_grouped_by_fidelity_and_policy_with_default_statistics() {
+    let report = ReportSpec {
+        group_by: vec![GroupKey::Fidelity, GroupKey::Policy],
+        ..ReportSpec::default()
+    };
+    insta::assert_snapshot!(render(
+        &summarize("synthetic", &common::runs(), &report),
+        Format::Markdown
+    ));
+}
+
+#[test]
+fn rendering_is_byte_stable() {
+    for format in Format::ALL {
+        assert_eq!(render(&fixture(), format), render(&fixture(), format));
+    }
+}
+
+#[test]
+fn the_summary_json_parses_and_counts_the_nan_run() {
+    let value: serde_json::Value = serde_json::from_str(&render(&fixture(), Format::Json)).unwrap();
+    let lab = &value["groups"][2];
+    assert_eq!(lab["key"]["fidelity"], "lab");
+    assert_eq!(lab["metrics"]["cra_a"]["nan_count"], 1);
+    assert_eq!(lab["metrics"]["cra_a"]["n"], 7);
+    let twin = &value["comparison"]["fidelities"][0];
+    assert_eq!(twin["metrics"]["cd_m"]["pairs"], 8);
+}
+
+#[test]
+fn degenerate_inputs_render_in_every_format() {
+    let report = common::report(&[GroupKey::Fidelity, GroupKey::InitialConfiguration]);
+    let single = vec![common::record(
+        "lab",
+        "p",
+        "i",
+        1,
+        [f64::NAN, f64::NAN, f64::NAN, f64::NAN],
+        0.0,
+    )];
+    let one = vec![common::record("sim", "p", "i", 1, [1.0, 2.0, 0.1, 0.5], 10.0)];
+    for runs in [vec![], single, one] {
+        let summary = summarize("edge", &runs, &report);
+        for format in Format::ALL {
+            let text = render(&summary, format);
+            assert!(text.ends_with('\n'), "{format:?}: {text}");
+        }
+        assert!(per_run_csv(&runs).starts_with("key,fidelity"));
+    }
+    // The lab-only run has no pairs: the comparison says so instead of failing.
+    let lab = vec![common::record("lab", "p", "i", 1, [1.0, 2.0, 0.1, 0.5], 10.0)];
+    let markdown = render(&summarize("edge", &lab, &report), Format::Markdown);
+    assert!(
+        markdown.contains("The reference fidelity has no runs."),
+        "{markdown}"
+    );
+    assert!(
+        markdown.contains("| lab | CRA-A ↓ [events/100 m] | 0 (1 unmatched) | n/a | n/a | n/a | n/a |"),
+        "{markdown}"
+    );
+}
