@@ -1,0 +1,167 @@
+//! The command line across crates: validate the shipped specs, plan the paper's design, the
+//! schema file, exit codes, and identical run folders for any thread count.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn reference() -> PathBuf {
+    let dir = root().join("../shared/reference");
+    assert!(
+        dir.is_dir(),
+        "SigmaRL's reference data must be at {}",
+        dir.display()
+    );
+    dir
+}
+
+fn cpmx(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .args(args)
+        .current_dir(root())
+        .env("CPMX_DATA", reference())
+        .output()
+        .expect("cpmx runs")
+}
+
+fn shipped_specs() -> Vec<String> {
+    let mut specs = Vec::new();
+    for dir in ["experiments", "examples"] {
+        for entry in std::fs::read_dir(root().join(dir)).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "yaml") {
+                specs.push(path.strip_prefix(root()).unwrap().display().to_string());
+            }
+        }
+    }
+    specs.sort();
+    specs
+}
+
+#[test]
+fn every_shipped_spec_validates_and_names_the_schema() {
+    let specs = shipped_specs();
+    assert!(specs.len() >= 3);
+    let mut args = vec!["validate"];
+    args.extend(specs.iter().map(String::as_str));
+    let out = cpmx(&args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for spec in &specs {
+        let text = std::fs::read_to_string(root().join(spec)).unwrap();
+        assert!(
+            text.starts_with("# yaml-language-server: $schema=../cpmx.schema.json"),
+            "{spec}"
+        );
+    }
+}
+
+#[test]
+fn the_papers_design_plans_81_paired_runs() {
+    let out = cpmx(&["plan", "examples/paper-design.yaml", "--format", "json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let plan: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let runs = plan["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 81);
+    let seed_of = |key: &str| {
+        runs.iter().find(|r| r["key"] == key).unwrap()["seed"]
+            .as_u64()
+            .unwrap()
+    };
+    // Paired: the fidelity does not change the seed; everything else does.
+    assert_eq!(seed_of("sim/seed1/init2/rep3"), seed_of("twin/seed1/init2/rep3"));
+    let mut seeds: Vec<u64> = runs
+        .iter()
+        .filter(|r| r["fidelity"] == "sim")
+        .map(|r| r["seed"].as_u64().unwrap())
+        .collect();
+    seeds.sort();
+    seeds.dedup();
+    assert_eq!(seeds.len(), 27);
+}
+
+#[test]
+fn plan_of_the_quickstart() {
+    let out = cpmx(&["plan", "experiments/quickstart.yaml", "--format", "csv"]);
+    assert!(out.status.success());
+    insta::assert_snapshot!(String::from_utf8(out.stdout).unwrap());
+}
+
+#[test]
+fn the_schema_file_is_current() {
+    let shipped = std::fs::read_to_string(root().join("cpmx.schema.json")).unwrap();
+    assert!(
+        shipped == cpmx_spec::schema::json_schema_text(),
+        "cpmx.schema.json is stale: run `cargo run -- schema > cpmx.schema.json`"
+    );
+}
+
+#[test]
+fn exit_codes_follow_the_cli_contract() {
+    let dir = std::env::temp_dir().join(format!("cpmx-exit-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("bad.yaml");
+    std::fs::write(&bad, "cpmx: 1\nname: Bad Name\n").unwrap();
+    assert_eq!(cpmx(&["validate", bad.to_str().unwrap()]).status.code(), Some(1));
+    assert_eq!(
+        cpmx(&["validate", dir.join("missing.yaml").to_str().unwrap()])
+            .status
+            .code(),
+        Some(1)
+    );
+    assert_eq!(cpmx(&["plan"]).status.code(), Some(2));
+    assert_eq!(
+        cpmx(&["run", "experiments/quickstart.yaml", "--shard", "3/2"])
+            .status
+            .code(),
+        Some(2)
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+fn files(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                out.push((
+                    path.strip_prefix(dir).unwrap().to_path_buf(),
+                    std::fs::read(&path).unwrap(),
+                ));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn run_folders_are_identical_for_one_and_two_threads() {
+    let base = std::env::temp_dir().join(format!("cpmx-jobs-{}", std::process::id()));
+    let (one, two) = (base.join("one"), base.join("two"));
+    for (dir, jobs) in [(&one, "1"), (&two, "2")] {
+        let out = cpmx(&[
+            "run",
+            "experiments/quickstart.yaml",
+            "--out",
+            dir.to_str().unwrap(),
+            "--jobs",
+            jobs,
+        ]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    }
+    let (a, b) = (files(&one), files(&two));
+    assert!(a.len() > 24 * 2, "the folder holds every run's files");
+    assert_eq!(a.len(), b.len());
+    for ((pa, ca), (pb, cb)) in a.iter().zip(&b) {
+        assert_eq!(pa, pb);
+        assert!(ca == cb, "{} differs between --jobs 1 and --jobs 2", pa.display());
+    }
+    std::fs::remove_dir_all(&base).ok();
+}
