@@ -16,31 +16,36 @@ const PLOT_PX: f64 = 240.0;
 /// Space left of the axis for tick labels [px].
 const LEFT_PX: f64 = 70.0;
 /// Space above the plot for the title [px].
-const TOP_PX: f64 = 40.0;
+const TOP_PX: f64 = 50.0;
 /// Space below the plot for group labels [px].
 const BOTTOM_PX: f64 = 50.0;
-/// Ticks on the value axis.
-const TICKS: usize = 5;
+/// The legend line under the title.
+const LEGEND: &str = "dots: runs; solid: mean; dashed: IQM";
 
 /// The SVG of `metric`'s per-run values in every group of `summary`.
 pub fn distribution_svg(summary: &Summary, metric: Metric) -> String {
     let axis = Axis::of(summary, metric);
-    let width_px = LEFT_PX + COLUMN_PX * summary.groups.len().max(1) as f64 + 20.0;
+    let width_px = (LEFT_PX + COLUMN_PX * summary.groups.len().max(1) as f64 + 20.0).max(300.0);
     let mut out = open(width_px, TOP_PX + PLOT_PX + BOTTOM_PX);
     let title = format!(
-        "{} {} [{}]: runs (dots), mean (solid), IQM (dashed)",
+        "{} {} [{}]",
         metric.label(),
         metric.arrow(),
         summary.units.text(metric)
     );
-    let _ = writeln!(out, "<title>{}</title>", escape(&title));
+    let _ = writeln!(out, "<title>{}: {LEGEND}</title>", escape(&title));
     let _ = writeln!(
         out,
-        "<text x=\"{}\" y=\"20\">{}</text>",
+        "<text x=\"{}\" y=\"18\">{}</text>",
         px(LEFT_PX),
         escape(&title)
     );
-    value_axis(&mut out, &axis, metric, width_px);
+    let _ = writeln!(
+        out,
+        "<text x=\"{}\" y=\"34\" font-size=\"10\">{LEGEND}</text>",
+        px(LEFT_PX)
+    );
+    value_axis(&mut out, &axis, width_px);
 
     for (index, group) in summary.groups.iter().enumerate() {
         let Some(m) = group.metric(metric) else {
@@ -152,8 +157,8 @@ impl Axis {
     }
 }
 
-/// The axis line, tick marks, labels and light grid lines.
-fn value_axis(out: &mut String, axis: &Axis, metric: Metric, width_px: f64) {
+/// The axis line, and tick labels with light grid lines at round values.
+fn value_axis(out: &mut String, axis: &Axis, width_px: f64) {
     let _ = writeln!(
         out,
         "<line class=\"axis\" x1=\"{x}\" y1=\"{}\" x2=\"{x}\" y2=\"{}\" stroke=\"black\"/>",
@@ -161,8 +166,13 @@ fn value_axis(out: &mut String, axis: &Axis, metric: Metric, width_px: f64) {
         px(TOP_PX + PLOT_PX),
         x = px(LEFT_PX)
     );
-    for k in 0..TICKS {
-        let value = axis.low + (axis.high - axis.low) * k as f64 / (TICKS - 1) as f64;
+    let (step, decimals) = nice_step((axis.high - axis.low) / 5.0);
+    let first = (axis.low / step).ceil();
+    for k in 0..12 {
+        let value = (first + k as f64) * step;
+        if value > axis.high {
+            break;
+        }
         let y = px(axis.to_px(value));
         let _ = writeln!(
             out,
@@ -171,9 +181,24 @@ fn value_axis(out: &mut String, axis: &Axis, metric: Metric, width_px: f64) {
             px(LEFT_PX),
             px(width_px - 20.0),
             px(LEFT_PX - 6.0),
-            fixed(value, metric.decimals() + 1)
+            fixed(value, decimals)
         );
     }
+}
+
+/// The smallest step of the form {1, 2, 5} x 10^k (k from -12) that is at least `raw`,
+/// with the decimals it needs.
+fn nice_step(raw: f64) -> (f64, usize) {
+    for exponent in -12i32..=15 {
+        for multiple in [1, 2, 5] {
+            // Parsing gives the correctly rounded value of the decimal, with no accumulated error.
+            let step: f64 = format!("{multiple}e{exponent}").parse().unwrap_or(f64::INFINITY);
+            if step >= raw {
+                return (step, (-exponent).max(0) as usize);
+            }
+        }
+    }
+    (raw.max(1e15), 0)
 }
 
 #[cfg(test)]
@@ -184,5 +209,14 @@ mod tests {
     fn jitter_stays_in_its_lane() {
         assert!((0..100).map(jitter).all(|j| (-0.5..0.5).contains(&j)));
         assert_eq!(jitter(0), -0.5);
+    }
+
+    #[test]
+    fn steps_are_round() {
+        assert_eq!(nice_step(2.3), (5.0, 0));
+        assert_eq!(nice_step(0.0013).1, 3);
+        assert!((nice_step(0.0013).0 - 0.002).abs() < 1e-15);
+        assert_eq!(nice_step(0.0), (1e-12, 12));
+        assert_eq!(nice_step(f64::NAN).1, 0);
     }
 }

@@ -1,0 +1,144 @@
+//! The SVG plots: well-formed XML, one trajectory path per agent, footprints where the
+//! metrics found events, one dot per defined run; a snapshot of a small trajectory plot.
+
+mod common;
+
+use cpmx_metrics::{MetricsConfig, PathGeometry, RunMetrics, evaluate};
+use cpmx_recording::{AgentSample, Recording};
+use cpmx_report::{Metric, distribution_svg, summarize, trajectory_svg};
+use cpmx_spec::model::GroupKey;
+use cpmx_vehicle::VehicleParams;
+use cpmx_world::Map;
+
+/// Three agents on the built-in intersection for 2 s: agent 1 runs into agent 0 from behind
+/// on path 1 (a collision event), agent 2 drifts out of its lane on path 4 (violations).
+fn scene() -> (Map, Recording, RunMetrics) {
+    let map = Map::builtin("intersection").unwrap();
+    let pose = |path: usize, arc_m: f64, offset_m: f64, speed_mps: f64| {
+        let (x, y, yaw) = map.pose_at(path, arc_m).unwrap();
+        let (sin, cos) = yaw.sin_cos();
+        AgentSample {
+            x_m: x - offset_m * sin,
+            y_m: y + offset_m * cos,
+            yaw_rad: yaw,
+            velocity_mps: [speed_mps * cos, speed_mps * sin],
+            steering_rad: 0.0,
+        }
+    };
+    let mut recording = Recording {
+        times_s: vec![],
+        ref_paths: vec![1, 1, 4],
+        samples: vec![],
+    };
+    for k in 0..20 {
+        let t = k as f64;
+        recording.times_s.push(0.1 * t);
+        recording.samples.push(vec![
+            pose(1, 0.5 + 0.02 * t, 0.0, 0.2),
+            pose(1, 0.1 + 0.06 * t, 0.0, 0.6),
+            pose(4, 0.2 + 0.05 * t, 0.01 * t, 0.5),
+        ]);
+    }
+    let paths: Vec<PathGeometry> = [1, 4]
+        .iter()
+        .map(|&id| PathGeometry::from(map.reference_path(id).unwrap()))
+        .collect();
+    let metrics = evaluate(
+        &recording,
+        &paths,
+        &VehicleParams::MU_CAR,
+        &MetricsConfig::default(),
+    )
+    .unwrap();
+    (map, recording, metrics)
+}
+
+fn count(doc: &roxmltree::Document, tag: &str, class: &str) -> usize {
+    doc.descendants()
+        .filter(|n| n.has_tag_name(tag) && n.attribute("class") == Some(class))
+        .count()
+}
+
+#[test]
+fn trajectory_plot_has_one_path_per_agent_and_marks_events() {
+    let (map, recording, metrics) = scene();
+    assert_eq!(metrics.pair_events.len(), 1, "{:?}", metrics.pair_events);
+    assert!(!metrics.agents[2].violation_samples.is_empty());
+    let svg = trajectory_svg(&map, &recording, &metrics, &VehicleParams::MU_CAR);
+    let doc = roxmltree::Document::parse(&svg).unwrap();
+    assert_eq!(count(&doc, "path", "trajectory"), 3);
+    assert_eq!(count(&doc, "circle", "start"), 3);
+    assert_eq!(count(&doc, "polygon", "collision"), 2);
+    assert_eq!(count(&doc, "polygon", "violation"), 1);
+    assert_eq!(count(&doc, "path", "ref-path"), 3);
+    let lanelets = doc
+        .descendants()
+        .find(|n| n.attribute("class") == Some("lanelets"))
+        .unwrap();
+    assert_eq!(
+        lanelets.children().filter(|n| n.has_tag_name("path")).count(),
+        2 * map.lanelets().count()
+    );
+}
+
+#[test]
+fn trajectory_plot_snapshot() {
+    let (map, recording, metrics) = scene();
+    // Only the path's own lanelets keep the snapshot small.
+    let small = map.with_region("intersection").unwrap();
+    insta::assert_snapshot!(trajectory_svg(
+        &small,
+        &recording,
+        &metrics,
+        &VehicleParams::MU_CAR
+    ));
+}
+
+#[test]
+fn out_of_range_event_samples_are_skipped() {
+    let (map, mut recording, mut metrics) = scene();
+    recording.samples.truncate(1);
+    recording.times_s.truncate(1);
+    metrics.agents[0].violation_samples = vec![50, 51];
+    let svg = trajectory_svg(&map, &recording, &metrics, &VehicleParams::MU_CAR);
+    let doc = roxmltree::Document::parse(&svg).unwrap();
+    assert_eq!(count(&doc, "polygon", "collision"), 0);
+    assert_eq!(count(&doc, "polygon", "violation"), 0);
+}
+
+#[test]
+fn distribution_plot_has_one_dot_per_defined_run() {
+    let summary = summarize(
+        "synthetic",
+        &common::runs(),
+        &common::report(&[GroupKey::Fidelity]),
+    );
+    for metric in Metric::ALL {
+        let svg = distribution_svg(&summary, metric);
+        let doc = roxmltree::Document::parse(&svg).unwrap();
+        let defined: usize = summary
+            .groups
+            .iter()
+            .map(|g| g.metric(metric).unwrap().stats.n)
+            .sum();
+        assert_eq!(count(&doc, "circle", "run"), defined, "{metric:?}");
+        assert_eq!(count(&doc, "line", "mean"), 3);
+        assert_eq!(count(&doc, "line", "iqm"), 3);
+    }
+    insta::assert_snapshot!(distribution_svg(&summary, Metric::CraA));
+}
+
+#[test]
+fn distribution_plot_of_nothing_is_still_svg() {
+    let summary = summarize("empty", &[], &common::report(&[GroupKey::Fidelity]));
+    let svg = distribution_svg(&summary, Metric::As);
+    roxmltree::Document::parse(&svg).unwrap();
+    let nan = vec![common::record("lab", "p", "i", 1, [f64::NAN; 4], 0.0)];
+    let svg = distribution_svg(
+        &summarize("nan", &nan, &common::report(&[GroupKey::Fidelity])),
+        Metric::CraA,
+    );
+    let doc = roxmltree::Document::parse(&svg).unwrap();
+    assert_eq!(count(&doc, "circle", "run"), 0);
+    assert_eq!(count(&doc, "line", "mean"), 0);
+}
