@@ -125,6 +125,21 @@ pub fn summarize(experiment: &str, runs: &[RunRecord], report: &ReportSpec) -> S
     }
 }
 
+/// Puts `runs` in the order of `matrix` (runs whose key the matrix lacks go last, by key),
+/// so that runs gathered from several folders or shards summarise exactly as one `cpmx run`
+/// of the whole matrix does.
+pub fn sort_by_matrix(runs: &mut [RunRecord], matrix: &[RunPlan]) {
+    let position: std::collections::BTreeMap<&str, usize> = matrix
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (p.key.as_str(), i))
+        .collect();
+    runs.sort_by(|a, b| {
+        let rank = |r: &RunRecord| position.get(r.plan.key.as_str()).copied().unwrap_or(usize::MAX);
+        rank(a).cmp(&rank(b)).then_with(|| a.plan.key.cmp(&b.plan.key))
+    });
+}
+
 /// The runs of each group, groups in order of their first run.
 fn group_runs<'a>(runs: &'a [RunRecord], axes: &[GroupKey]) -> Vec<(Vec<String>, Vec<&'a RunRecord>)> {
     let mut groups: Vec<(Vec<String>, Vec<&RunRecord>)> = Vec::new();
@@ -226,6 +241,23 @@ mod tests {
         assert_eq!(a, b);
         let ci = a.groups[0].metric(Metric::CraA).unwrap().bootstrap.unwrap();
         assert!(ci.mean.low < 2.5 && 2.5 < ci.mean.high, "{ci:?}");
+    }
+
+    #[test]
+    fn shards_are_put_back_in_matrix_order() {
+        let matrix: Vec<RunPlan> = ["sim", "twin", "lab"]
+            .iter()
+            .map(|f| record(f, "p", "i", 1, [0.0; 4]).plan)
+            .collect();
+        let mut runs = vec![
+            record("zeta", "p", "i", 1, [0.0; 4]),
+            record("lab", "p", "i", 1, [0.0; 4]),
+            record("alpha", "p", "i", 1, [0.0; 4]),
+            record("sim", "p", "i", 1, [0.0; 4]),
+        ];
+        sort_by_matrix(&mut runs, &matrix);
+        let order: Vec<&str> = runs.iter().map(|r| r.plan.fidelity.as_str()).collect();
+        assert_eq!(order, ["sim", "lab", "alpha", "zeta"]);
     }
 
     #[test]

@@ -19,7 +19,8 @@ mod table;
 mod testing;
 
 pub use aggregate::{
-    BootstrapIntervals, CONFIDENCE, Group, MetricSummary, Summary, axis_name, axis_value, summarize,
+    BootstrapIntervals, CONFIDENCE, Group, MetricSummary, Summary, axis_name, axis_value, sort_by_matrix,
+    summarize,
 };
 pub use compare::{Comparison, FidelityComparison, PairedMetric};
 pub use metric::{Metric, Units};

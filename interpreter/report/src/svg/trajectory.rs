@@ -120,7 +120,8 @@ pub fn trajectory_svg(
 /// The states the metrics saw: resampled, rotated as `rotate180` asks, truncated.
 fn metric_states(recording: &Recording, metrics: &RunMetrics) -> Vec<Vec<AgentSample>> {
     let period_s = metrics.config.sample_period_s;
-    let grid = if period_s.is_finite() && period_s > 0.0 {
+    let consistent = recording.samples.len() == recording.times_s.len();
+    let grid = if consistent && period_s.is_finite() && period_s > 0.0 {
         resample(recording, period_s).into_owned()
     } else {
         recording.clone()
