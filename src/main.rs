@@ -47,6 +47,16 @@ enum Command {
     },
     /// Execute the run matrix and write the run folder.
     Run(commands::run::RunArgs),
+    /// Recompute and summarise stored runs (several folders merge).
+    Report(commands::report::ReportArgs),
+    /// The spec's metrics of a recording made elsewhere, as JSON.
+    Evaluate {
+        spec: PathBuf,
+        /// A trajectory CSV (header `t,agent,x,y,yaw,vx,vy,steering,ref_path`).
+        recording: PathBuf,
+        #[command(flatten)]
+        data: DataArgs,
+    },
     /// Print the JSON Schema of the language (draft 2020-12).
     Schema,
 }
@@ -57,6 +67,12 @@ fn main() -> ExitCode {
         Command::Validate { specs, data } => commands::validate::run(&specs, &data),
         Command::Plan { spec, format, data } => commands::plan::run(&spec, format, &data),
         Command::Run(args) => commands::run::run(&args),
+        Command::Report(args) => commands::report::run(&args),
+        Command::Evaluate {
+            spec,
+            recording,
+            data,
+        } => commands::evaluate::run(&spec, &recording, &data),
         Command::Schema => {
             print!("{}", cpmx_spec::schema::json_schema_text());
             Ok(())

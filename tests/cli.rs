@@ -165,3 +165,149 @@ fn run_folders_are_identical_for_one_and_two_threads() {
     }
     std::fs::remove_dir_all(&base).ok();
 }
+
+fn summary_of(dir: &Path) -> Vec<u8> {
+    std::fs::read(dir.join("summary.csv")).unwrap()
+}
+
+#[test]
+fn shards_merged_by_report_and_killed_runs_resumed_give_the_same_summary() {
+    let base = std::env::temp_dir().join(format!("cpmx-shards-{}", std::process::id()));
+    let whole = base.join("whole");
+    let out = cpmx(&[
+        "run",
+        "experiments/quickstart.yaml",
+        "--out",
+        whole.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+
+    // Two shards, merged by `report`.
+    let shards: Vec<PathBuf> = (1..=2).map(|k| base.join(format!("shard{k}"))).collect();
+    for (k, dir) in shards.iter().enumerate() {
+        let shard = format!("{}/2", k + 1);
+        let out = cpmx(&[
+            "run",
+            "experiments/quickstart.yaml",
+            "--out",
+            dir.to_str().unwrap(),
+            "--shard",
+            &shard,
+        ]);
+        assert!(out.status.success());
+    }
+    let merged = cpmx(&[
+        "report",
+        shards[0].to_str().unwrap(),
+        shards[1].to_str().unwrap(),
+        "--format",
+        "csv",
+    ]);
+    assert!(
+        merged.status.success(),
+        "{}",
+        String::from_utf8_lossy(&merged.stderr)
+    );
+    assert!(
+        merged.stdout == summary_of(&whole),
+        "merged shards differ from one run of the matrix"
+    );
+
+    // Killed with SIGKILL at some point, then resumed.
+    let killed = base.join("killed");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .args([
+            "run",
+            "experiments/quickstart.yaml",
+            "--jobs",
+            "1",
+            "--out",
+            killed.to_str().unwrap(),
+        ])
+        .current_dir(root())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(40));
+    child.kill().ok();
+    child.wait().unwrap();
+    // A run whose result was half written does not count as finished.
+    let victim = killed.join("runs/sim/nominal/crossing/rep1");
+    std::fs::create_dir_all(&victim).unwrap();
+    std::fs::write(victim.join("metrics.json"), "{\"key\": \"sim/nominal/cross").unwrap();
+    let resumed = cpmx(&[
+        "run",
+        "experiments/quickstart.yaml",
+        "--resume",
+        "--out",
+        killed.to_str().unwrap(),
+    ]);
+    assert!(
+        resumed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&resumed.stderr)
+    );
+    assert!(
+        summary_of(&killed) == summary_of(&whole),
+        "resumed summary differs"
+    );
+
+    // A second resume runs nothing again.
+    let again = cpmx(&[
+        "run",
+        "experiments/quickstart.yaml",
+        "--resume",
+        "--out",
+        killed.to_str().unwrap(),
+    ]);
+    assert!(
+        String::from_utf8_lossy(&again.stderr).contains("0 run, 24 resumed"),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    std::fs::remove_dir_all(&base).ok();
+}
+
+#[test]
+fn evaluate_of_a_runs_trajectory_gives_its_metrics() {
+    let dir = std::env::temp_dir().join(format!("cpmx-eval-{}", std::process::id()));
+    assert!(
+        cpmx(&[
+            "run",
+            "experiments/quickstart.yaml",
+            "--out",
+            dir.to_str().unwrap()
+        ])
+        .status
+        .success()
+    );
+    let run = dir.join("runs/sim/eager/turning/rep1");
+    let out = cpmx(&[
+        "evaluate",
+        "experiments/quickstart.yaml",
+        run.join("trajectory.csv").to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let evaluated: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let stored: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("metrics.json")).unwrap()).unwrap();
+    assert_eq!(evaluated, stored["metrics"]);
+
+    // A truncated recording is a diagnostic and exit 1, never a panic.
+    let text = std::fs::read_to_string(run.join("trajectory.csv")).unwrap();
+    let truncated = dir.join("truncated.csv");
+    std::fs::write(&truncated, &text[..text.len() / 2]).unwrap();
+    let out = cpmx(&[
+        "evaluate",
+        "experiments/quickstart.yaml",
+        truncated.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -1,6 +1,8 @@
 //! One module per subcommand, and what they share: reading and checking a spec.
 
+pub mod evaluate;
 pub mod plan;
+pub mod report;
 pub mod run;
 pub mod validate;
 

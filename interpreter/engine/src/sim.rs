@@ -51,7 +51,10 @@ impl Engine for SimEngine {
 
         for step in 0..spec.timing.steps {
             // Record the state the policy acts on.
-            recording.times_s.push(f64::from(step) * dt_s);
+            // Times on a clean decimal grid (0.3, not 0.30000000000000004).
+            recording
+                .times_s
+                .push((f64::from(step) * dt_s * 1e9).round() / 1e9);
             recording.samples.push(
                 states
                     .iter()

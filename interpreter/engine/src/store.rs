@@ -66,6 +66,13 @@ pub fn finished_run(out: &Path, plan: &RunPlan, inputs_hash: &str) -> Option<Sto
         .then_some(stored)
 }
 
+/// Whether a folder holds the finished run (its `metrics.json` and trajectory).
+pub fn finished(out: &Path, plan: &RunPlan) -> bool {
+    let dir = run_dir(out, plan);
+    dir.join("trajectory.csv").is_file()
+        && read_stored(&dir).is_ok_and(|stored| stored.key == plan.key && stored.seed == plan.seed)
+}
+
 /// Reads a stored run's `metrics.json`.
 pub fn read_stored(dir: &Path) -> Result<StoredRun, String> {
     let path = dir.join("metrics.json");
