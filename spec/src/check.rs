@@ -8,7 +8,6 @@ use std::path::PathBuf;
 use crate::diagnostic::{ByteSpan, Problem};
 use crate::model::{Control, Fidelity, InitialConfiguration, MapSpec, SimulatedFidelity, Spec};
 use crate::paths::DataPath;
-use crate::schema::describe;
 use crate::yaml::{NodeSpans, SpannedDocument, escape_pointer};
 
 /// Files a spec names, found on the data path.
@@ -75,6 +74,7 @@ pub(crate) fn check_meaning(spec: &Spec, data: &DataPath, ctx: &mut CheckContext
     check_configurations(spec, ctx);
     check_vehicle(spec, ctx);
     check_fidelities(spec, ctx);
+    check_metrics(spec, ctx);
     check_report(spec, ctx);
     find_files(spec, data, ctx)
 }
@@ -398,6 +398,26 @@ fn check_fidelities(spec: &Spec, ctx: &mut CheckContext<'_>) {
                 }
             }
         }
+    }
+}
+
+fn check_metrics(spec: &Spec, ctx: &mut CheckContext<'_>) {
+    if let Some(cra_l) = &spec.metrics.cra_l
+        && cra_l.slack >= 0.5
+    {
+        let span = ctx.span("/metrics/cra_l/slack");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::slack",
+                format!(
+                    "a lane slack of {} vehicle widths leaves no footprint to test",
+                    cra_l.slack
+                ),
+                span,
+                "must be below 0.5",
+            )
+            .with_help("the slack shrinks the footprint by slack × width on each side; the paper uses 0.10"),
+        );
     }
 }
 

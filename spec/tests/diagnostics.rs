@@ -274,3 +274,10 @@ fn deep_nesting_is_a_diagnostic() {
     let text = format!("a: {}{}\n", "[".repeat(500), "]".repeat(500));
     assert!(check(&text).is_err());
 }
+
+case!(
+    slack_without_footprint,
+    format!("{VALID}metrics: {{sample_period_s: 0.1, cra_l: {{slack: 0.6, per_distance_m: 100}}}}\n"),
+    17,
+    48
+);

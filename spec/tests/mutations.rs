@@ -19,7 +19,11 @@ impl InterpreterChecks for NoInterpreter {
 const VALID: &str = include_str!("../../examples/paper-design.yaml");
 
 fn check(text: String) {
-    let source = SpecSource { name: "fuzz.yaml".into(), dir: "/nonexistent".into(), text };
+    let source = SpecSource {
+        name: "fuzz.yaml".into(),
+        dir: "/nonexistent".into(),
+        text,
+    };
     let data = DataPath::new(Path::new("/nonexistent"), &[], None);
     if let Err(diagnostics) = cpmx_spec::check(&source, &data, &NoInterpreter) {
         assert!(!diagnostics.is_empty());

@@ -139,14 +139,3 @@ pub enum ObservationDesign {
     /// SigmaRL's observation.
     Sigmarl,
 }
-
-impl ObservationSpec {
-    /// Length of the observation vector.
-    pub fn size(&self) -> usize {
-        let own = 1
-            + 2 * self.ref_points as usize
-            + usize::from(self.center_line_distance)
-            + 2 * usize::from(self.boundary_distances);
-        own + 11 * self.observed_agents as usize
-    }
-}
