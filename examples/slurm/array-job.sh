@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# A cpmx sweep as a Slurm array job: every task runs one deterministic slice of the matrix
+# into its own folder; a final step merges them. The merged summary is byte-identical to the
+# summary of one `cpmx run` of the whole matrix.
+#
+#   sbatch --array=1-8 examples/slurm/array-job.sh experiments/quickstart.yaml
+#   # after all tasks have finished:
+#   cpmx report out/sweep/shard-* --format markdown
+#   cpmx report out/sweep/shard-* --out out/sweep/merged     # summary files and plots
+#
+#SBATCH --job-name=cpmx-sweep
+#SBATCH --cpus-per-task=4
+#SBATCH --time=01:00:00
+#SBATCH --output=out/sweep/slurm-%A_%a.log
+set -euo pipefail
+
+spec=${1:?usage: sbatch --array=1-N array-job.sh SPEC}
+shards=${SLURM_ARRAY_TASK_COUNT:?run this with sbatch --array}
+shard=${SLURM_ARRAY_TASK_ID:?run this with sbatch --array}
+
+# --resume makes a requeued or preempted task skip the runs it already finished.
+cpmx run "$spec" \
+  --shard "${shard}/${shards}" \
+  --jobs "${SLURM_CPUS_PER_TASK:-1}" \
+  --out "out/sweep/shard-${shard}" \
+  --resume
