@@ -1,14 +1,37 @@
 //! The built-in baseline `builtin: lane-follow`: pure pursuit along the own centre line, a
-//! time-gap rule behind the nearest agent ahead, and first-come first-served yielding where
-//! the centre lines of two agents cross. No weights, no randomness.
+//! time-gap rule behind the nearest agent ahead on the own lane, first-come first-served
+//! yielding where the paths of two agents conflict, and a comfortable stop at the end of an
+//! open path. No weights, no randomness.
 //!
-//! It keeps per agent the last centre-line segment (so that a path that crosses itself is
-//! tracked locally) and per pair of paths their crossing points (computed once).
+//! State kept between calls: per agent the last centre-line segment (so that a path that
+//! crosses itself is tracked locally) and its arrival ticket; per path the cumulative arc
+//! lengths and per pair of paths their conflict intervals (both computed once).
+//!
+//! # Conflicts and right of way
+//!
+//! Two paths conflict where their centre lines come closer than
+//! [`LaneFollowParams::conflict_distance_m`]. A crossing gives an interval of arc length on
+//! each path (the close stretch widened by [`LaneFollowParams::crossing_radius_m`]); a merge
+//! (the paths run on together, same direction) gives the stretch from just before the merge
+//! point until a car length past it, after which the time-gap rule takes over. Paths that
+//! share their start (diverging paths) do not conflict; the time-gap rule covers them.
+//!
+//! An agent draws a ticket when it comes within [`LaneFollowParams::horizon_m`] of its first
+//! conflict interval and keeps it until it has left them all. Tickets are ordered by the step
+//! they were drawn, then by the distance to the first interval at that step, then by agent
+//! index: a total order that never changes while agents wait, so the holder of the earliest
+//! ticket is never held up by a later one (no deadlock). An agent that leads a queue inherits
+//! the ticket of its follower if that is earlier. An agent yields to another at a conflict
+//! when the other is inside its interval, or when the other holds an earlier ticket and the
+//! agent itself has not entered any interval yet (then it waits before its first one, so that
+//! it blocks nobody while waiting). An agent inside an interval is committed and goes on.
+
+use std::f64::consts::FRAC_1_SQRT_2;
 
 use cpmx_vehicle::Command;
 
 use crate::geometry::PreparedPath;
-use crate::observation::{AgentState, ObservationInput};
+use crate::observation::ObservationInput;
 use crate::policy::{Policy, PolicyError, check_commands};
 
 /// Parameters of the lane-follow baseline.
@@ -22,13 +45,24 @@ pub struct LaneFollowParams {
     pub time_gap_s: f64,
     /// Gap kept at standstill (bumper to bumper) [m].
     pub standstill_gap_m: f64,
-    /// An agent counts as ahead when its centre is within this distance of the own centre
-    /// line ahead [m] (one lane width).
+    /// Lane width [m]: an agent counts as ahead when its centre is within half of it of the
+    /// own centre line ahead and it heads along it.
     pub lane_width_m: f64,
-    /// How far ahead other agents and crossings are considered [m].
+    /// How far ahead other agents and conflicts are considered [m].
     pub horizon_m: f64,
-    /// Radius of the area around a crossing of two centre lines [m].
+    /// Margin added before and after the stretch where two crossing centre lines are closer
+    /// than [`LaneFollowParams::conflict_distance_m`] [m].
     pub crossing_radius_m: f64,
+    /// Two centre lines conflict where they are closer than this [m] (less than the distance
+    /// of two adjacent lanes, more than a vehicle width).
+    pub conflict_distance_m: f64,
+    /// Comfortable deceleration for stops before conflicts and at the end of a path [m/s^2].
+    pub comfort_decel_mps2: f64,
+    /// Distance of the centre from the last point of an open path when stopped there [m].
+    pub end_margin_m: f64,
+    /// Time until a command takes effect (one policy step) [s]: stops are planned from the
+    /// position reached by then.
+    pub reaction_time_s: f64,
 }
 
 impl Default for LaneFollowParams {
@@ -40,16 +74,112 @@ impl Default for LaneFollowParams {
             standstill_gap_m: 0.25,
             lane_width_m: 0.15,
             horizon_m: 1.5,
-            crossing_radius_m: 0.2,
+            crossing_radius_m: 0.12,
+            conflict_distance_m: 0.12,
+            comfort_decel_mps2: 1.0,
+            end_margin_m: 0.15,
+            reaction_time_s: 0.1,
         }
     }
 }
 
-/// A crossing of two agents' centre lines.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Crossing {
-    point: [f64; 2],
+/// Identifies a path's geometry across calls: id, number of points and last point.
+type PathKey = (usize, usize, u64, u64);
+
+fn path_key(path: &PreparedPath) -> PathKey {
+    let last = path.center_points.last().copied().unwrap_or([0.0, 0.0]);
+    (
+        path.id,
+        path.center_points.len(),
+        last[0].to_bits(),
+        last[1].to_bits(),
+    )
 }
+
+/// An interval of arc length [m]; on a loop it may reach past the length (it wraps).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Interval {
+    start: f64,
+    end: f64,
+}
+
+/// A conflict of two paths: the intervals where each must not be while the other is in its.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Conflict {
+    mine: Interval,
+    theirs: Interval,
+}
+
+/// Where an agent is relative to an interval of its path.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Place {
+    /// This far before its start [m].
+    Before(f64),
+    Inside,
+    Past,
+}
+
+/// Arc lengths of a path's centre-line points.
+#[derive(Debug, Clone, PartialEq)]
+struct Arcs {
+    cum: Vec<f64>,
+    length: f64,
+    is_loop: bool,
+}
+
+impl Arcs {
+    fn new(path: &PreparedPath) -> Self {
+        let mut cum = vec![0.0];
+        for w in path.center_points.windows(2) {
+            cum.push(cum[cum.len() - 1] + dist(w[0], w[1]));
+        }
+        Arcs {
+            length: cum[cum.len() - 1],
+            cum,
+            is_loop: path.is_loop,
+        }
+    }
+
+    fn place(&self, s: f64, iv: Interval) -> Place {
+        if self.is_loop && self.length > 0.0 {
+            let x = (s - iv.start).rem_euclid(self.length);
+            if x <= iv.end - iv.start {
+                Place::Inside
+            } else {
+                Place::Before(self.length - x)
+            }
+        } else if s < iv.start {
+            Place::Before(iv.start - s)
+        } else if s <= iv.end {
+            Place::Inside
+        } else {
+            Place::Past
+        }
+    }
+}
+
+/// An agent's position on its path at this step.
+#[derive(Debug, Clone, Copy)]
+struct Tracked {
+    /// Segment and foot point of the rear axle.
+    segment: usize,
+    foot: [f64; 2],
+    /// Arc length of the centre [m].
+    s: f64,
+    /// Index into `LaneFollow::arcs`.
+    arcs: usize,
+}
+
+/// A conflict as seen by one agent at this step.
+#[derive(Debug, Clone, Copy)]
+struct Pending {
+    other: usize,
+    mine: Place,
+    theirs: Place,
+}
+
+/// Arrival ticket: step drawn, distance to the first conflict then, agent index.
+type Ticket = (u64, f64, usize);
 
 /// The lane-follow policy.
 #[derive(Debug, Clone, Default)]
@@ -58,13 +188,26 @@ pub struct LaneFollow {
     pub params: LaneFollowParams,
     /// Last centre-line segment per agent (`None` before the first call).
     segments: Vec<Option<usize>>,
-    /// Crossing points per ordered pair of path ids, computed on first use.
-    crossings: Vec<((usize, usize), Vec<Crossing>)>,
+    /// Arrival ticket per agent.
+    tickets: Vec<Option<Ticket>>,
+    /// Calls since the last reset.
+    step: u64,
+    /// Arc lengths per path, computed on first use.
+    arcs: Vec<(PathKey, Arcs)>,
+    /// Conflicts per ordered pair of paths, computed on first use.
+    conflicts: Vec<((PathKey, PathKey), Vec<Conflict>)>,
 }
 
 /// Segments searched behind and ahead of the previous one.
 const WINDOW_BACK: usize = 5;
 const WINDOW_AHEAD: usize = 25;
+/// How far past a merge point the merge conflict lasts (then the time-gap rule takes over) [m].
+const MERGE_LENGTH_M: f64 = 0.5;
+/// Stops end this far before the conflict interval [m].
+const STOP_MARGIN_M: f64 = 0.02;
+/// An agent counts as committed to a conflict once this far inside its interval (a little
+/// overshoot while stopping does not commit it) [m].
+const COMMIT_TOLERANCE_M: f64 = 0.06;
 
 impl LaneFollow {
     /// A lane-follow policy with the given parameters.
@@ -99,125 +242,142 @@ impl LaneFollow {
         (best.1, best.2)
     }
 
-    /// Crossing points of the centre lines of two paths (cached).
-    fn crossings_of(&mut self, a: &PreparedPath, b: &PreparedPath) -> &[Crossing] {
-        let key = (a.id, b.id);
-        let at = match self.crossings.iter().position(|(k, _)| *k == key) {
+    /// Index of the arc lengths of `path` in `self.arcs` (computed on first use).
+    fn arcs_of(&mut self, path: &PreparedPath) -> usize {
+        let key = path_key(path);
+        match self.arcs.iter().position(|(k, _)| *k == key) {
             Some(at) => at,
             None => {
-                let mut found = Vec::new();
-                if a.id != b.id {
-                    for s in a.center_points.windows(2) {
-                        for t in b.center_points.windows(2) {
-                            if let Some(point) = segment_intersection(s[0], s[1], t[0], t[1]) {
-                                // Keep one point per crossing (neighbouring segments repeat it).
-                                if found.iter().all(|c: &Crossing| dist(c.point, point) > 0.05) {
-                                    found.push(Crossing { point });
-                                }
-                            }
-                        }
-                    }
-                }
-                self.crossings.push((key, found));
-                self.crossings.len() - 1
-            }
-        };
-        &self.crossings[at].1
-    }
-
-    /// The command of agent `i`.
-    fn command(&mut self, input: &ObservationInput<'_>, i: usize) -> Command {
-        let p = self.params;
-        let (look_ahead, horizon, radius) = (p.look_ahead_m, p.horizon_m, p.crossing_radius_m);
-        let me = input.agents[i];
-        let path = &input.paths.paths[i];
-        let vehicle = input.vehicle;
-        let (sin, cos) = me.yaw_rad.sin_cos();
-        let to_ego = |q: [f64; 2]| {
-            let (dx, dy) = (q[0] - me.x_m, q[1] - me.y_m);
-            [dx * cos + dy * sin, -dx * sin + dy * cos]
-        };
-
-        // Pure pursuit from the rear axle (whose path curvature is tan(δ) / wheelbase).
-        let rear = [
-            me.x_m - vehicle.rear_axle_m * cos,
-            me.y_m - vehicle.rear_axle_m * sin,
-        ];
-        let (segment, foot) = self.track(i, path, rear);
-        let target = walk(path, segment, foot, look_ahead);
-        let t = to_ego(target);
-        let t = [t[0] + vehicle.rear_axle_m, t[1]];
-        let ld = t[0].hypot(t[1]).max(1e-3);
-        let curvature = 2.0 * t[1] / (ld * ld);
-        let steering = (vehicle.wheelbase_m * curvature)
-            .atan()
-            .clamp(-vehicle.max_steering_rad, vehicle.max_steering_rad);
-
-        // Time gap to the nearest agent ahead in the own lane.
-        let mut speed = p.target_speed_mps;
-        let ahead_line: Vec<[f64; 2]> = (0..=10)
-            .map(|k| walk(path, segment, foot, horizon * f64::from(k) / 10.0))
-            .collect();
-        for (j, other) in input.agents.iter().enumerate() {
-            if j == i {
-                continue;
-            }
-            let q = to_ego([other.x_m, other.y_m]);
-            let in_cone = q[0] > 0.0 && q[1].abs() < q[0] + vehicle.width_m;
-            let lateral = ahead_line
-                .windows(2)
-                .map(|w| {
-                    dist(
-                        project(w[0], w[1], [other.x_m, other.y_m]),
-                        [other.x_m, other.y_m],
-                    )
-                })
-                .fold(f64::INFINITY, f64::min);
-            if in_cone && lateral <= p.lane_width_m {
-                let gap = q[0].hypot(q[1]) - vehicle.length_m;
-                speed = speed.min(((gap - p.standstill_gap_m) / p.time_gap_s).max(0.0));
+                self.arcs.push((key, Arcs::new(path)));
+                self.arcs.len() - 1
             }
         }
+    }
 
-        // Yield before a crossing that another agent occupies or reaches first.
-        let my_distance = |c: [f64; 2]| {
-            let q = to_ego(c);
-            (q[0] > -radius).then(|| dist(c, [me.x_m, me.y_m]))
-        };
-        for (j, other) in input.agents.iter().enumerate() {
-            if j == i {
+    /// Index of the conflicts of `a` with `b` in `self.conflicts` (both orders computed on
+    /// first use).
+    fn conflicts_of(&mut self, a: &PreparedPath, b: &PreparedPath) -> usize {
+        let key = (path_key(a), path_key(b));
+        if let Some(at) = self.conflicts.iter().position(|(k, _)| *k == key) {
+            return at;
+        }
+        let (arcs_a, arcs_b) = (Arcs::new(a), Arcs::new(b));
+        let (d, pad) = (self.params.conflict_distance_m, self.params.crossing_radius_m);
+        let runs_a = close_runs(a, b, &arcs_a, d);
+        let runs_b = close_runs(b, a, &arcs_b, d);
+        let mut ab = Vec::new();
+        let mut ba = Vec::new();
+        for ra in &runs_a {
+            let pa = a.center_points[ra.core];
+            let Some(rb) = runs_b.iter().min_by(|x, y| {
+                dist(b.center_points[x.core], pa).total_cmp(&dist(b.center_points[y.core], pa))
+            }) else {
                 continue;
-            }
-            let other_path = &input.paths.paths[j];
-            let crossings = self.crossings_of(path, other_path).to_vec();
-            for c in crossings {
-                let Some(mine) = my_distance(c.point) else {
+            };
+            let (ta, tb) = (tangent(a, ra.core), tangent(b, rb.core));
+            let aligned = ta[0] * tb[0] + ta[1] * tb[1] > 0.866 && ra.end - ra.start > 2.0 * d;
+            let (ia, ib) = if aligned {
+                if ra.at_path_start && rb.at_path_start {
                     continue;
+                }
+                let merge = |r: &Run| Interval {
+                    start: r.start - pad,
+                    end: r.start + pad + MERGE_LENGTH_M,
                 };
-                let inside_me = mine < radius;
-                let approaching = mine < radius + horizon / 2.0;
-                if inside_me || !approaching {
-                    continue;
-                }
-                let theirs = dist(c.point, [other.x_m, other.y_m]);
-                let their_heading_to_c = heading_towards(other, c.point);
-                let other_inside = theirs < radius;
-                let other_first = their_heading_to_c
-                    && theirs < radius + horizon / 2.0
-                    && (theirs < mine || (theirs == mine && j < i));
-                if other_inside || other_first {
-                    // Stop before the crossing area.
-                    let room = mine - radius - vehicle.length_m / 2.0;
-                    speed = speed.min((room / p.time_gap_s).max(0.0));
-                }
-            }
+                (merge(ra), merge(rb))
+            } else {
+                let cross = |r: &Run| Interval {
+                    start: r.start - pad,
+                    end: r.end + pad,
+                };
+                (cross(ra), cross(rb))
+            };
+            ab.push(Conflict { mine: ia, theirs: ib });
+            ba.push(Conflict { mine: ib, theirs: ia });
         }
+        self.conflicts.push(((path_key(b), path_key(a)), ba));
+        self.conflicts.push((key, ab));
+        self.conflicts.len() - 1
+    }
+}
 
-        Command {
-            speed_mps: speed,
-            steering_rad: steering,
+/// A stretch of a path where it is close to another path.
+#[derive(Debug, Clone, Copy)]
+struct Run {
+    start: f64,
+    end: f64,
+    /// Index of the point closest to the other path.
+    core: usize,
+    /// Whether it begins at the start of an open path.
+    at_path_start: bool,
+}
+
+/// Stretches of `a` closer than `d` to `b` (widened to the neighbouring points; on a loop a
+/// stretch through the closing point is one run).
+fn close_runs(a: &PreparedPath, b: &PreparedPath, arcs: &Arcs, d: f64) -> Vec<Run> {
+    let pts = &a.center_points;
+    let dists: Vec<f64> = pts.iter().map(|&p| b.center.distance_m(p)).collect();
+    let last = pts.len() - 1;
+    let mut runs: Vec<Run> = Vec::new();
+    let mut k = 0;
+    while k <= last {
+        if dists[k] >= d {
+            k += 1;
+            continue;
+        }
+        let k0 = k;
+        while k < last && dists[k + 1] < d {
+            k += 1;
+        }
+        let k1 = k;
+        let core = (k0..=k1)
+            .min_by(|&x, &y| dists[x].total_cmp(&dists[y]))
+            .unwrap_or(k0);
+        runs.push(Run {
+            start: arcs.cum[k0.saturating_sub(1)],
+            end: arcs.cum[(k1 + 1).min(last)],
+            core,
+            at_path_start: k0 == 0 && !a.is_loop,
+        });
+        k += 1;
+    }
+    if a.is_loop && runs.len() > 1 && dists[0] < d && dists[last] < d {
+        let first = runs.remove(0);
+        let tail = runs.last_mut().expect("two runs");
+        tail.end = first.end + arcs.length;
+        if dists[first.core] < dists[tail.core] {
+            tail.core = first.core;
         }
     }
+    runs
+}
+
+/// Unit direction of the centre line at point `k`.
+fn tangent(path: &PreparedPath, k: usize) -> [f64; 2] {
+    let pts = &path.center_points;
+    let (a, b) = if k + 1 < pts.len() {
+        (pts[k], pts[k + 1])
+    } else {
+        (pts[k - 1], pts[k])
+    };
+    let l = dist(a, b).max(1e-12);
+    [(b[0] - a[0]) / l, (b[1] - a[1]) / l]
+}
+
+/// Order of two tickets (none = after every ticket).
+fn ticket_cmp(a: Option<Ticket>, b: Option<Ticket>) -> std::cmp::Ordering {
+    use std::cmp::Ordering;
+    match (a, b) {
+        (None, None) => Ordering::Equal,
+        (None, Some(_)) => Ordering::Greater,
+        (Some(_), None) => Ordering::Less,
+        (Some(x), Some(y)) => x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)).then(x.2.cmp(&y.2)),
+    }
+}
+
+/// Speed from which a stop within `distance_m` at `decel_mps2` is possible.
+fn stop_speed(distance_m: f64, decel_mps2: f64) -> f64 {
+    (2.0 * decel_mps2 * distance_m.max(0.0)).sqrt()
 }
 
 impl Policy for LaneFollow {
@@ -230,12 +390,184 @@ impl Policy for LaneFollow {
             }
             .into());
         }
-        self.segments.resize(input.agents.len(), None);
-        for (i, slot) in out.iter_mut().enumerate() {
-            *slot = if input.paths.paths[i].center_points.len() < 2 {
-                Command::default()
+        let n = input.agents.len();
+        self.segments.resize(n, None);
+        self.tickets.resize(n, None);
+        self.step += 1;
+        let p = self.params;
+        let vehicle = input.vehicle;
+        let paths = &input.paths.paths;
+
+        // Where every agent is on its path.
+        let mut tracked: Vec<Option<Tracked>> = Vec::with_capacity(n);
+        for (i, me) in input.agents.iter().enumerate() {
+            let path = &paths[i];
+            if path.center_points.len() < 2 {
+                tracked.push(None);
+                continue;
+            }
+            let arcs = self.arcs_of(path);
+            let (sin, cos) = me.yaw_rad.sin_cos();
+            let rear = [
+                me.x_m - vehicle.rear_axle_m * cos,
+                me.y_m - vehicle.rear_axle_m * sin,
+            ];
+            let (segment, foot) = self.track(i, path, rear);
+            let a = &self.arcs[arcs].1;
+            let mut s = a.cum[segment] + dist(path.center_points[segment], foot) + vehicle.rear_axle_m;
+            if a.is_loop && a.length > 0.0 {
+                s = s.rem_euclid(a.length);
+            }
+            tracked.push(Some(Tracked {
+                segment,
+                foot,
+                s,
+                arcs,
+            }));
+        }
+
+        // Conflicts of every agent with every other one.
+        let mut pending: Vec<Vec<Pending>> = vec![Vec::new(); n];
+        for i in 0..n {
+            for j in 0..n {
+                let (Some(ti), Some(tj)) = (tracked[i], tracked[j]) else {
+                    continue;
+                };
+                if i == j || path_key(&paths[i]) == path_key(&paths[j]) {
+                    continue;
+                }
+                let c = self.conflicts_of(&paths[i], &paths[j]);
+                for conflict in &self.conflicts[c].1 {
+                    let mine = Interval {
+                        start: conflict.mine.start + COMMIT_TOLERANCE_M,
+                        ..conflict.mine
+                    };
+                    pending[i].push(Pending {
+                        other: j,
+                        mine: self.arcs[ti.arcs].1.place(ti.s, mine),
+                        theirs: self.arcs[tj.arcs].1.place(tj.s, conflict.theirs),
+                    });
+                }
+            }
+        }
+        let committed: Vec<bool> = pending
+            .iter()
+            .map(|c| c.iter().any(|c| c.mine == Place::Inside))
+            .collect();
+        let first: Vec<f64> = pending
+            .iter()
+            .map(|c| {
+                c.iter()
+                    .filter_map(|c| match c.mine {
+                        Place::Before(d) => Some(d),
+                        _ => None,
+                    })
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        for i in 0..n {
+            if committed[i] || first[i] <= p.horizon_m {
+                let d = if committed[i] { 0.0 } else { first[i] };
+                self.tickets[i].get_or_insert((self.step, d, i));
             } else {
-                self.command(input, i)
+                self.tickets[i] = None;
+            }
+        }
+
+        // Who drives ahead of whom on the own lane (gap between centres along the path).
+        let mut ahead: Vec<Vec<Option<f64>>> = (0..n)
+            .map(|i| {
+                (0..n)
+                    .map(|j| {
+                        let ti = tracked[i].filter(|_| j != i)?;
+                        gap_along(&paths[i], ti, &input.agents[j], vehicle.rear_axle_m, &p)
+                    })
+                    .collect()
+            })
+            .collect();
+        // Queue leaders inherit earlier tickets of their followers.
+        let mut effective = self.tickets.clone();
+        for _ in 0..n {
+            let mut changed = false;
+            for i in 0..n {
+                let leader = (0..n)
+                    .filter_map(|j| ahead[i][j].map(|g| (g, j)))
+                    .min_by(|x, y| x.0.total_cmp(&y.0));
+                if let Some((_, j)) = leader
+                    && ticket_cmp(effective[i], effective[j]).is_lt()
+                {
+                    effective[j] = effective[i];
+                    changed = true;
+                }
+            }
+            if !changed {
+                break;
+            }
+        }
+        let tickets = &self.tickets;
+        let precedes = |j: usize, i: usize| {
+            ticket_cmp(effective[j], effective[i])
+                .then(ticket_cmp(tickets[j], tickets[i]))
+                .then(j.cmp(&i))
+                .is_lt()
+        };
+        // Two agents ahead of each other (side by side at a merge): the earlier one leads.
+        for (i, j) in (0..n).flat_map(|i| (0..i).map(move |j| (i, j))) {
+            if ahead[i][j].is_some() && ahead[j][i].is_some() {
+                if precedes(j, i) {
+                    ahead[j][i] = None;
+                } else {
+                    ahead[i][j] = None;
+                }
+            }
+        }
+
+        for (i, slot) in out.iter_mut().enumerate() {
+            let Some(ti) = tracked[i] else {
+                *slot = Command::default();
+                continue;
+            };
+            let path = &paths[i];
+            let arcs = &self.arcs[ti.arcs].1;
+            let me = &input.agents[i];
+            let steering = pure_pursuit(path, ti, me, vehicle, p.look_ahead_m);
+
+            let mut speed = p.target_speed_mps;
+            let reaction = me.speed_mps.max(0.0) * p.reaction_time_s;
+            // Stop at the end of an open path.
+            if !arcs.is_loop {
+                let room = arcs.length - ti.s - p.end_margin_m - reaction;
+                speed = speed.min(stop_speed(room, p.comfort_decel_mps2));
+            }
+            // Time gap to the agents ahead in the own lane.
+            for gap in ahead[i].iter().flatten() {
+                let gap = gap - vehicle.length_m;
+                speed = speed.min(((gap - p.standstill_gap_m) / p.time_gap_s).max(0.0));
+            }
+            // Yield at conflicts.
+            for c in &pending[i] {
+                let j = c.other;
+                let Place::Before(mine) = c.mine else { continue };
+                if mine > p.horizon_m || ahead[i][j].is_some() {
+                    continue;
+                }
+                let must = match c.theirs {
+                    Place::Inside => true,
+                    Place::Before(theirs) => {
+                        !committed[i] && theirs <= 2.0 * p.horizon_m && tickets[j].is_some() && precedes(j, i)
+                    }
+                    Place::Past => false,
+                };
+                if must {
+                    // An agent not yet committed waits before its first conflict.
+                    let stop = if committed[i] { mine } else { first[i] };
+                    let room = stop - COMMIT_TOLERANCE_M - STOP_MARGIN_M - reaction;
+                    speed = speed.min(stop_speed(room, p.comfort_decel_mps2));
+                }
+            }
+            *slot = Command {
+                speed_mps: speed,
+                steering_rad: steering,
             };
         }
         Ok(())
@@ -243,13 +575,78 @@ impl Policy for LaneFollow {
 
     fn reset(&mut self) {
         self.segments.clear();
+        self.tickets.clear();
+        self.step = 0;
     }
 }
 
-/// Whether `agent` is not driving away from `c`.
-fn heading_towards(agent: &AgentState, c: [f64; 2]) -> bool {
-    let (sin, cos) = agent.yaw_rad.sin_cos();
-    (c[0] - agent.x_m) * cos + (c[1] - agent.y_m) * sin > 0.0
+/// Pure-pursuit steering from the rear axle (whose path curvature is tan(δ) / wheelbase),
+/// aiming at the point `look_ahead_m` along the centre line (never past the end of an open
+/// path).
+fn pure_pursuit(
+    path: &PreparedPath,
+    tracked: Tracked,
+    me: &crate::observation::AgentState,
+    vehicle: &cpmx_vehicle::VehicleParams,
+    look_ahead_m: f64,
+) -> f64 {
+    let (sin, cos) = me.yaw_rad.sin_cos();
+    let target = walk(path, tracked.segment, tracked.foot, look_ahead_m);
+    let (dx, dy) = (target[0] - me.x_m, target[1] - me.y_m);
+    let t = [dx * cos + dy * sin + vehicle.rear_axle_m, -dx * sin + dy * cos];
+    let ld = t[0].hypot(t[1]).max(1e-3);
+    let curvature = 2.0 * t[1] / (ld * ld);
+    (vehicle.wheelbase_m * curvature)
+        .atan()
+        .clamp(-vehicle.max_steering_rad, vehicle.max_steering_rad)
+}
+
+/// Arc distance between the centres of the agent tracked by `me` and `other` along the own
+/// centre line, if `other` is on it ahead within the horizon (centre within half a lane width
+/// of it, heading along it within 45 degrees).
+fn gap_along(
+    path: &PreparedPath,
+    me: Tracked,
+    other: &crate::observation::AgentState,
+    rear_axle_m: f64,
+    p: &LaneFollowParams,
+) -> Option<f64> {
+    let pts = &path.center_points;
+    let n_seg = pts.len() - 1;
+    let q = [other.x_m, other.y_m];
+    let (mut at, mut s, mut travelled) = (me.foot, me.segment, 0.0);
+    let mut best: Option<(f64, f64, [f64; 2])> = None;
+    for _ in 0..=n_seg {
+        let end = pts[s + 1];
+        let proj = project(at, end, q);
+        let lateral = dist(proj, q);
+        if best.is_none_or(|b| lateral < b.0) {
+            best = Some((
+                lateral,
+                travelled + dist(at, proj),
+                [end[0] - at[0], end[1] - at[1]],
+            ));
+        }
+        travelled += dist(at, end);
+        if travelled > p.horizon_m + rear_axle_m {
+            break;
+        }
+        at = end;
+        s += 1;
+        if s == n_seg {
+            if !path.is_loop {
+                break;
+            }
+            s = 0;
+            at = pts[0];
+        }
+    }
+    let (lateral, along, dir) = best?;
+    let (sin, cos) = other.yaw_rad.sin_cos();
+    let norm = dir[0].hypot(dir[1]);
+    let aligned = norm > 0.0 && (dir[0] * cos + dir[1] * sin) / norm >= FRAC_1_SQRT_2;
+    let gap = along - rear_axle_m;
+    (lateral <= p.lane_width_m / 2.0 && aligned && gap > 0.0 && gap <= p.horizon_m).then_some(gap)
 }
 
 /// The point `distance_m` along the centre line from `foot` on `segment` (clamped at the end
@@ -293,18 +690,4 @@ fn project(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> [f64; 2] {
 
 fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - b[0]).hypot(a[1] - b[1])
-}
-
-/// Proper intersection point of segments `p1p2` and `q1q2` (parallel segments: none).
-fn segment_intersection(p1: [f64; 2], p2: [f64; 2], q1: [f64; 2], q2: [f64; 2]) -> Option<[f64; 2]> {
-    let r = [p2[0] - p1[0], p2[1] - p1[1]];
-    let s = [q2[0] - q1[0], q2[1] - q1[1]];
-    let denom = r[0] * s[1] - r[1] * s[0];
-    if denom.abs() < 1e-12 {
-        return None;
-    }
-    let qp = [q1[0] - p1[0], q1[1] - p1[1]];
-    let t = (qp[0] * s[1] - qp[1] * s[0]) / denom;
-    let u = (qp[0] * r[1] - qp[1] * r[0]) / denom;
-    ((0.0..1.0).contains(&t) && (0.0..1.0).contains(&u)).then(|| [p1[0] + t * r[0], p1[1] + t * r[1]])
 }
