@@ -1,0 +1,285 @@
+//! The planner of `control: trajectory` (the paper's §Action): every planning period the policy
+//! is rolled out for Hc steps on *predicted* states of all agents (kinematic bicycle,
+//! observations recomputed on the predicted states), then the last speed command is held and
+//! the steering command brought to zero (or held) until Hp. The result is one timed trajectory
+//! per agent, in the form the CPM Lab's vehicles follow (t, x, y, vx, vy).
+//!
+//! This crate owns the rollout and the after-Hc rule. It does not follow trajectories (the
+//! follower does), measure anything, or know where states come from.
+
+use cpmx_policy::{AgentPaths, AgentState, ObservationInput, Policy, PolicyError};
+use cpmx_vehicle::{BicycleState, Command, Footprint, KinematicBicycle, VehicleParams, footprint_corners};
+
+/// Steering between Hc and Hp.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SteeringAfterHc {
+    /// Linearly from the last policy command to zero at Hp (the paper).
+    LinearToZero,
+    /// Keep the last policy command.
+    Hold,
+}
+
+/// The horizons and the rule after Hc.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlannerParams {
+    /// Hc: policy steps rolled out on predicted states (≥ 1).
+    pub control_horizon: usize,
+    /// Hp: steps of the trajectory (≥ Hc).
+    pub prediction_horizon: usize,
+    /// Length of one step [s] (the policy's `dt`).
+    pub step_s: f64,
+    pub steering_after: SteeringAfterHc,
+}
+
+/// One point of a planned trajectory.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlannedPoint {
+    /// Absolute time [s].
+    pub t_s: f64,
+    pub x_m: f64,
+    pub y_m: f64,
+    pub yaw_rad: f64,
+    /// Velocity in the map frame [m/s].
+    pub velocity_mps: [f64; 2],
+    pub speed_mps: f64,
+    pub steering_rad: f64,
+}
+
+/// A planned trajectory of one agent: Hp + 1 points, the first at the planning time.
+pub type PlannedTrajectory = Vec<PlannedPoint>;
+
+/// Rolls policies out into trajectories.
+#[derive(Debug, Clone)]
+pub struct Planner {
+    params: PlannerParams,
+    model: KinematicBicycle,
+    /// Corners of the agents at the previous planning time (SigmaRL's lagged corners), if any.
+    previous_corners: Option<Vec<Footprint>>,
+}
+
+impl Planner {
+    pub fn new(params: PlannerParams, vehicle: VehicleParams) -> Self {
+        Self {
+            params,
+            model: KinematicBicycle::new(vehicle),
+            previous_corners: None,
+        }
+    }
+
+    pub fn params(&self) -> &PlannerParams {
+        &self.params
+    }
+
+    /// Plans from the agents' current states at time `t_s`.
+    ///
+    /// The first policy call sees the real states (with the previous planning time's corners,
+    /// as SigmaRL's observation expects); every further call sees the predicted states of the
+    /// step before, with the corners of the step before that. `policy` is called Hc times.
+    pub fn plan(
+        &mut self,
+        policy: &mut dyn Policy,
+        states: &[BicycleState],
+        paths: &AgentPaths,
+        t_s: f64,
+    ) -> Result<Vec<PlannedTrajectory>, PolicyError> {
+        let p = self.params;
+        let vehicle = self.model.params;
+        let mut predicted: Vec<BicycleState> = states.to_vec();
+        let mut trajectories: Vec<PlannedTrajectory> =
+            predicted.iter().map(|s| vec![self.point(s, t_s)]).collect();
+        let mut corners_before: Option<Vec<Footprint>> = self.previous_corners.take();
+        let mut commands = vec![Command::default(); states.len()];
+        let mut agents = vec![AgentState::default(); states.len()];
+
+        // Roll the policy out over Hc on predicted states.
+        for k in 0..p.control_horizon {
+            for (agent, state) in agents.iter_mut().zip(&predicted) {
+                *agent = AgentState {
+                    x_m: state.x_m,
+                    y_m: state.y_m,
+                    yaw_rad: state.yaw_rad,
+                    speed_mps: state.speed_mps,
+                    velocity_mps: self.model.velocity_mps(state),
+                };
+            }
+            let input = ObservationInput {
+                agents: &agents,
+                paths,
+                vehicle: &vehicle,
+                previous_corners: corners_before.as_deref(),
+            };
+            policy.act(&input, &mut commands)?;
+            let corners_now: Vec<Footprint> = predicted
+                .iter()
+                .map(|s| footprint_corners(&vehicle, s.x_m, s.y_m, s.yaw_rad))
+                .collect();
+            if k == 0 {
+                self.previous_corners = Some(corners_now.clone());
+            }
+            corners_before = Some(corners_now);
+            self.advance(&mut predicted, &commands, &mut trajectories, t_s, k);
+        }
+
+        // Hold the speed and bring the steering to zero until Hp.
+        let last = commands.clone();
+        let remaining = p.prediction_horizon.saturating_sub(p.control_horizon);
+        for j in 0..remaining {
+            for (command, last) in commands.iter_mut().zip(&last) {
+                let fraction = match p.steering_after {
+                    SteeringAfterHc::LinearToZero => 1.0 - (j + 1) as f64 / remaining as f64,
+                    SteeringAfterHc::Hold => 1.0,
+                };
+                *command = Command {
+                    speed_mps: last.speed_mps,
+                    steering_rad: last.steering_rad * fraction,
+                };
+            }
+            self.advance(
+                &mut predicted,
+                &commands,
+                &mut trajectories,
+                t_s,
+                p.control_horizon + j,
+            );
+        }
+        Ok(trajectories)
+    }
+
+    /// Forgets the previous planning time (a run restarts).
+    pub fn reset(&mut self) {
+        self.previous_corners = None;
+    }
+
+    fn advance(
+        &self,
+        predicted: &mut [BicycleState],
+        commands: &[Command],
+        trajectories: &mut [PlannedTrajectory],
+        t0_s: f64,
+        k: usize,
+    ) {
+        let t_s = t0_s + (k + 1) as f64 * self.params.step_s;
+        for ((state, command), trajectory) in predicted.iter_mut().zip(commands).zip(trajectories.iter_mut())
+        {
+            *state = self.model.step(state, *command, self.params.step_s).state;
+            trajectory.push(self.point(state, t_s));
+        }
+    }
+
+    fn point(&self, state: &BicycleState, t_s: f64) -> PlannedPoint {
+        PlannedPoint {
+            t_s,
+            x_m: state.x_m,
+            y_m: state.y_m,
+            yaw_rad: state.yaw_rad,
+            velocity_mps: self.model.velocity_mps(state),
+            speed_mps: state.speed_mps,
+            steering_rad: state.steering_rad,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A policy that always commands the same and counts its calls.
+    struct Constant {
+        command: Command,
+        calls: usize,
+    }
+
+    impl Policy for Constant {
+        fn act(&mut self, _: &ObservationInput<'_>, out: &mut [Command]) -> Result<(), PolicyError> {
+            self.calls += 1;
+            out.fill(self.command);
+            Ok(())
+        }
+        fn reset(&mut self) {}
+    }
+
+    fn plan(params: PlannerParams, command: Command) -> (Vec<PlannedTrajectory>, usize) {
+        let map = cpmx_world::Map::builtin("intersection").unwrap();
+        let paths = AgentPaths::new([map.reference_path(1).unwrap()]);
+        let mut planner = Planner::new(params, VehicleParams::MU_CAR);
+        let mut policy = Constant { command, calls: 0 };
+        let start = BicycleState {
+            speed_mps: 0.5,
+            ..BicycleState::default()
+        };
+        let trajectories = planner.plan(&mut policy, &[start], &paths, 2.0).unwrap();
+        (trajectories, policy.calls)
+    }
+
+    const PAPER: PlannerParams = PlannerParams {
+        control_horizon: 4,
+        prediction_horizon: 12,
+        step_s: 0.1,
+        steering_after: SteeringAfterHc::LinearToZero,
+    };
+
+    #[test]
+    fn the_policy_is_called_hc_times_and_the_trajectory_has_hp_steps() {
+        let (trajectories, calls) = plan(
+            PAPER,
+            Command {
+                speed_mps: 0.5,
+                steering_rad: 0.2,
+            },
+        );
+        assert_eq!(calls, 4);
+        assert_eq!(trajectories[0].len(), 13);
+        assert!((trajectories[0][12].t_s - 3.2).abs() < 1e-12);
+    }
+
+    #[test]
+    fn steering_goes_to_zero_by_hp_and_speed_is_held() {
+        let (trajectories, _) = plan(
+            PAPER,
+            Command {
+                speed_mps: 0.5,
+                steering_rad: 0.2,
+            },
+        );
+        let last = trajectories[0].last().unwrap();
+        assert!(last.steering_rad.abs() < 1e-12, "{}", last.steering_rad);
+        assert!(
+            trajectories[0][5..]
+                .iter()
+                .all(|p| (p.speed_mps - 0.5).abs() < 1e-12)
+        );
+    }
+
+    #[test]
+    fn hold_keeps_the_last_steering() {
+        let params = PlannerParams {
+            steering_after: SteeringAfterHc::Hold,
+            ..PAPER
+        };
+        let (trajectories, _) = plan(
+            params,
+            Command {
+                speed_mps: 0.5,
+                steering_rad: 0.2,
+            },
+        );
+        assert!((trajectories[0].last().unwrap().steering_rad - 0.2).abs() < 1e-12);
+    }
+
+    #[test]
+    fn hc_equal_to_hp_is_the_policy_alone() {
+        let params = PlannerParams {
+            control_horizon: 3,
+            prediction_horizon: 3,
+            ..PAPER
+        };
+        let (trajectories, calls) = plan(
+            params,
+            Command {
+                speed_mps: 0.3,
+                steering_rad: 0.0,
+            },
+        );
+        assert_eq!((calls, trajectories[0].len()), (3, 4));
+    }
+}
