@@ -60,7 +60,7 @@ fn every_shipped_spec_validates_and_names_the_schema() {
 
 #[test]
 fn the_papers_design_plans_81_paired_runs() {
-    let out = cpmx(&["plan", "examples/paper-design.yaml", "--format", "json"]);
+    let out = cpmx(&["plan", "experiments/at25.yaml", "--format", "json"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let plan: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let runs = plan["runs"].as_array().unwrap();
@@ -310,4 +310,20 @@ fn evaluate_of_a_runs_trajectory_gives_its_metrics() {
         String::from_utf8_lossy(&out.stderr)
     );
     std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn every_example_runs() {
+    let base = std::env::temp_dir().join(format!("cpmx-examples-{}", std::process::id()));
+    for spec in shipped_specs().into_iter().filter(|s| s.starts_with("examples/")) {
+        let out_dir = base.join(spec.replace('/', "_"));
+        let out = cpmx(&["run", &spec, "--out", out_dir.to_str().unwrap()]);
+        assert!(
+            out.status.success(),
+            "{spec}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(out_dir.join("summary.md").is_file(), "{spec}");
+    }
+    std::fs::remove_dir_all(&base).ok();
 }
