@@ -496,7 +496,27 @@ fn find_files(spec: &Spec, data: &DataPath, ctx: &mut CheckContext<'_>) -> Resou
     for (i, c) in spec.initial_configurations.iter().enumerate() {
         let found = match c {
             InitialConfiguration::FromRuns(f) => match data.find(&f.from_runs.dir) {
-                Ok(path) if path.join("matrix.csv").is_file() => Some(path),
+                Ok(path) if path.join("matrix.csv").is_file() => {
+                    if crate::matrix::recorded_runs(&path, &f.from_runs.fidelity).is_empty() {
+                        let span = ctx.span(&format!("/initial_configurations/{i}/from_runs/fidelity"));
+                        ctx.push(
+                            Problem::error(
+                                "cpmx::check::from-runs",
+                                format!(
+                                    "`{}` holds no runs of fidelity `{}`",
+                                    path.display(),
+                                    f.from_runs.fidelity
+                                ),
+                                span,
+                                "no matching runs",
+                            )
+                            .with_help(
+                                "name the fidelity the recorded runs used (see the folder's matrix.csv)",
+                            ),
+                        );
+                    }
+                    Some(path)
+                }
                 Ok(path) => {
                     let span = ctx.span(&format!("/initial_configurations/{i}/from_runs/dir"));
                     ctx.push(

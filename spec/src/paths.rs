@@ -27,7 +27,7 @@ impl DataPath {
     pub fn find(&self, file: &str) -> Result<PathBuf, Vec<PathBuf>> {
         let path = Path::new(file);
         if path.is_absolute() {
-            return if path.is_file() {
+            return if path.exists() {
                 Ok(path.to_path_buf())
             } else {
                 Err(vec![path.to_path_buf()])

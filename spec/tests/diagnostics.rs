@@ -281,3 +281,29 @@ case!(
     17,
     48
 );
+
+#[test]
+fn from_runs_needs_runs_of_that_fidelity() {
+    let dir = std::env::temp_dir().join(format!("cpmx-from-runs-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("matrix.csv"),
+        "key,fidelity,policy,initial_configuration,repetition,seed\nsim/a/b/rep1,sim,a,b,1,7\n",
+    )
+    .unwrap();
+    let text = VALID.replace(
+        "repetitions: 2",
+        &format!(
+            "  - from_runs: {{dir: {}, fidelity: lab}}\nrepetitions: 2",
+            dir.display()
+        ),
+    );
+    let diagnostics = check(&text).expect_err("no lab runs there");
+    assert_eq!(diagnostics[0].problem.code, "cpmx::check::from-runs");
+    assert_eq!(diagnostics[0].line, 13);
+    let ok = text.replace("fidelity: lab", "fidelity: sim");
+    let checked = check(&ok).unwrap();
+    assert_eq!(checked.configurations.len(), 2, "one explicit, one recorded");
+    assert_eq!(checked.configurations[1].name, "sim-a-b-rep1");
+    std::fs::remove_dir_all(&dir).ok();
+}
