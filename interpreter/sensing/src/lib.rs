@@ -1,6 +1,7 @@
 //! Sensing and actuation layers of the cpmx twin, as the CPM Lab's simulated vehicles run
 //! them (cpm-lab-interface.md §5, §6): the input delay line, the simulated indoor positioning
-//! system, and the on-car localization that fuses dead reckoning with positioning fixes.
+//! system, the on-car localization that fuses dead reckoning with positioning fixes, and
+//! [`OnCarSensing`], which chains the last two for one car.
 //!
 //! This crate owns those three small state machines and the order of their random draws. It
 //! knows no vehicle model (callers pass true poses and true odometer/gyro increments), no
@@ -11,10 +12,12 @@
 mod delay;
 mod ips;
 mod localization;
+mod on_car;
 
 pub use delay::ActuationDelay;
 pub use ips::{IpsModel, IpsParams, PoseFix};
 pub use localization::{Estimate, FixOutcome, Localization, LocalizationParams, OdometryReading};
+pub use on_car::OnCarSensing;
 
 use thiserror::Error;
 
