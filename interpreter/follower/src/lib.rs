@@ -1,0 +1,33 @@
+//! Vehicle-side trajectory follower: the CPM Lab's mid-level controller in trajectory mode.
+//!
+//! A planner sends timed reference trajectories ([`TrajectoryCommand`]); every 20 ms the
+//! [`Follower`] picks the newest valid one, applies the lab's stop rules and asks the
+//! [`Mpc`] for the plant input. The MPC works over any [`Model`]; [`BicycleModel`] adapts
+//! `cpmx_vehicle::KinematicBicycle`.
+//!
+//! This crate owns following a trajectory. It never steps the plant, estimates states,
+//! plans trajectories or draws random numbers.
+//!
+//! ```text
+//! let model = BicycleModel { bicycle: KinematicBicycle::new(VehicleParams::MU_CAR) };
+//! let mut follower = Follower::new(Mpc::new(model, MpcConfig::lab(BICYCLE_MOVE_WEIGHTS)), FollowerConfig::default());
+//! follower.receive(TrajectoryCommand { create_stamp_s, valid_after_s, trajectory })?;
+//! let out = follower.control(t_now_s, &StateEstimate { state, ips_update_age_s: 0.0 });
+//! // apply BicycleModel::to_command(&out.input) for 20 ms; out.status says Following / Stopped(reason)
+//! ```
+
+mod follower;
+mod model;
+mod mpc;
+mod trajectory;
+
+pub use follower::{
+    CommandError, Follower, FollowerConfig, MAX_PENDING_COMMANDS, Output, StateEstimate, Status, StopReason,
+    TrajectoryCommand,
+};
+pub use model::{BicycleModel, InputLimits, Model, unwrap_near};
+pub use mpc::{
+    BICYCLE_MOVE_WEIGHTS, CONTROL_MOVES, LAB_MOVE_WEIGHTS, Mpc, MpcConfig, PREDICTION_STEPS, Rejection,
+    Solution,
+};
+pub use trajectory::{Trajectory, TrajectoryError, TrajectoryPoint, TrajectorySample};

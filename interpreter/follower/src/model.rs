@@ -1,0 +1,178 @@
+//! The plant models the MPC predicts with: a [`Model`] trait over fixed-size state and
+//! input arrays, and its implementation for the kinematic bicycle of `cpmx-vehicle`.
+//!
+//! This module owns how a model is seen by the controller (one discrete step, the tracked
+//! point, a feed-forward from the reference, limits, the stop input). It never solves
+//! anything and never decides whether a trajectory is acceptable.
+//!
+//! An adapter for the lab's grey-box model (§4: state `[px, py, ψ, v]`, inputs
+//! `[throttle, servo]`) implements `step` with the four Euler equations, `position_m` as
+//! `[px, py]`, `feedforward` by inverting the steady state (servo from curvature, throttle
+//! from speed), limits `[-1, 1]` without rate limits and the lab's stop signals
+//! (`throttle = clamp(−0.5·v)`, servo 0); the tests of `mpc.rs` contain one.
+
+use cpmx_vehicle::{BicycleState, Command, KinematicBicycle};
+
+use crate::trajectory::TrajectorySample;
+
+/// Bounds on the inputs; a rate limit of `f64::INFINITY` adds no constraint.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InputLimits<const NU: usize> {
+    /// Lower bound of each input.
+    pub lower: [f64; NU],
+    /// Upper bound of each input.
+    pub upper: [f64; NU],
+    /// Largest change of each input per second.
+    pub max_rate_per_s: [f64; NU],
+}
+
+/// A discrete-time plant model with `NX` states and `NU` inputs.
+pub trait Model<const NX: usize, const NU: usize> {
+    /// The state after holding `input` for `dt_s` from `state`.
+    fn step(&self, state: &[f64; NX], input: &[f64; NU], dt_s: f64) -> [f64; NX];
+
+    /// Map-frame position of the point the trajectory refers to [m].
+    fn position_m(&self, state: &[f64; NX]) -> [f64; 2];
+
+    /// A state and an input that follow `sample` (the linearisation point); angles are
+    /// unwrapped to lie within π of the same entries of `near`.
+    fn feedforward(&self, sample: &TrajectorySample, near: &[f64; NX]) -> ([f64; NX], [f64; NU]);
+
+    /// Input bounds and rate limits.
+    fn input_limits(&self) -> InputLimits<NU>;
+
+    /// The input that brings the vehicle to a halt from `state`.
+    fn stop_input(&self, state: &[f64; NX]) -> [f64; NU];
+}
+
+/// `near + wrap(angle − near)`: the representative of `angle_rad` closest to `near_rad`.
+pub fn unwrap_near(angle_rad: f64, near_rad: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    near_rad + (angle_rad - near_rad + PI).rem_euclid(TAU) - PI
+}
+
+/// The kinematic bicycle as an MPC model: state `[x, y, yaw, speed, steering]` (centre of
+/// gravity), input `[speed command, steering command]` ([`Command`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BicycleModel {
+    /// The vehicle model (its parameters give the limits).
+    pub bicycle: KinematicBicycle,
+}
+
+impl BicycleModel {
+    /// Index of the state array as a [`BicycleState`].
+    pub fn to_state(state: &[f64; 5]) -> BicycleState {
+        BicycleState {
+            x_m: state[0],
+            y_m: state[1],
+            yaw_rad: state[2],
+            speed_mps: state[3],
+            steering_rad: state[4],
+        }
+    }
+
+    /// A [`BicycleState`] as the state array.
+    pub fn from_state(state: &BicycleState) -> [f64; 5] {
+        [
+            state.x_m,
+            state.y_m,
+            state.yaw_rad,
+            state.speed_mps,
+            state.steering_rad,
+        ]
+    }
+
+    /// The input array as a [`Command`].
+    pub fn to_command(input: &[f64; 2]) -> Command {
+        Command {
+            speed_mps: input[0],
+            steering_rad: input[1],
+        }
+    }
+}
+
+impl Model<5, 2> for BicycleModel {
+    fn step(&self, state: &[f64; 5], input: &[f64; 2], dt_s: f64) -> [f64; 5] {
+        let out = self
+            .bicycle
+            .step(&Self::to_state(state), Self::to_command(input), dt_s);
+        Self::from_state(&out.state)
+    }
+
+    fn position_m(&self, state: &[f64; 5]) -> [f64; 2] {
+        [state[0], state[1]]
+    }
+
+    fn feedforward(&self, sample: &TrajectorySample, near: &[f64; 5]) -> ([f64; 5], [f64; 2]) {
+        let p = &self.bicycle.params;
+        let speed = sample.speed_mps();
+
+        // Path curvature at the centre of gravity is cos β·tan δ / L with tan β = l_r/L·tan δ,
+        // hence tan δ = κL / sqrt(1 − (κ l_r)²).
+        let kappa_lr = (sample.curvature_per_m() * p.rear_axle_m).clamp(-0.99, 0.99);
+        let tan_delta = sample.curvature_per_m() * p.wheelbase_m / (1.0 - kappa_lr * kappa_lr).sqrt();
+        let steering = tan_delta.atan().clamp(-p.max_steering_rad, p.max_steering_rad);
+
+        // The velocity points along yaw + β; when standing keep the current yaw.
+        let yaw = if speed > 1e-6 {
+            unwrap_near(sample.yaw_rad() - self.bicycle.sideslip_rad(steering), near[2])
+        } else {
+            near[2]
+        };
+        let [x, y] = sample.position_m;
+        ([x, y, yaw, speed, steering], [speed, steering])
+    }
+
+    fn input_limits(&self) -> InputLimits<2> {
+        let p = &self.bicycle.params;
+        InputLimits {
+            lower: [-p.max_speed_mps, -p.max_steering_rad],
+            upper: [p.max_speed_mps, p.max_steering_rad],
+            max_rate_per_s: [p.accel_mps2.1.max(-p.accel_mps2.0), p.max_steering_rate_rad_s],
+        }
+    }
+
+    fn stop_input(&self, _state: &[f64; 5]) -> [f64; 2] {
+        [0.0, 0.0]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+    use cpmx_vehicle::VehicleParams;
+
+    #[test]
+    fn unwrap_near_picks_the_closest_turn() {
+        use std::f64::consts::PI;
+        assert_relative_eq!(
+            unwrap_near(-PI + 0.1, 3.0 * PI - 0.1),
+            3.0 * PI + 0.1,
+            epsilon = 1e-12
+        );
+        assert_relative_eq!(unwrap_near(0.2, 0.0), 0.2, epsilon = 1e-15);
+    }
+
+    #[test]
+    fn feedforward_holds_a_circle() {
+        // Driving the feed-forward of a circle keeps curvature 1/r.
+        let model = BicycleModel {
+            bicycle: KinematicBicycle::new(VehicleParams::MU_CAR),
+        };
+        let (r, v) = (0.6, 0.5);
+        let sample = TrajectorySample {
+            t_s: 0.0,
+            position_m: [r, 0.0],
+            velocity_mps: [0.0, v],
+            acceleration_mps2: [-v * v / r, 0.0],
+        };
+        let (state, input) = model.feedforward(&sample, &[0.0; 5]);
+        let next = model.step(&state, &input, 0.001);
+        let yaw_rate = (next[2] - state[2]) / 0.001;
+        assert_relative_eq!(yaw_rate, v / r, max_relative = 1e-9);
+        let [vx, vy] = model.bicycle.velocity_mps(&BicycleModel::to_state(&state));
+        assert_relative_eq!(vx, 0.0, epsilon = 1e-12);
+        assert_relative_eq!(vy, v, epsilon = 1e-12);
+    }
+}
