@@ -196,7 +196,7 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Follower<M, NX, NU> {
     }
 
     /// The MPC input, or why the car must stop.
-    fn decide(&self, t_now_s: f64, estimate: &StateEstimate<NX>) -> Result<[f64; NU], StopReason> {
+    fn decide(&mut self, t_now_s: f64, estimate: &StateEstimate<NX>) -> Result<[f64; NU], StopReason> {
         let command = self.current.as_ref().ok_or(StopReason::NoCommand)?;
         let age_s = t_now_s - command.valid_after_s;
         let fresh = age_s < self.config.command_timeout_s;

@@ -163,6 +163,30 @@ pub struct Mpc<M, const NX: usize, const NU: usize> {
     /// The last `delay_steps` applied inputs, oldest first.
     history: VecDeque<[f64; NU]>,
     previous_input: [f64; NU],
+    qp: QpCache,
+}
+
+/// The clarabel solver of the previous step. Every step's QP has the same sparsity, so
+/// updating P, q and b skips the solver's setup (allocation, ordering, symbolic
+/// factorisation). Equilibration and presolve are off, so a kept solver computes exactly
+/// what a new one would (clarabel has no warm start). A clone starts without one.
+#[derive(Default)]
+struct QpCache(Option<DefaultSolver<f64>>);
+
+impl Clone for QpCache {
+    fn clone(&self) -> Self {
+        Self(None)
+    }
+}
+
+impl std::fmt::Debug for QpCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(if self.0.is_some() {
+            "QpCache(solver)"
+        } else {
+            "QpCache(empty)"
+        })
+    }
 }
 
 impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
@@ -173,6 +197,7 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
             history: std::iter::repeat_n([0.0; NU], config.delay_steps).collect(),
             config,
             previous_input: [0.0; NU],
+            qp: QpCache::default(),
         }
     }
 
@@ -204,7 +229,7 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
 
     /// The input for `state` (measured at `t_now_s`) following `trajectory`.
     pub fn solve(
-        &self,
+        &mut self,
         t_now_s: f64,
         state: &[f64; NX],
         trajectory: &Trajectory,
@@ -272,7 +297,7 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
 
     /// Builds and solves the condensed QP; returns the moves.
     fn solve_qp(
-        &self,
+        &mut self,
         x0: &[f64; NX],
         samples: &[TrajectorySample; PREDICTION_STEPS],
     ) -> Result<[[f64; NU]; CONTROL_MOVES], Rejection> {
@@ -294,23 +319,33 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
         let q: Vec<f64> = gradient.iter().map(|g| 2.0 * g).collect();
 
         let (a, b) = self.constraints();
-        let cones = [NonnegativeConeT(b.len())];
-        let settings = DefaultSettings {
-            verbose: false,
-            ..DefaultSettings::default()
+        let failed = |status: String| Rejection::SolverFailed { status };
+        let solver = match &mut self.qp.0 {
+            Some(solver) => {
+                solver.update_P(&p.nzval).map_err(|e| failed(e.to_string()))?;
+                solver.update_q(&q).map_err(|e| failed(e.to_string()))?;
+                solver.update_b(&b).map_err(|e| failed(e.to_string()))?;
+                solver
+            }
+            empty => {
+                let settings = DefaultSettings {
+                    verbose: false,
+                    equilibrate_enable: false,
+                    presolve_enable: false,
+                    ..DefaultSettings::default()
+                };
+                let cones = [NonnegativeConeT(b.len())];
+                let solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings)
+                    .map_err(|e| failed(e.to_string()))?;
+                empty.insert(solver)
+            }
         };
-        let mut solver =
-            DefaultSolver::new(&p, &q, &a, &b, &cones, settings).map_err(|e| Rejection::SolverFailed {
-                status: e.to_string(),
-            })?;
         solver.solve();
         if !matches!(
             solver.solution.status,
             SolverStatus::Solved | SolverStatus::AlmostSolved
         ) {
-            return Err(Rejection::SolverFailed {
-                status: format!("{:?}", solver.solution.status),
-            });
+            return Err(failed(format!("{:?}", solver.solution.status)));
         }
 
         // Clip the tiny bound violations an interior-point solution may have.
