@@ -54,33 +54,36 @@ impl InterpreterChecks for BuildChecks {
     }
 }
 
-/// Why this build cannot run a fidelity, or `None` when it can.
+/// Why this build cannot run a fidelity, or `None` when it can. `control: trajectory` runs
+/// every layer stack (twin engine); `control: direct` drives the kinematic bicycle with ideal
+/// sensing and actuation (SigmaRL's simulation).
 pub(crate) fn unsupported_reason(fidelity: &Fidelity) -> Option<String> {
     match fidelity {
         Fidelity::Lab(_) => Some("the lab driver (`driver: cpm-dds`) is not part of this build".into()),
         Fidelity::Simulated(SimulatedFidelity {
-            control,
+            control: Control::Trajectory,
+            ..
+        }) => None,
+        Fidelity::Simulated(SimulatedFidelity {
+            control: Control::Direct,
             dynamics,
             sensing,
             actuation,
         }) => {
-            let mut missing = Vec::new();
-            if *control == Control::Trajectory {
-                missing.push("`control: trajectory` (the Hc/Hp planner and MPC follower)");
-            }
+            let mut extra = Vec::new();
             if matches!(dynamics, DynamicsLayer::GreyBox(_)) {
-                missing.push("grey-box dynamics");
+                extra.push("grey-box dynamics");
             }
             if matches!(sensing, Some(SensingLayer::Model(_))) {
-                missing.push("a sensing model");
+                extra.push("a sensing model");
             }
             if matches!(actuation, Some(ActuationLayer::Model(_))) {
-                missing.push("an actuation model");
+                extra.push("an actuation model");
             }
-            (!missing.is_empty()).then(|| {
+            (!extra.is_empty()).then(|| {
                 format!(
-                    "it needs {}, which the twin engine will bring",
-                    missing.join(", ")
+                    "`control: direct` applies actions to the kinematic bicycle; {} need `control: trajectory`",
+                    extra.join(", ")
                 )
             })
         }

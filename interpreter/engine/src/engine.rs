@@ -5,7 +5,7 @@ use cpmx_policy::{LaneFollow, LaneFollowParams, MlpPolicy, Policy, PolicyError};
 use cpmx_recording::Recording;
 use cpmx_spec::RunPlan;
 use cpmx_spec::matrix::stream_key;
-use cpmx_spec::model::{Control, DynamicsLayer, Fidelity, SimulatedFidelity};
+use cpmx_spec::model::{Control, Fidelity, SimulatedFidelity};
 use rand::SeedableRng;
 use rand_chacha::ChaCha20Rng;
 
@@ -73,16 +73,14 @@ pub trait Engine: Sync {
 
 /// The engine of a fidelity, or why this build has none.
 pub fn engine_for(name: &str, fidelity: &Fidelity) -> Result<&'static dyn Engine, RunError> {
+    if let Some(reason) = crate::checks::unsupported_reason(fidelity) {
+        return Err(RunError::Unsupported(name.to_owned(), reason));
+    }
     match fidelity {
         Fidelity::Simulated(SimulatedFidelity {
             control: Control::Direct,
-            dynamics: DynamicsLayer::Kinematic(_),
-            sensing: None | Some(cpmx_spec::model::SensingLayer::Ideal(_)),
-            actuation: None | Some(cpmx_spec::model::ActuationLayer::Ideal(_)),
+            ..
         }) => Ok(&crate::sim::SimEngine),
-        other => Err(RunError::Unsupported(
-            name.to_owned(),
-            crate::checks::unsupported_reason(other).unwrap_or_else(|| "no engine".into()),
-        )),
+        _ => Ok(&crate::twin::TwinEngine),
     }
 }

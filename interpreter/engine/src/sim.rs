@@ -138,6 +138,22 @@ fn wrap_pi(angle_rad: f64) -> f64 {
     }
 }
 
+/// Whether any two footprints overlap (true minimum-translation-vector distance < 0).
+pub(crate) fn any_overlap(
+    poses: impl Iterator<Item = cpmx_sensing::Pose2>,
+    vehicle: &cpmx_vehicle::VehicleParams,
+) -> bool {
+    let states: Vec<BicycleState> = poses
+        .map(|p| BicycleState {
+            x_m: p.x_m,
+            y_m: p.y_m,
+            yaw_rad: p.yaw_rad,
+            ..BicycleState::default()
+        })
+        .collect();
+    colliding_agents(&states, vehicle).iter().any(|&c| c)
+}
+
 /// Which agents' footprints overlap another's (true minimum-translation-vector distance < 0).
 fn colliding_agents(states: &[BicycleState], vehicle: &cpmx_vehicle::VehicleParams) -> Vec<bool> {
     let boxes: Vec<PlacedBox> = states
