@@ -1,5 +1,5 @@
 //! SigmaRL's actor network loaded from safetensors: a tanh MLP (`y = x W^T + b`, float32)
-//! evaluated for all agents at once with preallocated buffers.
+//! evaluated for all agents at once, in groups of 4, with preallocated buffers.
 //!
 //! This module owns loading, shape checks and the batched forward pass to the raw outputs;
 //! turning raw outputs into actions is `action`'s job.
@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use safetensors::{Dtype, SafeTensors};
 
-use crate::kernel::{COLS, Dense, ROWS, pad};
+use crate::kernel::{Dense, GROUP};
 
 /// The layer sizes and tensor names of an MLP actor.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -70,12 +70,14 @@ pub enum ActorError {
     },
 }
 
-/// A loaded MLP actor. Weights are stored transposed and padded once at load.
+/// A loaded MLP actor. Weights are packed once at load into the panels the kernel streams.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MlpActor {
     layers: Vec<Dense>,
     input_size: usize,
     output_size: usize,
+    /// Widest activation row (input or padded layer output).
+    width: usize,
 }
 
 /// Preallocated buffers for forward passes over up to `capacity` agents.
@@ -120,30 +122,19 @@ impl MlpActor {
                 &[outputs, inputs],
             )?;
             let bias = read_f32(&tensors, &format!("{}.{i}.bias", layout.prefix), &[outputs])?;
-
-            // Transpose to [in][out] and pad the outputs to the register tile.
-            let out_padded = pad(outputs, COLS);
-            let mut wt = vec![0.0f32; inputs * out_padded];
-            for j in 0..outputs {
-                for k in 0..inputs {
-                    wt[k * out_padded + j] = weight[j * inputs + k];
-                }
-            }
-            let mut padded_bias = bias;
-            padded_bias.resize(out_padded, 0.0);
-            layers.push(Dense {
-                inputs,
-                outputs,
-                out_padded,
-                wt,
-                bias: padded_bias,
-                tanh: i + 1 < n_layers,
-            });
+            layers.push(Dense::new(&weight, &bias, inputs, outputs, i + 1 < n_layers));
         }
+        let width = layers
+            .iter()
+            .map(Dense::out_padded)
+            .chain([layout.input_size])
+            .max()
+            .unwrap_or(0);
         Ok(MlpActor {
             layers,
             input_size: layout.input_size,
             output_size: layout.output_size,
+            width,
         })
     }
 
@@ -157,25 +148,21 @@ impl MlpActor {
         self.output_size
     }
 
-    /// Buffers for forward passes over up to `agents` agents.
+    /// Buffers for forward passes over up to `agents` agents (the network runs groups of up
+    /// to 4 agents, so the buffers hold one group whatever `agents` is).
     pub fn workspace(&self, agents: usize) -> ActorWorkspace {
-        let rows = pad(agents.max(1), ROWS);
-        let width = self
-            .layers
-            .iter()
-            .map(|l| l.out_padded)
-            .chain([self.input_size])
-            .max()
-            .unwrap_or(0);
         ActorWorkspace {
             capacity: agents,
-            ping: vec![0.0; rows * width],
-            pong: vec![0.0; rows * width],
+            ping: vec![0.0; GROUP * self.width],
+            pong: vec![0.0; GROUP * self.width],
         }
     }
 
     /// Raw outputs for a batch: `observations` holds `agents * input_size()` values
     /// (agent-major), `raw` receives `agents * output_size()` values. Allocation-free.
+    ///
+    /// The agents run through the network in groups of 4 (the last group holds the rest), so
+    /// each weight is loaded once per group; an agent's outputs do not depend on the batch.
     pub fn forward(
         &self,
         observations: &[f32],
@@ -188,6 +175,11 @@ impl MlpActor {
             ("raw output buffer", raw.len(), agents * self.output_size),
             ("observation buffer", observations.len(), agents * self.input_size),
             ("workspace capacity (agents)", agents.min(ws.capacity), agents),
+            (
+                "workspace buffer",
+                ws.ping.len().min(ws.pong.len()),
+                GROUP * self.width,
+            ),
         ];
         for (what, found, expected) in checks {
             if found != expected {
@@ -198,32 +190,43 @@ impl MlpActor {
                 });
             }
         }
-        let rows = pad(agents.max(1), ROWS);
-
-        // Copy the observations into the padded input rows.
-        let input = &mut ws.ping[..rows * self.input_size];
-        input[..observations.len()].copy_from_slice(observations);
-        input[observations.len()..].fill(0.0);
-
-        // Run the layers, alternating between the two buffers.
-        let (mut src, mut dst) = (&mut ws.ping, &mut ws.pong);
-        let mut stride = self.input_size;
-        for layer in &self.layers {
-            layer.apply(
-                &src[..rows * stride],
-                stride,
-                rows,
-                &mut dst[..rows * layer.out_padded],
-            );
-            stride = layer.out_padded;
-            std::mem::swap(&mut src, &mut dst);
+        if self.input_size == 0 || self.output_size == 0 {
+            raw.fill(0.0);
+            return Ok(());
         }
 
-        // Unpad the outputs.
-        for (a, out) in raw.chunks_exact_mut(self.output_size).enumerate() {
-            out.copy_from_slice(&src[a * stride..a * stride + self.output_size]);
+        let groups = observations
+            .chunks(GROUP * self.input_size)
+            .zip(raw.chunks_mut(GROUP * self.output_size));
+        for (obs, out) in groups {
+            match obs.len() / self.input_size {
+                1 => self.forward_group::<1>(obs, ws, out),
+                2 => self.forward_group::<2>(obs, ws, out),
+                3 => self.forward_group::<3>(obs, ws, out),
+                _ => self.forward_group::<GROUP>(obs, ws, out),
+            }
         }
         Ok(())
+    }
+
+    /// One group of `R` agents (buffers already checked): transpose the observations to
+    /// feature-major, run the layers alternating between the two buffers, transpose back.
+    fn forward_group<const R: usize>(&self, observations: &[f32], ws: &mut ActorWorkspace, raw: &mut [f32]) {
+        let (mut src, mut dst) = (&mut ws.ping, &mut ws.pong);
+        for (r, obs) in observations.chunks_exact(self.input_size).enumerate() {
+            for (k, &v) in obs.iter().enumerate() {
+                src[k * R + r] = v;
+            }
+        }
+        for layer in &self.layers {
+            layer.apply::<R>(&src[..layer.inputs() * R], &mut dst[..layer.out_padded() * R]);
+            std::mem::swap(&mut src, &mut dst);
+        }
+        for (r, out) in raw.chunks_exact_mut(self.output_size).enumerate() {
+            for (j, v) in out.iter_mut().enumerate() {
+                *v = src[j * R + r];
+            }
+        }
     }
 }
 

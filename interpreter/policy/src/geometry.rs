@@ -1,22 +1,97 @@
 //! Reference-path geometry prepared for the per-step queries of observations and baselines:
-//! polylines stored as segment arrays, so that SigmaRL's nearest-segment search over a whole
-//! path is a tight loop the compiler vectorises. Built once per run, never per step.
+//! polylines stored as blocks of segments, each block with a bounding box, so that SigmaRL's
+//! nearest-segment search over a whole path only measures the few blocks near the query
+//! point, with the same result as measuring every segment. Built once per run, never per step.
 
 use cpmx_world::{Point, Polyline, ReferencePath};
 
-/// A polyline as float32 arrays of segment starts and directions.
+/// Segments per block (two 256-bit vectors of float32).
+const BLOCK: usize = 16;
+
+/// How far (in metres) a block's bounding box is grown. A segment's float32 distance differs from the
+/// exact distance by a few float32 ulps of the coordinates (under 1e-6 m on maps of a few
+/// metres), far below this margin: a segment in a block whose grown box is farther from the
+/// query point than some measured distance cannot attain (or tie) the minimum.
+const BOX_MARGIN_M: f32 = 1e-3;
+
+/// Relative slack on the same comparison, for query points far from the map, where the
+/// round-off of the squared distances grows with their size.
+const BOX_SLACK: f32 = 1.0 + 1e-4;
+
+/// A polyline as float32 blocks of segment starts and directions, with a bounding box per block.
 ///
 /// Queries repeat SigmaRL's `get_perpendicular_distances` in float32 with torch's operation
 /// order (projection `dot / |v|^2`, clamp, closest point `start + v t`, norm), because which
 /// segment wins a near-tie (a point on a vertex) decides the short-term reference points.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Segments {
-    start_x: Vec<f32>,
-    start_y: Vec<f32>,
-    dir_x: Vec<f32>,
-    dir_y: Vec<f32>,
+    /// Blocks of [`BLOCK`] segments; the last one is padded with NaN segments, which never
+    /// attain a minimum.
+    blocks: Vec<Block>,
+    /// Bounding box `[min_x, min_y, max_x, max_y]` of each block, grown by [`BOX_MARGIN_M`].
+    boxes: Vec<[f32; 4]>,
+    /// Number of segments.
+    len: usize,
+}
+
+/// [`BLOCK`] segments, component-major.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Block {
+    start_x: [f32; BLOCK],
+    start_y: [f32; BLOCK],
+    dir_x: [f32; BLOCK],
+    dir_y: [f32; BLOCK],
     /// `|dir|^2` (0 for a degenerate segment, which then measures the distance to its start).
-    len2: Vec<f32>,
+    len2: [f32; BLOCK],
+}
+
+impl Block {
+    /// A block of NaN segments.
+    const EMPTY: Block = Block {
+        start_x: [f32::NAN; BLOCK],
+        start_y: [f32::NAN; BLOCK],
+        dir_x: [f32::NAN; BLOCK],
+        dir_y: [f32::NAN; BLOCK],
+        len2: [f32::NAN; BLOCK],
+    };
+
+    /// Squared distances from `(px, py)` to the block's segments (float32, torch's order;
+    /// NaN for padding).
+    #[inline(always)]
+    fn distances2(&self, px: f32, py: f32) -> [f32; BLOCK] {
+        let mut d2 = [0.0f32; BLOCK];
+        for (i, d) in d2.iter_mut().enumerate() {
+            let (vx, vy) = (self.dir_x[i], self.dir_y[i]);
+            let dot = (px - self.start_x[i]) * vx + (py - self.start_y[i]) * vy;
+            let len2 = self.len2[i];
+            let t = if len2 > 0.0 {
+                (dot / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let (ex, ey) = (self.start_x[i] + vx * t - px, self.start_y[i] + vy * t - py);
+            *d = ex * ex + ey * ey;
+        }
+        d2
+    }
+
+    /// Smallest squared distance from `(px, py)` to the block's segments (the minimum is
+    /// exact, so the order of comparisons does not matter).
+    #[inline(always)]
+    fn min_distance2(&self, px: f32, py: f32) -> f32 {
+        self.distances2(px, py)
+            .into_iter()
+            .fold(f32::INFINITY, |best, d2| if d2 < best { d2 } else { best })
+    }
+}
+
+/// Squared distance from `(px, py)` to a box (0 inside, and for a NaN point, which is never
+/// pruned).
+#[inline(always)]
+fn box_distance2(b: &[f32; 4], px: f32, py: f32) -> f32 {
+    let dx = (b[0] - px).max(px - b[2]).max(0.0);
+    let dy = (b[1] - py).max(py - b[3]).max(0.0);
+    dx * dx + dy * dy
 }
 
 /// Result of [`Segments::nearest`].
@@ -29,58 +104,67 @@ pub struct Nearest {
 }
 
 impl Segments {
-    /// Segment arrays of a polyline (empty for fewer than two points).
+    /// Segment blocks of a polyline (empty for fewer than two points).
     pub fn new(line: &Polyline) -> Self {
         let mut s = Segments::default();
-        for pair in line.points.windows(2) {
+        for (i, pair) in line.points.windows(2).enumerate() {
             let (ax, ay) = (pair[0][0] as f32, pair[0][1] as f32);
             let (dx, dy) = (pair[1][0] as f32 - ax, pair[1][1] as f32 - ay);
-            s.start_x.push(ax);
-            s.start_y.push(ay);
-            s.dir_x.push(dx);
-            s.dir_y.push(dy);
-            s.len2.push(dx * dx + dy * dy);
+            let (b, lane) = (i / BLOCK, i % BLOCK);
+            if lane == 0 {
+                s.blocks.push(Block::EMPTY);
+                s.boxes
+                    .push([f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY]);
+            }
+            let block = &mut s.blocks[b];
+            block.start_x[lane] = ax;
+            block.start_y[lane] = ay;
+            block.dir_x[lane] = dx;
+            block.dir_y[lane] = dy;
+            block.len2[lane] = dx * dx + dy * dy;
+            let bx = &mut s.boxes[b];
+            for (x, y) in [(ax, ay), (ax + dx, ay + dy)] {
+                *bx = [
+                    bx[0].min(x - BOX_MARGIN_M),
+                    bx[1].min(y - BOX_MARGIN_M),
+                    bx[2].max(x + BOX_MARGIN_M),
+                    bx[3].max(y + BOX_MARGIN_M),
+                ];
+            }
+            s.len += 1;
         }
         s
     }
 
     /// Number of segments.
     pub fn len(&self) -> usize {
-        self.start_x.len()
+        self.len
     }
 
     /// Whether there is no segment.
     pub fn is_empty(&self) -> bool {
-        self.start_x.is_empty()
-    }
-
-    /// Distance from `(px, py)` to segment `i`, in float32 as torch computes it.
-    #[inline(always)]
-    fn distance(&self, i: usize, px: f32, py: f32) -> f32 {
-        self.distance2(i, px, py).sqrt()
-    }
-
-    /// Squared distance from `(px, py)` to segment `i` (float32, torch's order).
-    #[inline(always)]
-    fn distance2(&self, i: usize, px: f32, py: f32) -> f32 {
-        let (vx, vy) = (self.dir_x[i], self.dir_y[i]);
-        let dot = (px - self.start_x[i]) * vx + (py - self.start_y[i]) * vy;
-        let len2 = self.len2[i];
-        let t = if len2 > 0.0 {
-            (dot / len2).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        let (ex, ey) = (self.start_x[i] + vx * t - px, self.start_y[i] + vy * t - py);
-        ex * ex + ey * ey
+        self.len == 0
     }
 
     /// Nearest segment to `p` with SigmaRL's rule (the first one on ties), or `None` when empty.
     pub fn nearest(&self, p: Point) -> Option<Nearest> {
         let (px, py) = (p[0] as f32, p[1] as f32);
-        let best = self.min_distance(px, py);
-        // Ties are decided on the rounded distances, as torch compares them.
-        let segment = (0..self.len()).find(|&i| self.distance(i, px, py) <= best)?;
+        let best2 = self.min_distance2(px, py);
+        let best = best2.sqrt();
+        // Ties are decided on the rounded distances, as torch compares them: the first segment
+        // whose distance rounds to the minimum, in the blocks that can hold one.
+        let segment = self
+            .blocks
+            .iter()
+            .zip(&self.boxes)
+            .enumerate()
+            .filter(|(_, (_, bx))| !self.prunes(bx, px, py, best2))
+            .find_map(|(b, (block, _))| {
+                let d2 = block.distances2(px, py);
+                d2.iter()
+                    .position(|d2| d2.sqrt() <= best)
+                    .map(|lane| b * BLOCK + lane)
+            })?;
         Some(Nearest {
             distance_m: f64::from(best),
             segment,
@@ -89,18 +173,40 @@ impl Segments {
 
     /// Unsigned distance from `p` to the polyline (infinite when empty).
     pub fn distance_m(&self, p: Point) -> f64 {
-        f64::from(self.min_distance(p[0] as f32, p[1] as f32))
+        f64::from(self.min_distance2(p[0] as f32, p[1] as f32).sqrt())
     }
 
-    /// Smallest distance over all segments (a loop the compiler vectorises). The square root
-    /// is monotone and correctly rounded, so taking it once at the end gives the same value.
-    fn min_distance(&self, px: f32, py: f32) -> f32 {
-        let mut best = f32::INFINITY;
-        for i in 0..self.len() {
-            let d2 = self.distance2(i, px, py);
-            best = if d2 < best { d2 } else { best };
+    /// Whether the block with box `bx` holds no segment whose distance can reach `best2`.
+    #[inline(always)]
+    fn prunes(&self, bx: &[f32; 4], px: f32, py: f32, best2: f32) -> bool {
+        box_distance2(bx, px, py) > best2 * BOX_SLACK
+    }
+
+    /// Smallest squared distance over all segments, measuring only the blocks that can hold
+    /// it: first the block with the nearest box, then every block whose box is not farther
+    /// than the best distance so far. The square root is monotone and correctly rounded, so
+    /// taking it once at the end gives the same value as the minimum of the distances.
+    fn min_distance2(&self, px: f32, py: f32) -> f32 {
+        // The block whose box is nearest (the first on ties; block 0 if the point is NaN).
+        let (first, _) = self
+            .boxes
+            .iter()
+            .enumerate()
+            .fold((0, f32::INFINITY), |(bi, bd), (i, bx)| {
+                let d = box_distance2(bx, px, py);
+                if d < bd { (i, d) } else { (bi, bd) }
+            });
+        let Some(block) = self.blocks.get(first) else {
+            return f32::INFINITY;
+        };
+        let mut best2 = block.min_distance2(px, py);
+        for (i, (block, bx)) in self.blocks.iter().zip(&self.boxes).enumerate() {
+            if i != first && !self.prunes(bx, px, py, best2) {
+                let d2 = block.min_distance2(px, py);
+                best2 = if d2 < best2 { d2 } else { best2 };
+            }
         }
-        best.sqrt()
+        best2
     }
 }
 
