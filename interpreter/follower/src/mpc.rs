@@ -25,8 +25,11 @@
 //! records every applied input, stop inputs included (the lab skips it on rejections).
 //!
 //! The QP is condensed: the six decision variables are the three moves (`NU` inputs each);
-//! predicted positions are affine in them. A sparse formulation (moves and states as
-//! variables) has a KKT system about ten times larger for the same problem.
+//! predicted positions are affine in them, and the KKT system has 30 rows for the bicycle
+//! (6 variables, 24 bound and rate rows). A sparse formulation (moves and six states as
+//! variables, dynamics as equalities) would have about 90; it was not measured. One solve
+//! (bicycle, circle) takes ≈ 90 µs in the dev profile and ≈ 72 µs in release on a shared
+//! 2-core machine, most of it in clarabel's 8 interior-point iterations.
 
 use std::collections::VecDeque;
 
