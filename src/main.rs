@@ -59,6 +59,11 @@ enum Command {
     },
     /// Print the JSON Schema of the language (draft 2020-12).
     Schema,
+    /// The CPM Lab: `cpmx lab emulate SPEC` plays the lab for the spec's lab fidelity.
+    Lab {
+        #[command(subcommand)]
+        command: commands::lab::LabCommand,
+    },
 }
 
 fn main() -> ExitCode {
@@ -73,6 +78,7 @@ fn main() -> ExitCode {
             recording,
             data,
         } => commands::evaluate::run(&spec, &recording, &data),
+        Command::Lab { command } => commands::lab::run(&command),
         Command::Schema => {
             print!("{}", cpmx_spec::schema::json_schema_text());
             Ok(())

@@ -1,6 +1,7 @@
 //! One module per subcommand, and what they share: reading and checking a spec.
 
 pub mod evaluate;
+pub mod lab;
 pub mod plan;
 pub mod report;
 pub mod run;

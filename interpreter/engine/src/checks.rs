@@ -56,10 +56,11 @@ impl InterpreterChecks for BuildChecks {
 
 /// Why this build cannot run a fidelity, or `None` when it can. `control: trajectory` runs
 /// every layer stack (twin engine); `control: direct` drives the kinematic bicycle with ideal
-/// sensing and actuation (SigmaRL's simulation).
+/// sensing and actuation (SigmaRL's simulation); the lab driver runs whatever discovery
+/// rustdds can do (no initial peers beyond this host).
 pub(crate) fn unsupported_reason(fidelity: &Fidelity) -> Option<String> {
     match fidelity {
-        Fidelity::Lab(_) => Some("the lab driver (`driver: cpm-dds`) is not part of this build".into()),
+        Fidelity::Lab(lab) => crate::lab::discovery_config(lab).err(),
         Fidelity::Simulated(SimulatedFidelity {
             control: Control::Trajectory,
             ..

@@ -25,6 +25,20 @@ pub enum RunError {
     UnknownConfiguration(String),
     #[error("fidelity `{0}` cannot run in this build: {1}")]
     Unsupported(String, String),
+    #[error(
+        "the lab did not answer within {timeout_s} s: is `cpmx lab emulate` or the lab running on domain {domain}?"
+    )]
+    LabSilent { timeout_s: f64, domain: u32 },
+    #[error("the lab ended the run before its first tick: {0}")]
+    LabStopped(String),
+    #[error("the lab's middleware: {0}")]
+    Lab(#[from] cpmx_lab::LabError),
+    /// The run ended early; what was recorded until then is kept as the run's trajectory.
+    #[error("{reason} (the {ticks} ticks recorded before are kept)", ticks = recording.times_s.len())]
+    Partial {
+        reason: Box<RunError>,
+        recording: Box<Recording>,
+    },
 }
 
 /// What one run needs: the experiment, the run's plan and its initial states.
@@ -81,6 +95,7 @@ pub fn engine_for(name: &str, fidelity: &Fidelity) -> Result<&'static dyn Engine
             control: Control::Direct,
             ..
         }) => Ok(&crate::sim::SimEngine),
-        _ => Ok(&crate::twin::TwinEngine),
+        Fidelity::Lab(_) => Ok(&crate::lab::LabEngine),
+        Fidelity::Simulated(_) => Ok(&crate::twin::TwinEngine),
     }
 }

@@ -1,12 +1,13 @@
 //! Executes cpmx runs: an [`Experiment`] prepared once from a checked spec, one [`Engine`] per
-//! kind of fidelity (the sim engine today), the runner that executes a matrix in parallel, and
-//! the run folder it writes. Engines produce recordings; metrics are computed from recordings
-//! only.
+//! kind of fidelity (sim, twin, and the lab driver with its emulator in [`lab`]), the runner
+//! that executes a matrix in parallel, and the run folder it writes. Engines produce
+//! recordings; metrics are computed from recordings only.
 
 mod checks;
 mod engine;
 mod experiment;
 pub mod folder;
+pub mod lab;
 mod plants;
 mod runner;
 mod sim;

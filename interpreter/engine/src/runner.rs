@@ -5,13 +5,14 @@
 use std::path::Path;
 
 use cpmx_metrics::{PathGeometry, RunMetrics, evaluate};
+use cpmx_recording::Recording;
 use cpmx_spec::RunPlan;
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 
 use crate::engine::{RunError, RunInputs, engine_for};
 use crate::experiment::Experiment;
-use crate::store::{StoredRun, finished_run, store_run};
+use crate::store::{StoredRun, finished_run, run_dir, store_run, write_atomic};
 
 /// A slice of the matrix: runs whose index `i` (0-based, matrix order) has `i % count == index - 1`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -101,7 +102,10 @@ fn execute_one(
     if resume && let Some(stored) = finished_run(out, plan, &hash) {
         return RunOutcome::Resumed(Box::new(stored));
     }
-    match simulate(experiment, plan) {
+    match run_engine(experiment, plan).and_then(|recording| {
+        let metrics = measure(experiment, &recording)?;
+        Ok((recording, metrics))
+    }) {
         Ok((recording, metrics)) => {
             let stored = StoredRun {
                 key: plan.key.clone(),
@@ -114,15 +118,73 @@ fn execute_one(
                 Err(e) => RunOutcome::Failed(format!("cannot store the run: {e}")),
             }
         }
-        Err(e) => RunOutcome::Failed(e),
+        Err(RunFailure::Partial { reason, recording }) => match store_partial(out, plan, &recording) {
+            Ok(()) => RunOutcome::Failed(format!("{reason}; its trajectory.csv holds what was recorded")),
+            Err(e) => RunOutcome::Failed(format!("{reason}; cannot store what was recorded: {e}")),
+        },
+        Err(RunFailure::Reason(reason)) => RunOutcome::Failed(reason),
     }
 }
 
+/// Why a run has no result: a reason, and what it recorded before it failed, if anything.
+enum RunFailure {
+    Reason(String),
+    Partial {
+        reason: String,
+        recording: Box<Recording>,
+    },
+}
+
+impl From<String> for RunFailure {
+    fn from(reason: String) -> Self {
+        RunFailure::Reason(reason)
+    }
+}
+
+impl From<RunError> for RunFailure {
+    fn from(error: RunError) -> Self {
+        match error {
+            RunError::Partial { reason, recording } if !recording.times_s.is_empty() => RunFailure::Partial {
+                reason: format!("{reason} after {} ticks", recording.times_s.len()),
+                recording,
+            },
+            other => RunFailure::Reason(other.to_string()),
+        }
+    }
+}
+
+impl RunFailure {
+    fn reason(self) -> String {
+        match self {
+            RunFailure::Reason(reason) | RunFailure::Partial { reason, .. } => reason,
+        }
+    }
+}
+
+/// Stores the recording of a failed run as its `trajectory.csv`, without `metrics.json`, so
+/// that the run does not count as finished (a stale `metrics.json` is removed first).
+fn store_partial(out: &Path, plan: &RunPlan, recording: &Recording) -> std::io::Result<()> {
+    let dir = run_dir(out, plan);
+    match std::fs::remove_file(dir.join("metrics.json")) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(e),
+        _ => {}
+    }
+    let mut trajectory = Vec::new();
+    recording
+        .write_csv(&mut trajectory)
+        .map_err(std::io::Error::other)?;
+    write_atomic(&dir.join("trajectory.csv"), &trajectory)
+}
+
 /// Runs the engine of the plan's fidelity and measures the recording.
-pub fn simulate(
-    experiment: &Experiment,
-    plan: &RunPlan,
-) -> Result<(cpmx_recording::Recording, RunMetrics), String> {
+pub fn simulate(experiment: &Experiment, plan: &RunPlan) -> Result<(Recording, RunMetrics), String> {
+    let recording = run_engine(experiment, plan).map_err(RunFailure::reason)?;
+    let metrics = measure(experiment, &recording)?;
+    Ok((recording, metrics))
+}
+
+/// Runs the engine of the plan's fidelity.
+fn run_engine(experiment: &Experiment, plan: &RunPlan) -> Result<Recording, RunFailure> {
     let fidelity = experiment
         .spec
         .fidelities
@@ -132,19 +194,15 @@ pub fn simulate(
     let starts = experiment
         .start(&plan.initial_configuration)
         .ok_or_else(|| RunError::UnknownConfiguration(plan.initial_configuration.clone()).to_string())?;
-    let recording = engine
-        .run(&RunInputs {
-            experiment,
-            plan,
-            starts,
-        })
-        .map_err(|e| e.to_string())?;
-    let metrics = measure(experiment, &recording)?;
-    Ok((recording, metrics))
+    Ok(engine.run(&RunInputs {
+        experiment,
+        plan,
+        starts,
+    })?)
 }
 
 /// The spec's metrics of a recording (the same function `cpmx evaluate` and `cpmx report` use).
-pub fn measure(experiment: &Experiment, recording: &cpmx_recording::Recording) -> Result<RunMetrics, String> {
+pub fn measure(experiment: &Experiment, recording: &Recording) -> Result<RunMetrics, String> {
     let paths: Vec<PathGeometry<'_>> = recording
         .ref_paths
         .iter()
