@@ -239,19 +239,25 @@ impl Model<4, 2> for GreyBoxMpcModel {
     fn feedforward(&self, sample: &TrajectorySample, near: &[f64; 4]) -> ([f64; 4], [f64; 2]) {
         let p = &self.model.params().parameters;
         let voltage = self.model.params().battery_voltage_v;
+        // Throttle whose steady-state speed is `speed`: 0 = p5·v + (p6 + p7·V)·sign(f)·|f|^p8.
+        let motor = p[5] + p[6] * voltage;
+        let throttle_for = |speed: f64| {
+            if motor.abs() <= f64::EPSILON {
+                return 0.0;
+            }
+            let ratio = -p[4] * speed / motor;
+            (ratio.abs().powf(1.0 / p[7]) * ratio.signum()).clamp(-1.0, 1.0)
+        };
+        if sample.speed_mps() < cpmx_follower::LOW_SPEED_MPS {
+            // Near standstill keep the heading and linearise at a creeping throttle: at f = 0
+            // the motor term |f|^p8 has no slope, so the linearised throttle would do nothing.
+            let state = [sample.position_m[0], sample.position_m[1], near[2], near[3]];
+            return (state, [throttle_for(cpmx_follower::LOW_SPEED_MPS), 0.0]);
+        }
         // Curvature κ ≈ p4·δ'/p1 (the p2 term is second order for the lab's small servo moves).
         let effective = sample.curvature_per_m() * p[0] / p[3];
         let servo = (effective - p[8]).clamp(-1.0, 1.0);
-        let scale = p[0] * (1.0 + p[1] * effective * effective);
-        let speed = sample.speed_mps() / scale;
-        // 0 = p5·v + (p6 + p7·V)·sign(f)·|f|^p8.
-        let motor = p[5] + p[6] * voltage;
-        let magnitude = if motor.abs() > f64::EPSILON {
-            (-p[4] * speed / motor).abs().powf(1.0 / p[7])
-        } else {
-            0.0
-        };
-        let throttle = (magnitude * (-p[4] * speed / motor).signum()).clamp(-1.0, 1.0);
+        let speed = sample.speed_mps() / (p[0] * (1.0 + p[1] * effective * effective));
         let heading = sample.yaw_rad() - p[2] * effective - p[9];
         let state = [
             sample.position_m[0],
@@ -259,7 +265,7 @@ impl Model<4, 2> for GreyBoxMpcModel {
             unwrap_near(heading, near[2]),
             speed,
         ];
-        (state, [throttle, servo])
+        (state, [throttle_for(speed), servo])
     }
 
     fn input_limits(&self) -> InputLimits<2> {

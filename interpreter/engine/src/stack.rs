@@ -114,7 +114,15 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
     ) -> Result<Self, String> {
         let state = plant.initial_state(start);
         let neutral = plant.neutral_input();
-        let mpc = Mpc::new(plant.mpc_model(), MpcConfig::lab(plant.move_weights()));
+        // The µCar's MPC compensates a fixed 60 ms (3 periods) of actuation delay; with ideal
+        // actuation there is nothing to compensate.
+        let lab = MpcConfig::lab(plant.move_weights());
+        let delay_steps = if matches!(fidelity.actuation, Some(ActuationLayer::Model(_))) {
+            lab.delay_steps
+        } else {
+            0
+        };
+        let mpc = Mpc::new(plant.mpc_model(), MpcConfig { delay_steps, ..lab });
         let delay = match &fidelity.actuation {
             Some(ActuationLayer::Model(a)) => {
                 Some(ActuationDelay::new(a.delay_ms, CONTROL_PERIOD_S, neutral).map_err(|e| e.to_string())?)

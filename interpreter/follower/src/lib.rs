@@ -25,7 +25,7 @@ pub use follower::{
     CommandError, Follower, FollowerConfig, MAX_PENDING_COMMANDS, Output, StateEstimate, Status, StopReason,
     TrajectoryCommand,
 };
-pub use model::{BicycleModel, InputLimits, Model, unwrap_near};
+pub use model::{BicycleModel, InputLimits, LOW_SPEED_MPS, Model, unwrap_near};
 pub use mpc::{
     BICYCLE_MOVE_WEIGHTS, CONTROL_MOVES, LAB_MOVE_WEIGHTS, Mpc, MpcConfig, PREDICTION_STEPS, Rejection,
     Solution,

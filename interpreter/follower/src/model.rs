@@ -45,6 +45,10 @@ pub trait Model<const NX: usize, const NU: usize> {
     fn stop_input(&self, state: &[f64; NX]) -> [f64; NU];
 }
 
+/// Below this reference speed [m/s] a model's feed-forward keeps the car's own heading and
+/// steering: the reference's direction and curvature are not defined well enough there.
+pub const LOW_SPEED_MPS: f64 = 0.05;
+
 /// `near + wrap(angle − near)`: the representative of `angle_rad` closest to `near_rad`.
 pub fn unwrap_near(angle_rad: f64, near_rad: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
@@ -92,10 +96,16 @@ impl BicycleModel {
 }
 
 impl Model<5, 2> for BicycleModel {
+    /// The prediction reaches the commanded speed and steering within the step: the plant's
+    /// acceleration and steering-rate clamps are left out, because a clamp that saturates
+    /// makes the finite-difference linearisation say the input has no effect (and the
+    /// planner's trajectories steer at exactly the rate limit). The QP's rate constraints
+    /// keep the moves feasible instead.
     fn step(&self, state: &[f64; 5], input: &[f64; 2], dt_s: f64) -> [f64; 5] {
-        let out = self
-            .bicycle
-            .step(&Self::to_state(state), Self::to_command(input), dt_s);
+        let mut free = self.bicycle;
+        free.params.accel_mps2 = (f64::NEG_INFINITY, f64::INFINITY);
+        free.params.max_steering_rate_rad_s = f64::INFINITY;
+        let out = free.step(&Self::to_state(state), Self::to_command(input), dt_s);
         Self::from_state(&out.state)
     }
 
@@ -107,18 +117,21 @@ impl Model<5, 2> for BicycleModel {
         let p = &self.bicycle.params;
         let speed = sample.speed_mps();
 
+        // Near standstill the reference's direction and curvature are interpolation noise
+        // (curvature divides by |v|³): keep the car's own heading and steering there.
+        if speed < LOW_SPEED_MPS {
+            let [x, y] = sample.position_m;
+            return ([x, y, near[2], speed, near[4]], [speed, near[4]]);
+        }
+
         // Path curvature at the centre of gravity is cos β·tan δ / L with tan β = l_r/L·tan δ,
         // hence tan δ = κL / sqrt(1 − (κ l_r)²).
         let kappa_lr = (sample.curvature_per_m() * p.rear_axle_m).clamp(-0.99, 0.99);
         let tan_delta = sample.curvature_per_m() * p.wheelbase_m / (1.0 - kappa_lr * kappa_lr).sqrt();
         let steering = tan_delta.atan().clamp(-p.max_steering_rad, p.max_steering_rad);
 
-        // The velocity points along yaw + β; when standing keep the current yaw.
-        let yaw = if speed > 1e-6 {
-            unwrap_near(sample.yaw_rad() - self.bicycle.sideslip_rad(steering), near[2])
-        } else {
-            near[2]
-        };
+        // The velocity points along yaw + β.
+        let yaw = unwrap_near(sample.yaw_rad() - self.bicycle.sideslip_rad(steering), near[2]);
         let [x, y] = sample.position_m;
         ([x, y, yaw, speed, steering], [speed, steering])
     }

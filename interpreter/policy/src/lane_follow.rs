@@ -578,6 +578,10 @@ impl Policy for LaneFollow {
         self.tickets.clear();
         self.step = 0;
     }
+
+    fn fork(&mut self) -> Box<dyn Policy> {
+        Box::new(self.clone())
+    }
 }
 
 /// Pure-pursuit steering from the rear axle (whose path curvature is tan(δ) / wheelbase),

@@ -7,6 +7,7 @@
 use std::path::Path;
 
 use cpmx_vehicle::{Command, Footprint, footprint_corners};
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha20Rng;
 
 use crate::action::{ActionHead, ActionMode, ActionOutput};
@@ -40,6 +41,11 @@ pub trait Policy {
 
     /// Forget everything carried between steps (call when the run restarts).
     fn reset(&mut self);
+
+    /// A copy for looking ahead: its calls (e.g. on predicted states) leave this policy's
+    /// memory untouched. A sampling policy hands the copy a fresh stream seeded from its own,
+    /// so the copy's draws are reproducible and do not repeat this policy's future draws.
+    fn fork(&mut self) -> Box<dyn Policy>;
 }
 
 /// Check that the command buffer fits the agents.
@@ -205,5 +211,13 @@ impl Policy for MlpPolicy {
 
     fn reset(&mut self) {
         self.previous_corners.clear();
+    }
+
+    fn fork(&mut self) -> Box<dyn Policy> {
+        let mut copy = self.clone();
+        if self.mode == ActionMode::Sample {
+            copy.rng = ChaCha20Rng::seed_from_u64(self.rng.next_u64());
+        }
+        Box::new(copy)
     }
 }
