@@ -45,6 +45,10 @@ use crate::trajectory::{Trajectory, TrajectorySample};
 pub const PREDICTION_STEPS: usize = 6;
 /// Control moves Hu (lab).
 pub const CONTROL_MOVES: usize = 3;
+
+/// Weight of the pull of each move towards the feed-forward input, as a fraction of that
+/// input's move weight (chosen here; the lab's MPC has no such term).
+pub const FEEDFORWARD_PULL: f64 = 0.01;
 /// Move held at each prediction step (lab's blocking `[1, 1, 2, 2, 3, 3]`, 0-based).
 const MOVE_OF_STEP: [usize; PREDICTION_STEPS] = [0, 0, 1, 1, 2, 2];
 
@@ -434,6 +438,21 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
                 }
             }
             gradient[i] -= r * previous;
+        }
+
+        // A small pull of every move towards the feed-forward input of its first step, so an
+        // input that has no effect on the positions (the servo of a car at rest) rests at the
+        // feed-forward value instead of wherever the solver leaves it.
+        for (i, &r) in c.move_weights.iter().enumerate() {
+            let rho = FEEDFORWARD_PULL * r;
+            for j in 0..CONTROL_MOVES {
+                let Some(k) = MOVE_OF_STEP.iter().position(|&m| m == j) else {
+                    continue;
+                };
+                let d = j * NU + i;
+                hessian[d * nz + d] += rho;
+                gradient[d] -= rho * nominal[k].1[i];
+            }
         }
         (hessian, gradient)
     }

@@ -332,7 +332,7 @@ impl<'a> Emulator<'a> {
                     .trajectory_points
                     .iter()
                     .map(|p| TrajectoryPoint {
-                        t_s: s_since(origin_ns, p.t.nanoseconds),
+                        t_s: on_tick_grid(s_since(origin_ns, p.t.nanoseconds), t_s, dt_s),
                         x_m: p.px,
                         y_m: p.py,
                         vx_mps: p.vx,
@@ -402,6 +402,19 @@ fn exchange(
     }
 }
 
+/// A point's time `point_s`, read from whole nanoseconds, as the planner computed it when it
+/// lies on the grid `tick_s + j·dt` (within a nanosecond): the twin engine's follower gets
+/// the planner's own times, and so do the emulator's vehicles.
+fn on_tick_grid(point_s: f64, tick_s: f64, dt_s: f64) -> f64 {
+    let j = ((point_s - tick_s) / dt_s).round();
+    let grid_s = tick_s + j * dt_s;
+    if (grid_s - point_s).abs() < 1e-9 {
+        grid_s
+    } else {
+        point_s
+    }
+}
+
 /// Nanoseconds since the Unix epoch (the lab's time base), 1 s if the clock is before it.
 fn wall_clock_ns() -> u64 {
     SystemTime::now()
@@ -409,4 +422,18 @@ fn wall_clock_ns() -> u64 {
         .ok()
         .and_then(|d| u64::try_from(d.as_nanos()).ok())
         .unwrap_or(1_000_000_000)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn point_times_snap_to_the_planners_grid_only_within_a_nanosecond() {
+        let (tick_s, dt_s) = (0.3, 0.1);
+        let planned_s = tick_s + 7.0 * dt_s;
+        let from_ns = s_since(5, 5 + ns_from_s(planned_s));
+        assert_eq!(on_tick_grid(from_ns, tick_s, dt_s), planned_s);
+        assert_eq!(on_tick_grid(1.05, tick_s, dt_s), 1.05);
+    }
 }

@@ -54,11 +54,7 @@ pub fn lab_state(
     stamp_ns: u64,
     vehicle: &VehicleParams,
 ) -> VehicleState {
-    let servo = if vehicle.max_steering_rad > 0.0 {
-        (reported.steering_rad / vehicle.max_steering_rad).clamp(-1.0, 1.0)
-    } else {
-        0.0
-    };
+    let servo = servo_of(reported.steering_rad, vehicle.max_steering_rad);
     let stamp = TimeStamp {
         nanoseconds: stamp_ns,
     };
@@ -78,6 +74,20 @@ pub fn lab_state(
         is_real: false,
         ..VehicleState::default()
     }
+}
+
+/// The servo in [-1, 1] for `steering_rad`: σ / σ_max, nudged by an ulp where that makes
+/// the driver's σ_max · servo give back `steering_rad` exactly (for almost every angle), so
+/// that the emulator's reports reach the planner as the twin engine's planner sees them.
+fn servo_of(steering_rad: f64, max_steering_rad: f64) -> f64 {
+    if max_steering_rad.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || !steering_rad.is_finite() {
+        return 0.0;
+    }
+    let servo = (steering_rad / max_steering_rad).clamp(-1.0, 1.0);
+    [servo, servo.next_up(), servo.next_down()]
+        .into_iter()
+        .find(|s| (-1.0..=1.0).contains(s) && max_steering_rad * s == steering_rad)
+        .unwrap_or(servo)
 }
 
 #[cfg(test)]
@@ -138,7 +148,20 @@ mod tests {
         let lab = lab_state(4, &reported, 123, &vehicle);
         assert_eq!(lab.header.create_stamp.nanoseconds, 123);
         let back = policy_state(&lab, &vehicle).expect("finite");
-        assert!((back.steering_rad - reported.steering_rad).abs() < 1e-15);
+        assert_eq!(back.steering_rad, reported.steering_rad);
+        let mut exact = 0;
+        for k in 0..1000 {
+            let steering_rad = -0.5 + f64::from(k) * 1e-3 + 1e-9;
+            let report = BicycleState {
+                steering_rad,
+                ..reported
+            };
+            let lab = lab_state(4, &report, 123, &vehicle);
+            let back = policy_state(&lab, &vehicle).expect("finite");
+            assert!((back.steering_rad - steering_rad).abs() <= 2.0 * f64::EPSILON * steering_rad.abs());
+            exact += usize::from(back.steering_rad == steering_rad);
+        }
+        assert!(exact >= 900, "{exact} of 1000 exact");
         assert_eq!(back.x_m, reported.x_m);
         assert_eq!(back.speed_mps, reported.speed_mps);
     }
