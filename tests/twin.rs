@@ -1,0 +1,102 @@
+//! The twin engine against the sim: sim-mpc (the lab's control stack on the kinematic model)
+//! follows the sim closely, and the grey-box twin with noise and delay off follows sim-mpc.
+
+use std::path::PathBuf;
+
+use cpmx_engine::{Experiment, simulate};
+use cpmx_spec::{DataPath, SpecSource};
+
+const SPEC: &str = "\
+cpmx: 1
+name: twin-agreement
+map: stdlib:intersection
+timing: {dt: 0.1, steps: 60}
+agents: 2
+policies:
+  - {name: baseline, builtin: lane-follow}
+initial_configurations:
+  - name: following
+    agents:
+      - {ref_path: 7, arc_length: 0.8}
+      - {ref_path: 7, arc_length: 0.2}
+  - name: turning
+    agents:
+      - {ref_path: 2, arc_length: 0.3}
+      - {ref_path: 9, arc_length: 0.3}
+repetitions: 1
+seed: 5
+fidelities:
+  sim: {control: direct, dynamics: kinematic}
+  sim-mpc: {control: trajectory, dynamics: kinematic}
+  twin-ideal: {control: trajectory, dynamics: stdlib:mu-car-greybox}
+planner: {control_horizon: 4, prediction_horizon: 12}
+";
+
+fn experiment() -> (Experiment, Vec<cpmx_spec::RunPlan>) {
+    let source = SpecSource {
+        name: "twin.yaml".into(),
+        dir: PathBuf::from("."),
+        text: SPEC.into(),
+    };
+    let checked = cpmx_spec::check(
+        &source,
+        &DataPath::new(&source.dir, &[], None),
+        &cpmx_engine::BuildChecks,
+    )
+    .unwrap_or_else(|d| panic!("{}", cpmx_spec::render(&d, false)));
+    (Experiment::prepare(&checked).unwrap(), checked.plan())
+}
+
+/// Largest distance between the same agent at the same sample in two runs [m].
+fn largest_gap_m(a: &cpmx_recording::Recording, b: &cpmx_recording::Recording) -> f64 {
+    a.samples
+        .iter()
+        .zip(&b.samples)
+        .flat_map(|(ra, rb)| {
+            ra.iter()
+                .zip(rb)
+                .map(|(p, q)| (p.x_m - q.x_m).hypot(p.y_m - q.y_m))
+        })
+        .fold(0.0, f64::max)
+}
+
+fn run(
+    experiment: &Experiment,
+    plans: &[cpmx_spec::RunPlan],
+    fidelity: &str,
+    configuration: &str,
+) -> cpmx_recording::Recording {
+    let plan = plans
+        .iter()
+        .find(|p| p.fidelity == fidelity && p.initial_configuration == configuration)
+        .unwrap();
+    simulate(experiment, plan).unwrap().0
+}
+
+#[test]
+fn sim_mpc_follows_the_sim() {
+    let (experiment, plans) = experiment();
+    for configuration in ["following", "turning"] {
+        let sim = run(&experiment, &plans, "sim", configuration);
+        let mpc = run(&experiment, &plans, "sim-mpc", configuration);
+        let gap = largest_gap_m(&sim, &mpc);
+        eprintln!("{configuration}: sim vs sim-mpc {gap:.4} m");
+        assert!(gap < 0.05, "{configuration}: sim-mpc strays {gap} m from the sim");
+    }
+}
+
+/// Straight driving only: in tight turns the grey-box twin still steers the wrong way under
+/// replanning (a known defect under investigation, see the README's status section).
+#[test]
+fn the_twin_without_noise_and_delay_follows_sim_mpc_on_straight_roads() {
+    let (experiment, plans) = experiment();
+    let configuration = "following";
+    let mpc = run(&experiment, &plans, "sim-mpc", configuration);
+    let twin = run(&experiment, &plans, "twin-ideal", configuration);
+    let gap = largest_gap_m(&mpc, &twin);
+    eprintln!("{configuration}: sim-mpc vs twin-ideal {gap:.4} m");
+    assert!(
+        gap < 0.10,
+        "{configuration}: the grey-box twin strays {gap} m from sim-mpc"
+    );
+}
