@@ -280,3 +280,95 @@ impl Model<4, 2> for GreyBoxMpcModel {
         [0.0, 0.0]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cpmx_follower::{
+        Follower, FollowerConfig, Mpc, MpcConfig, StateEstimate, Trajectory, TrajectoryCommand,
+        TrajectoryPoint,
+    };
+
+    /// A straight run into a left arc of radius 0.525 m at 0.5 m/s, points every 0.1 s.
+    fn left_turn() -> Vec<TrajectoryPoint> {
+        let (speed, radius) = (0.5, 0.525);
+        (0..80)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                let s = speed * t;
+                let (x, y, yaw) = if s < 1.0 {
+                    (s, 0.0, 0.0)
+                } else {
+                    let a = (s - 1.0) / radius;
+                    (1.0 + radius * a.sin(), radius * (1.0 - a.cos()), a)
+                };
+                TrajectoryPoint {
+                    t_s: t,
+                    x_m: x,
+                    y_m: y,
+                    vx_mps: speed * yaw.cos(),
+                    vy_mps: speed * yaw.sin(),
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_grey_box_follower_tracks_a_left_turn() {
+        let spec: GreyBoxModel = GreyBoxModel {
+            parameters: cpmx_vehicle::LAB_GREYBOX_PARAMETERS,
+            euler_step_s: 0.02,
+            battery_voltage_v: 7.8,
+        };
+        let plant = GreyBoxPlant::new(&spec, VehicleParams::MU_CAR).unwrap();
+        let mut follower = Follower::new(
+            Mpc::new(
+                plant.mpc_model(),
+                MpcConfig {
+                    delay_steps: 0,
+                    ..MpcConfig::lab(plant.move_weights())
+                },
+            ),
+            FollowerConfig::default(),
+        );
+        let points = left_turn();
+        follower
+            .receive(TrajectoryCommand {
+                create_stamp_s: 0.0,
+                valid_after_s: 0.0,
+                trajectory: Trajectory::new(points.clone()).unwrap(),
+            })
+            .unwrap();
+        let mut state = [0.0, 0.0, 0.0, 0.5];
+        let mut worst: f64 = 0.0;
+        for k in 0..300 {
+            let t = k as f64 * 0.02;
+            if k % 5 == 0 {
+                let command = TrajectoryCommand {
+                    create_stamp_s: t,
+                    valid_after_s: t,
+                    trajectory: Trajectory::new(points.clone()).unwrap(),
+                };
+                follower.receive(command).unwrap();
+            }
+            let out = follower.control(
+                t,
+                &StateEstimate {
+                    state,
+                    ips_update_age_s: 0.0,
+                },
+            );
+            state = plant.step(&state, &out.input, 0.02).state;
+            let reference = Trajectory::new(points.clone()).unwrap().sample(t + 0.02).unwrap();
+            let err = (state[0] - reference.position_m[0]).hypot(state[1] - reference.position_m[1]);
+            if k % 25 == 0 {
+                eprintln!(
+                    "t={t:.2} in=[{:.3},{:.3}] st=[{:.3},{:.3},{:.3},{:.3}] err={err:.4}",
+                    out.input[0], out.input[1], state[0], state[1], state[2], state[3]
+                );
+            }
+            worst = worst.max(err);
+        }
+        assert!(worst < 0.03, "worst tracking error {worst} m");
+    }
+}
