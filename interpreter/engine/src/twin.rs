@@ -6,7 +6,7 @@
 //! at every policy period, as the sim engine's does.
 
 use cpmx_follower::TrajectoryPoint;
-use cpmx_planner::{PlannedTrajectory, Planner, PlannerParams, SteeringAfterHc};
+use cpmx_planner::{PlannedPoint, PlannedTrajectory, Planner, PlannerParams, SteeringAfterHc};
 use cpmx_policy::AgentPaths;
 use cpmx_recording::Recording;
 use cpmx_spec::model::{Fidelity, OnCollision, Planner as PlannerSpec};
@@ -65,6 +65,7 @@ impl Engine for TwinEngine {
             ref_paths: starts.iter().map(|s| s.ref_path).collect(),
             samples: Vec::with_capacity(spec.timing.steps as usize),
         };
+        let mut previous: Option<Vec<PlannedTrajectory>> = None;
         for tick in 0..spec.timing.steps {
             let t_s = (f64::from(tick) * dt_s * 1e9).round() / 1e9;
 
@@ -75,11 +76,18 @@ impl Engine for TwinEngine {
                 .push(vehicles.iter().map(VehicleStack::true_sample).collect());
 
             // Plan from what the vehicles report; every vehicle gets its trajectory.
-            let reported: Vec<BicycleState> = vehicles.iter().map(VehicleStack::reported_state).collect();
+            let reported: Vec<BicycleState> = vehicles
+                .iter()
+                .enumerate()
+                .map(|(i, vehicle)| {
+                    planning_state(vehicle, previous.as_ref().and_then(|plans| plans[i].get(1)))
+                })
+                .collect();
             let trajectories = planner.plan(policy.as_mut(), &reported, &paths, t_s)?;
             for (vehicle, trajectory) in vehicles.iter_mut().zip(&trajectories) {
                 vehicle.receive(trajectory_points(trajectory), t_s, t_s);
             }
+            previous = Some(trajectories);
 
             // The vehicles' 50 Hz loops until the next policy period.
             for sub in 0..substeps {
@@ -96,6 +104,34 @@ impl Engine for TwinEngine {
             }
         }
         Ok(recording)
+    }
+}
+
+/// The state the planner starts from: what the vehicle reports, with heading and steering
+/// continued from the previous plan (its point at this time) for a plant that has no bicycle
+/// heading and steering of its own.
+fn planning_state(vehicle: &VehicleStack, planned_now: Option<&PlannedPoint>) -> BicycleState {
+    let reported = vehicle.reported_state();
+    if vehicle.has_bicycle_heading() {
+        reported
+    } else {
+        continue_heading(reported, planned_now)
+    }
+}
+
+/// A measured state with heading and steering taken from the plan's point at this time: for a
+/// vehicle whose heading and steering are not the planner's bicycle states (the µCar reports a
+/// 50 Hz servo command and an IPS heading with its own slip), replanning from the measured
+/// values feeds servo jitter and the slip mismatch back into every plan and the car turns the
+/// wrong way in tight curves; position and speed still come from the measurement.
+pub fn continue_heading(measured: BicycleState, planned_now: Option<&PlannedPoint>) -> BicycleState {
+    match planned_now {
+        Some(plan) => BicycleState {
+            yaw_rad: plan.yaw_rad,
+            steering_rad: plan.steering_rad,
+            ..measured
+        },
+        None => measured,
     }
 }
 

@@ -114,6 +114,7 @@ impl Engine for LabEngine {
                     steering_rad: 0.0,
                 })
                 .collect(),
+            previous: None,
             recording: Recording {
                 times_s: Vec::with_capacity(spec.timing.steps as usize),
                 ref_paths: inputs.starts.iter().map(|s| s.ref_path).collect(),
@@ -233,6 +234,8 @@ struct Drive<'a> {
     dt_s: f64,
     /// Per agent: the state of the last list that had it (the start before the first).
     last_states: Vec<BicycleState>,
+    /// The trajectories sent at the previous tick (heading and steering continue from them).
+    previous: Option<Vec<cpmx_planner::PlannedTrajectory>>,
     recording: Recording,
     notes: Notes,
 }
@@ -341,9 +344,16 @@ impl Drive<'_> {
         );
 
         // Plan from the lab's states; each trajectory is valid from the tick on.
+        let planning: Vec<BicycleState> = self
+            .last_states
+            .iter()
+            .enumerate()
+            .map(|(i, s)| crate::twin::continue_heading(*s, self.previous.as_ref().and_then(|p| p[i].get(1))))
+            .collect();
         let trajectories = self
             .planner
-            .plan(self.policy.as_mut(), &self.last_states, &self.paths, t_s)?;
+            .plan(self.policy.as_mut(), &planning, &self.paths, t_s)?;
+        self.previous = Some(trajectories.clone());
         let stamp = TimeStamp {
             nanoseconds: list.t_now,
         };
