@@ -38,10 +38,6 @@ pub trait Plant<const NX: usize, const NU: usize> {
     fn with_pose(&self, state: &[f64; NX], pose: Pose2, speed_mps: f64) -> [f64; NX];
     /// The steering angle the planner's bicycle sees [rad].
     fn steering_rad(&self, state: &[f64; NX], applied: &[f64; NU]) -> f64;
-    /// Whether the plant has the bicycle's heading and steering states. A plant without them
-    /// (the grey-box µCar: no steering state, a 50 Hz servo command, its own slip model) hands
-    /// the planner only position and speed; heading and steering continue the previous plan.
-    fn has_bicycle_heading(&self) -> bool;
     fn velocity_mps(&self, state: &[f64; NX], applied: &[f64; NU]) -> [f64; 2];
 }
 
@@ -107,9 +103,6 @@ impl Plant<5, 2> for KinematicPlant {
     }
     fn steering_rad(&self, state: &[f64; 5], _: &[f64; 2]) -> f64 {
         state[4]
-    }
-    fn has_bicycle_heading(&self) -> bool {
-        true
     }
     fn velocity_mps(&self, state: &[f64; 5], _: &[f64; 2]) -> [f64; 2] {
         self.model.velocity_mps(&BicycleModel::to_state(state))
@@ -210,9 +203,6 @@ impl Plant<4, 2> for GreyBoxPlant {
         (curvature * wheelbase / root)
             .atan()
             .clamp(-self.vehicle.max_steering_rad, self.vehicle.max_steering_rad)
-    }
-    fn has_bicycle_heading(&self) -> bool {
-        false
     }
     fn velocity_mps(&self, state: &[f64; 4], applied: &[f64; 2]) -> [f64; 2] {
         self.model.model.velocity_mps(&grey_state(state), applied[1])

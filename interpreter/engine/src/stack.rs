@@ -98,12 +98,6 @@ impl VehicleStack {
         each!(self, v => v.true_sample())
     }
 
-    /// Whether the reported heading and steering are the bicycle's (see
-    /// [`Plant::has_bicycle_heading`]).
-    pub fn has_bicycle_heading(&self) -> bool {
-        each!(self, v => v.plant.has_bicycle_heading())
-    }
-
     /// The true pose.
     pub fn pose(&self) -> Pose2 {
         each!(self, v => v.plant.pose(&v.state))

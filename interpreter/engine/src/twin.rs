@@ -107,23 +107,19 @@ impl Engine for TwinEngine {
     }
 }
 
-/// The state the planner starts from: what the vehicle reports, with heading and steering
-/// continued from the previous plan (its point at this time) for a plant that has no bicycle
-/// heading and steering of its own.
+/// The state the planner starts from: the vehicle's reported position and speed, with heading
+/// and steering continued from the previous plan (see [`continue_heading`]).
 fn planning_state(vehicle: &VehicleStack, planned_now: Option<&PlannedPoint>) -> BicycleState {
-    let reported = vehicle.reported_state();
-    if vehicle.has_bicycle_heading() {
-        reported
-    } else {
-        continue_heading(reported, planned_now)
-    }
+    continue_heading(vehicle.reported_state(), planned_now)
 }
 
-/// A measured state with heading and steering taken from the plan's point at this time: for a
-/// vehicle whose heading and steering are not the planner's bicycle states (the µCar reports a
-/// 50 Hz servo command and an IPS heading with its own slip), replanning from the measured
-/// values feeds servo jitter and the slip mismatch back into every plan and the car turns the
-/// wrong way in tight curves; position and speed still come from the measurement.
+/// A measured state with heading and steering taken from the plan's point at this time. This is
+/// part of the control architecture (sim-mpc, twin and lab alike): a µCar's heading and
+/// steering are not the planner's bicycle states (it reports a 50 Hz servo command and an IPS
+/// heading with its own slip), and replanning from them feeds servo jitter and the slip
+/// mismatch back into every plan, so that the car turns the wrong way in tight curves.
+/// Position and speed still come from the measurement. For the kinematic plant the planned
+/// and the measured heading agree, so sim-mpc is unchanged by the rule.
 pub fn continue_heading(measured: BicycleState, planned_now: Option<&PlannedPoint>) -> BicycleState {
     match planned_now {
         Some(plan) => BicycleState {
