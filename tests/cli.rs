@@ -141,29 +141,41 @@ fn files(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
     out
 }
 
-#[test]
-fn run_folders_are_identical_for_one_and_two_threads() {
-    let base = std::env::temp_dir().join(format!("cpmx-jobs-{}", std::process::id()));
+/// Runs `spec` with one and with two threads and asserts that every file is identical.
+fn assert_identical_for_one_and_two_threads(spec: &str, min_files: usize) {
+    let base = std::env::temp_dir().join(format!(
+        "cpmx-jobs-{}-{}",
+        std::process::id(),
+        spec.replace('/', "_")
+    ));
     let (one, two) = (base.join("one"), base.join("two"));
     for (dir, jobs) in [(&one, "1"), (&two, "2")] {
-        let out = cpmx(&[
-            "run",
-            "experiments/quickstart.yaml",
-            "--out",
-            dir.to_str().unwrap(),
-            "--jobs",
-            jobs,
-        ]);
+        let out = cpmx(&["run", spec, "--out", dir.to_str().unwrap(), "--jobs", jobs]);
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     }
     let (a, b) = (files(&one), files(&two));
-    assert!(a.len() > 24 * 2, "the folder holds every run's files");
+    assert!(a.len() > min_files, "the folder holds every run's files");
     assert_eq!(a.len(), b.len());
     for ((pa, ca), (pb, cb)) in a.iter().zip(&b) {
         assert_eq!(pa, pb);
-        assert!(ca == cb, "{} differs between --jobs 1 and --jobs 2", pa.display());
+        assert!(
+            ca == cb,
+            "{spec}: {} differs between --jobs 1 and --jobs 2",
+            pa.display()
+        );
     }
     std::fs::remove_dir_all(&base).ok();
+}
+
+#[test]
+fn run_folders_are_identical_for_one_and_two_threads() {
+    assert_identical_for_one_and_two_threads("experiments/quickstart.yaml", 24 * 2);
+}
+
+#[test]
+fn twin_run_folders_are_identical_for_one_and_two_threads() {
+    // The twin draws sensor noise and frame drops from the runs' named streams.
+    assert_identical_for_one_and_two_threads("examples/sim-to-twin.yaml", 12 * 2);
 }
 
 fn summary_of(dir: &Path) -> Vec<u8> {
