@@ -1,7 +1,7 @@
 //! The one interface every engine implements: given a run, produce its `Recording`.
 //! Engines know nothing of each other, of metrics or of files.
 
-use cpmx_policy::{LaneFollow, LaneFollowParams, MlpPolicy, Policy, PolicyError};
+use cpmx_policy::{AgentPaths, LaneFollow, LaneFollowParams, MlpPolicy, Policy, PolicyError};
 use cpmx_recording::Recording;
 use cpmx_spec::RunPlan;
 use cpmx_spec::matrix::stream_key;
@@ -50,6 +50,21 @@ pub struct RunInputs<'a> {
 }
 
 impl RunInputs<'_> {
+    /// The reference path of every agent, in agent order, prepared for the policies.
+    pub fn agent_paths(&self) -> Result<AgentPaths, RunError> {
+        let paths = self
+            .starts
+            .iter()
+            .map(|s| {
+                self.experiment
+                    .map
+                    .reference_path(s.ref_path)
+                    .ok_or(RunError::UnknownRefPath(s.ref_path))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(AgentPaths::new(paths))
+    }
+
     /// A fresh policy for this run, with its random stream (`policy`) from the run's seed.
     pub fn policy(&self) -> Result<Box<dyn Policy>, RunError> {
         let prepared = self

@@ -5,7 +5,7 @@
 //! evaluation receives them; so the metrics of a run equal `cpmx evaluate` of its trajectory.
 
 use cpmx_metrics::collision::{PlacedBox, mtv_distance_m};
-use cpmx_policy::{AgentPaths, AgentState, ObservationInput};
+use cpmx_policy::{AgentState, ObservationInput};
 use cpmx_recording::{AgentSample, Recording};
 use cpmx_spec::model::OnCollision;
 use cpmx_vehicle::{BicycleState, Command, KinematicBicycle};
@@ -26,17 +26,7 @@ impl Engine for SimEngine {
 
         // Place the agents and prepare their paths.
         let starts = inputs.starts;
-        let paths = AgentPaths::new(
-            starts
-                .iter()
-                .map(|s| {
-                    experiment
-                        .map
-                        .reference_path(s.ref_path)
-                        .ok_or(RunError::UnknownRefPath(s.ref_path))
-                })
-                .collect::<Result<Vec<_>, _>>()?,
-        );
+        let paths = inputs.agent_paths()?;
         let mut states: Vec<BicycleState> = starts.iter().map(initial_bicycle_state).collect();
         let mut velocities: Vec<[f64; 2]> = states.iter().map(|s| model.velocity_mps(s)).collect();
         let mut policy = inputs.policy()?;

@@ -7,7 +7,6 @@
 
 use cpmx_follower::TrajectoryPoint;
 use cpmx_planner::{PlannedPoint, PlannedTrajectory, Planner, PlannerParams, SteeringAfterHc};
-use cpmx_policy::AgentPaths;
 use cpmx_recording::Recording;
 use cpmx_spec::model::{Fidelity, OnCollision, Planner as PlannerSpec};
 use cpmx_vehicle::{BicycleState, VehicleParams};
@@ -40,17 +39,7 @@ impl Engine for TwinEngine {
 
         // Place the vehicles and prepare the planner.
         let starts = inputs.starts;
-        let paths = AgentPaths::new(
-            starts
-                .iter()
-                .map(|s| {
-                    experiment
-                        .map
-                        .reference_path(s.ref_path)
-                        .ok_or(RunError::UnknownRefPath(s.ref_path))
-                })
-                .collect::<Result<Vec<_>, _>>()?,
-        );
+        let paths = inputs.agent_paths()?;
         let mut vehicles = starts
             .iter()
             .enumerate()

@@ -83,18 +83,7 @@ impl Engine for LabEngine {
         }
 
         // Prepare the planner, the policy and the agents' last known states (their starts).
-        let paths = AgentPaths::new(
-            inputs
-                .starts
-                .iter()
-                .map(|s| {
-                    experiment
-                        .map
-                        .reference_path(s.ref_path)
-                        .ok_or(RunError::UnknownRefPath(s.ref_path))
-                })
-                .collect::<Result<Vec<_>, _>>()?,
-        );
+        let paths = inputs.agent_paths()?;
         let drive = Drive {
             lab,
             vehicle: experiment.vehicle,

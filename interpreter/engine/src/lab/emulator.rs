@@ -49,6 +49,9 @@ use crate::twin::control_periods;
 /// How often the emulator polls its readers.
 const POLL_INTERVAL: Duration = Duration::from_millis(1);
 
+/// How long the stop trigger waits for its readers' acknowledgments.
+const STOP_DELIVERY: Duration = Duration::from_secs(1);
+
 /// How long an unanswered state list (and the start trigger) waits before it is re-sent.
 pub const RESEND_INTERVAL: Duration = Duration::from_millis(100);
 
@@ -360,6 +363,8 @@ impl<'a> Emulator<'a> {
         endpoints.triggers.write(SystemTrigger {
             next_start: TimeStamp::STOP,
         })?;
+        // Deliver the stop before the next run or the process's end drops it unsent.
+        endpoints.triggers.wait_for_acknowledgments(STOP_DELIVERY)?;
         Ok(ended.unwrap_or(EmulatorEvent::Finished { ticks }))
     }
 }
