@@ -141,7 +141,8 @@ pub struct ActuationModel {
 pub struct LabFidelity {
     /// The driver. Only `cpm-dds` exists.
     pub driver: LabDriver,
-    /// DDS domain of the lab's vehicle network.
+    /// DDS domain on which the lab's middleware talks to planners (the lab: 1, its `--domain_number`;
+    /// the vehicles themselves use the lab domain, usually 21).
     #[schemars(range(min = 0, max = 232))]
     pub domain: u32,
     /// The lab's vehicle ids, one per agent in agent order.
