@@ -268,6 +268,15 @@ impl<T: UnkeyedLabMessage> Writer<T> {
             .map_err(|e| write_error(self.topic, e.forget_data()))
     }
 
+    /// Waits until every matched reader acknowledged what was written, so that it is not
+    /// lost when the participant is dropped right after (rustdds sends asynchronously).
+    /// `Ok(false)` when `timeout` passed first; best-effort writers return `Ok(true)` at once.
+    pub fn wait_for_acknowledgments(&self, timeout: Duration) -> Result<bool, LabError> {
+        self.inner
+            .wait_for_acknowledgments(timeout)
+            .map_err(|e| write_error(self.topic, e))
+    }
+
     /// Number of readers currently matched (QoS-compatible and discovered).
     pub fn matched_readers(&self) -> usize {
         self.matched.update(|| self.inner.try_recv_status())
