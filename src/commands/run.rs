@@ -112,8 +112,14 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         .count();
     let bar = progress_bar(total as u64);
     let on_done = |plan: &cpmx_spec::RunPlan, outcome: &RunOutcome| {
-        if let RunOutcome::Failed(reason) = outcome {
-            bar.println(format!("failed: {}: {reason}", plan.key));
+        match outcome {
+            RunOutcome::Failed(reason) => bar.println(format!("failed: {}: {reason}", plan.key)),
+            RunOutcome::Finished(stored) => {
+                for note in &stored.notes {
+                    bar.println(format!("note: {}: {note}", plan.key));
+                }
+            }
+            RunOutcome::Resumed(_) => {}
         }
         bar.inc(1);
     };

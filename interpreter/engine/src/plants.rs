@@ -361,12 +361,6 @@ mod tests {
             state = plant.step(&state, &out.input, 0.02).state;
             let reference = Trajectory::new(points.clone()).unwrap().sample(t + 0.02).unwrap();
             let err = (state[0] - reference.position_m[0]).hypot(state[1] - reference.position_m[1]);
-            if k % 25 == 0 {
-                eprintln!(
-                    "t={t:.2} in=[{:.3},{:.3}] st=[{:.3},{:.3},{:.3},{:.3}] err={err:.4}",
-                    out.input[0], out.input[1], state[0], state[1], state[2], state[3]
-                );
-            }
             worst = worst.max(err);
         }
         assert!(worst < 0.03, "worst tracking error {worst} m");

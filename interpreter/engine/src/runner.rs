@@ -111,6 +111,7 @@ fn execute_one(
                 key: plan.key.clone(),
                 seed: plan.seed,
                 inputs_hash: hash,
+                notes: recording.notes.clone(),
                 metrics,
             };
             match store_run(out, plan, &recording, &stored) {

@@ -32,6 +32,7 @@ impl Engine for SimEngine {
         let mut policy = inputs.policy()?;
 
         let mut recording = Recording {
+            notes: Vec::new(),
             times_s: Vec::with_capacity(spec.timing.steps as usize),
             ref_paths: starts.iter().map(|s| s.ref_path).collect(),
             samples: Vec::with_capacity(spec.timing.steps as usize),

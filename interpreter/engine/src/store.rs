@@ -17,6 +17,9 @@ pub struct StoredRun {
     pub seed: u64,
     /// SHA-256 of everything the run's result depends on (spec, key, seed, map and weights).
     pub inputs_hash: String,
+    /// What the engine noticed without failing (e.g. late lab ticks).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
     pub metrics: RunMetrics,
 }
 

@@ -50,6 +50,7 @@ impl Engine for TwinEngine {
         let mut policy = inputs.policy()?;
 
         let mut recording = Recording {
+            notes: Vec::new(),
             times_s: Vec::with_capacity(spec.timing.steps as usize),
             ref_paths: starts.iter().map(|s| s.ref_path).collect(),
             samples: Vec::with_capacity(spec.timing.steps as usize),

@@ -279,6 +279,7 @@ mod tests {
     /// Agents on path 0 whose poses are `rows[k][agent]`, every 0.1 s.
     fn recording(rows: Vec<Vec<AgentSample>>) -> Recording {
         Recording {
+            notes: Vec::new(),
             times_s: (0..rows.len()).map(|k| k as f64 * 0.1).collect(),
             ref_paths: vec![0; rows.first().map_or(0, Vec::len)],
             samples: rows,

@@ -32,6 +32,7 @@ pub fn resample(recording: &Recording, period_s: f64) -> Cow<'_, Recording> {
     let end_s = times[times.len() - 1];
     let count = ((end_s - start_s) / period_s + ON_GRID_TOLERANCE).floor() as usize + 1;
     let mut out = Recording {
+        notes: recording.notes.clone(),
         times_s: Vec::with_capacity(count),
         ref_paths: recording.ref_paths.clone(),
         samples: Vec::with_capacity(count),
@@ -91,6 +92,7 @@ mod tests {
     #[test]
     fn a_recording_on_the_grid_is_borrowed() {
         let r = Recording {
+            notes: Vec::new(),
             times_s: vec![0.0, 0.1, 0.2 + 1e-12],
             ref_paths: vec![0],
             samples: vec![
@@ -105,6 +107,7 @@ mod tests {
     #[test]
     fn a_coarse_recording_is_interpolated_with_yaw_on_the_short_arc() {
         let r = Recording {
+            notes: Vec::new(),
             times_s: vec![0.0, 0.2],
             ref_paths: vec![0],
             samples: vec![vec![sample(0.0, 3.0)], vec![sample(2.0, -3.0)]],

@@ -26,6 +26,9 @@ pub struct Recording {
     pub ref_paths: Vec<usize>,
     /// One row per sample time, one entry per agent.
     pub samples: Vec<Vec<AgentSample>>,
+    /// What the engine noticed without failing (e.g. late lab ticks). Not part of
+    /// `trajectory.csv`; the run folder keeps them in `metrics.json`.
+    pub notes: Vec<String>,
 }
 
 /// Why a trajectory file could not be read.
@@ -230,6 +233,7 @@ mod tests {
     #[test]
     fn csv_round_trip_is_exact() {
         let recording = Recording {
+            notes: Vec::new(),
             times_s: vec![0.0, 0.1],
             ref_paths: vec![6, 2],
             samples: vec![

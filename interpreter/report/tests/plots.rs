@@ -26,6 +26,7 @@ fn scene() -> (Map, Recording, RunMetrics) {
         }
     };
     let mut recording = Recording {
+        notes: Vec::new(),
         times_s: vec![],
         ref_paths: vec![1, 1, 4],
         samples: vec![],

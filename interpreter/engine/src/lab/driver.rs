@@ -105,17 +105,16 @@ impl Engine for LabEngine {
                 .collect(),
             previous: None,
             recording: Recording {
+                notes: Vec::new(),
                 times_s: Vec::with_capacity(spec.timing.steps as usize),
                 ref_paths: inputs.starts.iter().map(|s| s.ref_path).collect(),
                 samples: Vec::with_capacity(spec.timing.steps as usize),
             },
             notes: Notes::new(lab.vehicle_ids.len()),
         };
-        let result = drive.run(&config, inputs.plan.seed);
-        if let Some(notes) = result.as_ref().ok().and_then(|n| n.1.summary(&lab.vehicle_ids)) {
-            eprintln!("note: lab run {}: {notes}", inputs.plan.key);
-        }
-        result.map(|(recording, _)| recording)
+        let (mut recording, notes) = drive.run(&config, inputs.plan.seed)?;
+        recording.notes.extend(notes.summary(&lab.vehicle_ids));
+        Ok(recording)
     }
 }
 
