@@ -339,3 +339,58 @@ fn every_example_runs() {
     }
     std::fs::remove_dir_all(&base).ok();
 }
+
+#[test]
+fn from_runs_starts_where_the_recorded_runs_did() {
+    let base = std::env::temp_dir().join(format!("cpmx-from-runs-{}", std::process::id()));
+    let recorded = base.join("recorded");
+    assert!(
+        cpmx(&[
+            "run",
+            "examples/minimal.yaml",
+            "--out",
+            recorded.to_str().unwrap()
+        ])
+        .status
+        .success()
+    );
+
+    // A spec whose starts are the measured initial poses of those runs.
+    let spec = base.join("replay.yaml");
+    let text = std::fs::read_to_string(root().join("examples/minimal.yaml"))
+        .unwrap()
+        .replace("name: minimal", "name: replay")
+        .replace(
+            "  - name: straight\n    agents:\n      - {ref_path: 1, arc_length: 0.2}\n",
+            &format!("  - from_runs: {{dir: {}, fidelity: sim}}\n", recorded.display()),
+        );
+    assert!(
+        text.contains("from_runs"),
+        "the example changed; update this test"
+    );
+    std::fs::write(&spec, text).unwrap();
+    let replay = base.join("replay");
+    let out = cpmx(&["run", spec.to_str().unwrap(), "--out", replay.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+
+    // The configuration is named after the recorded run, and the first samples agree.
+    let first_row = |path: PathBuf| {
+        std::fs::read_to_string(path)
+            .unwrap()
+            .lines()
+            .nth(1)
+            .unwrap()
+            .to_owned()
+    };
+    let original = first_row(recorded.join("runs/sim/baseline/straight/rep1/trajectory.csv"));
+    let replayed = first_row(replay.join("runs/sim/baseline/sim-baseline-straight-rep1/rep1/trajectory.csv"));
+    let pose = |row: &str| {
+        row.split(',')
+            .skip(2)
+            .take(3)
+            .map(|v| v.parse::<f64>().unwrap())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(pose(&original), pose(&replayed));
+    std::fs::remove_dir_all(&base).ok();
+}
