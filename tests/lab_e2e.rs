@@ -16,11 +16,14 @@
 //! loopback-only discovery on a domain derived from the process id. The whole test is
 //! bounded by [`BUDGET`]; the emulator is killed on every exit path.
 
+mod common;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Stdio};
-use std::thread;
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
+
+use common::{Killed, Namespace, in_network_namespace, wait_until};
 
 /// The whole test's time budget.
 const BUDGET: Duration = Duration::from_secs(60);
@@ -34,83 +37,14 @@ const TEST_NAME: &str = "lab_runs_through_the_emulator_match_the_twin_runs";
 const STEPS: usize = 50;
 const AGENTS: usize = 3;
 
-/// A child process that is killed when dropped (panics and early returns included).
-struct Killed(Child);
-
-impl Drop for Killed {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-/// Waits for `child` until `deadline`; kills it and fails when the deadline passes.
-fn wait_until(child: &mut Killed, deadline: Instant, what: &str) -> ExitStatus {
-    loop {
-        if let Some(status) = child.0.try_wait().expect("the child can be waited on") {
-            return status;
-        }
-        assert!(
-            Instant::now() < deadline,
-            "{what} did not finish within the test's budget"
-        );
-        thread::sleep(Duration::from_millis(20));
-    }
-}
-
-/// Whether this sandbox lets us make a private network namespace with loopback up.
-fn namespace_available() -> bool {
-    Command::new("unshare")
-        .args([
-            "--net",
-            "--pid",
-            "--fork",
-            "--kill-child",
-            "sh",
-            "-c",
-            "ip link set lo up",
-        ])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
-}
-
 #[test]
 fn lab_runs_through_the_emulator_match_the_twin_runs() {
     let started = Instant::now();
-    let inside = std::env::var_os(INSIDE_NAMESPACE).is_some();
-    if !inside && namespace_available() {
-        // Re-run this test alone in a private network (and pid) namespace: no packet leaves
-        // it, and everything in it dies with it.
-        let log = std::env::temp_dir().join(format!("cpmx-lab-e2e-netns-{}.log", std::process::id()));
-        let file = std::fs::File::create(&log).expect("log file");
-        let mut child = Killed(
-            Command::new("unshare")
-                .args(["--net", "--pid", "--fork", "--kill-child", "--"])
-                .arg(std::env::current_exe().expect("test binary"))
-                .args([TEST_NAME, "--exact", "--nocapture", "--test-threads=1"])
-                .env(INSIDE_NAMESPACE, "1")
-                .stdout(file.try_clone().expect("log file"))
-                .stderr(file)
-                .spawn()
-                .expect("unshare starts"),
-        );
-        let status = wait_until(&mut child, started + BUDGET, "the namespaced test");
-        let output = std::fs::read_to_string(&log).unwrap_or_default();
-        let _ = std::fs::remove_file(&log);
-        assert!(
-            status.success(),
-            "the test failed in its network namespace:\n{output}"
-        );
-        return;
-    }
-    if inside {
-        let up = Command::new("ip").args(["link", "set", "lo", "up"]).status();
-        assert!(
-            up.is_ok_and(|s| s.success()),
-            "cannot bring loopback up in the namespace"
-        );
+    // In a private network (and pid) namespace when the sandbox allows it: no packet
+    // leaves it, and everything in it dies with it.
+    match in_network_namespace(TEST_NAME, INSIDE_NAMESPACE, started + BUDGET) {
+        Namespace::RanInside => return,
+        Namespace::Inside | Namespace::Unavailable => {}
     }
     scenario(started + BUDGET);
 }
@@ -196,9 +130,9 @@ fn scenario(deadline: Instant) {
             .expect("cpmx run starts"),
     );
     let status = wait_until(&mut run, deadline, "cpmx run");
-    let run_stderr = std::fs::read_to_string(&run_log).unwrap_or_default();
+    let run_stderr = common::read(&run_log);
     let emulator_status = wait_until(&mut emulator, deadline, "cpmx lab emulate --runs 2");
-    let emulator_stderr = std::fs::read_to_string(&emulator_log).unwrap_or_default();
+    let emulator_stderr = common::read(&emulator_log);
     assert!(
         status.success(),
         "cpmx run failed:\n{run_stderr}\nemulator:\n{emulator_stderr}"
