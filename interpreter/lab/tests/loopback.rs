@@ -15,6 +15,9 @@ const TEST_DOMAIN_ID: u16 = 217;
 /// The whole exchange must finish within this budget.
 const BUDGET: Duration = Duration::from_secs(10);
 
+/// How long to wait for a best-effort sample before writing it again.
+const RESEND_PERIOD: Duration = Duration::from_millis(200);
+
 fn state_list() -> VehicleStateList {
     let state = VehicleState {
         vehicle_id: 3,
@@ -84,12 +87,23 @@ fn state_list_and_trajectory_cross_between_two_participants() -> Result<(), LabE
     let command_writer = planner.keyed_writer(&topics::VEHICLE_COMMAND_TRAJECTORY)?;
     let mut command_reader = middleware.keyed_reader(&topics::VEHICLE_COMMAND_TRAJECTORY)?;
 
-    // Best effort: publish only once discovery has matched the endpoints.
+    // Best effort: publish once discovery has matched the endpoints, and again until the
+    // reader has it (a sample written before the reader has matched the writer is lost, as
+    // best effort allows; the lab's middleware re-publishes every tick for the same reason).
     list_writer.wait_for_readers(1, left(started))?;
     let list = state_list();
-    list_writer.write(list.clone())?;
-    let received = list_reader.wait_take(left(started))?;
-    assert_eq!(received, vec![list]);
+    let received = loop {
+        list_writer.write(list.clone())?;
+        match list_reader.wait_take(RESEND_PERIOD.min(left(started))) {
+            Ok(received) => break received,
+            Err(LabError::Timeout { .. }) if started.elapsed() < BUDGET => continue,
+            Err(e) => return Err(e),
+        }
+    };
+    assert!(
+        !received.is_empty() && received.iter().all(|r| *r == list),
+        "{received:?}"
+    );
 
     command_writer.wait_for_readers(1, left(started))?;
     let cmd = command();
@@ -97,8 +111,9 @@ fn state_list_and_trajectory_cross_between_two_participants() -> Result<(), LabE
     let received = command_reader.wait_take(left(started))?;
     assert_eq!(received, vec![cmd]);
 
-    // Nothing more arrives, and the non-blocking helpers return at once.
-    assert!(list_reader.take()?.is_empty());
+    // Nothing else arrives (at most late copies of a re-sent list), and the non-blocking
+    // helpers return at once.
+    assert!(list_reader.take()?.iter().all(|r| *r == list));
     assert!(command_reader.read()?.is_empty());
     assert!(started.elapsed() < BUDGET);
     Ok(())
