@@ -56,13 +56,7 @@ impl Engine for SimEngine {
 
             // Decide and move.
             for ((agent, state), velocity) in agents.iter_mut().zip(&states).zip(&velocities) {
-                *agent = AgentState {
-                    x_m: state.x_m,
-                    y_m: state.y_m,
-                    yaw_rad: state.yaw_rad,
-                    speed_mps: state.speed_mps,
-                    velocity_mps: *velocity,
-                };
+                *agent = AgentState::from_bicycle(state, *velocity);
             }
             let input = ObservationInput {
                 agents: &agents,

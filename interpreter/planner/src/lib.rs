@@ -95,13 +95,7 @@ impl Planner {
         // Roll the policy out over Hc on predicted states.
         for k in 0..p.control_horizon {
             for (agent, state) in agents.iter_mut().zip(&predicted) {
-                *agent = AgentState {
-                    x_m: state.x_m,
-                    y_m: state.y_m,
-                    yaw_rad: state.yaw_rad,
-                    speed_mps: state.speed_mps,
-                    velocity_mps: self.model.velocity_mps(state),
-                };
+                *agent = AgentState::from_bicycle(state, self.model.velocity_mps(state));
             }
             let input = ObservationInput {
                 agents: &agents,

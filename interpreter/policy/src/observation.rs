@@ -4,7 +4,7 @@
 //! This module owns the layout and its numerics (f64 geometry, f32 output). It reads states
 //! and prepared paths only; it never steps a vehicle and keeps no state between calls.
 
-use cpmx_vehicle::{Footprint, VehicleParams, footprint_corners};
+use cpmx_vehicle::{BicycleState, Footprint, VehicleParams, footprint_corners};
 
 use crate::geometry::{AgentPaths, PreparedPath};
 
@@ -24,6 +24,18 @@ pub struct AgentState {
 }
 
 impl AgentState {
+    /// The state of a kinematic bicycle with its map-frame velocity (the velocity is passed in:
+    /// engines keep the one their last step produced).
+    pub fn from_bicycle(state: &BicycleState, velocity_mps: [f64; 2]) -> Self {
+        AgentState {
+            x_m: state.x_m,
+            y_m: state.y_m,
+            yaw_rad: state.yaw_rad,
+            speed_mps: state.speed_mps,
+            velocity_mps,
+        }
+    }
+
     /// Norm of the velocity vector [m/s] (always >= 0, also when reversing).
     pub fn velocity_norm_mps(&self) -> f64 {
         self.velocity_mps[0].hypot(self.velocity_mps[1])

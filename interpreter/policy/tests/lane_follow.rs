@@ -38,13 +38,7 @@ fn simulate(
     for _ in 0..steps {
         let agents: Vec<AgentState> = states
             .iter()
-            .map(|s| AgentState {
-                x_m: s.x_m,
-                y_m: s.y_m,
-                yaw_rad: s.yaw_rad,
-                speed_mps: s.speed_mps,
-                velocity_mps: model.velocity_mps(s),
-            })
+            .map(|s| AgentState::from_bicycle(s, model.velocity_mps(s)))
             .collect();
         let input = ObservationInput {
             agents: &agents,

@@ -155,13 +155,7 @@ fn open_loop(precision: Precision) -> Vec<[[f64; 2]; 3]> {
         for i in 0..3 {
             let out = model.step_with_precision(&bicycles[i], commands[i], r.dt_s, precision);
             bicycles[i] = out.state;
-            agents[i] = AgentState {
-                x_m: out.state.x_m,
-                y_m: out.state.y_m,
-                yaw_rad: out.state.yaw_rad,
-                speed_mps: out.state.speed_mps,
-                velocity_mps: out.velocity_mps,
-            };
+            agents[i] = AgentState::from_bicycle(&out.state, out.velocity_mps);
             positions[i] = [out.state.x_m, out.state.y_m];
         }
         trajectory.push(positions);
