@@ -26,6 +26,13 @@ pub struct DataArgs {
     pub data: Vec<PathBuf>,
 }
 
+/// What `cpmx schema` prints.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum SchemaFormat {
+    Json,
+    Markdown,
+}
+
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Check specs against the schema and for meaning; print every problem.
@@ -36,8 +43,9 @@ enum Command {
         #[command(flatten)]
         data: DataArgs,
     },
-    /// Print the run matrix of a spec.
+    /// Print the run matrix of a spec, with every run's start poses.
     Plan {
+        /// The spec file.
         spec: PathBuf,
         /// Output format.
         #[arg(long, value_enum, default_value_t = commands::plan::PlanFormat::Table)]
@@ -49,16 +57,27 @@ enum Command {
     Run(commands::run::RunArgs),
     /// Recompute and summarise stored runs (several folders merge).
     Report(commands::report::ReportArgs),
-    /// The spec's metrics of a recording made elsewhere, as JSON.
+    /// The spec's metrics of a recording made elsewhere, as JSON (needs only the spec's map).
     Evaluate {
+        /// The spec whose map, vehicle and metrics score the recording.
         spec: PathBuf,
         /// A trajectory CSV (header `t,agent,x,y,yaw,vx,vy,steering,ref_path`).
         recording: PathBuf,
         #[command(flatten)]
         data: DataArgs,
     },
-    /// Print the JSON Schema of the language (draft 2020-12).
-    Schema,
+    /// Print the JSON Schema of the language (draft 2020-12), or the language reference.
+    Schema {
+        /// `json`: the JSON Schema (`cpmx.schema.json`); `markdown`: the reference
+        /// (`docs/language.md`).
+        #[arg(long, value_enum, default_value_t = SchemaFormat::Json)]
+        format: SchemaFormat,
+    },
+    /// List the standard library's presets, or print one (`cpmx stdlib at25-paper`).
+    Stdlib {
+        /// A preset's name, with or without `stdlib:`; omit it to list them all.
+        name: Option<String>,
+    },
     /// The CPM Lab: `cpmx lab emulate SPEC` plays the lab for the spec's lab fidelity.
     Lab {
         #[command(subcommand)]
@@ -79,8 +98,12 @@ fn main() -> ExitCode {
             data,
         } => commands::evaluate::run(&spec, &recording, &data),
         Command::Lab { command } => commands::lab::run(&command),
-        Command::Schema => {
-            print!("{}", cpmx_spec::schema::json_schema_text());
+        Command::Stdlib { name } => commands::stdlib::run(name.as_deref()),
+        Command::Schema { format } => {
+            match format {
+                SchemaFormat::Json => print!("{}", cpmx_spec::schema::json_schema_text()),
+                SchemaFormat::Markdown => print!("{}", cpmx_spec::reference::language_reference_markdown()),
+            }
             Ok(())
         }
     };

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use crate::diagnostic::{ByteSpan, Problem};
 use crate::model::{Control, Fidelity, InitialConfiguration, MapSpec, SimulatedFidelity, Spec};
-use crate::paths::DataPath;
+use crate::paths::{DataPath, NotFound};
 use crate::yaml::{NodeSpans, SpannedDocument, escape_pointer};
 
 /// Files a spec names, found on the data path.
@@ -67,7 +67,12 @@ pub trait InterpreterChecks {
 }
 
 /// Runs every check that needs only the spec and the file system.
-pub(crate) fn check_meaning(spec: &Spec, data: &DataPath, ctx: &mut CheckContext<'_>) -> Resources {
+pub(crate) fn check_meaning(
+    spec: &Spec,
+    data: &DataPath,
+    scope: CheckScope,
+    ctx: &mut CheckContext<'_>,
+) -> Resources {
     check_version(spec, ctx);
     check_names(spec, ctx);
     check_policies(spec, ctx);
@@ -76,7 +81,113 @@ pub(crate) fn check_meaning(spec: &Spec, data: &DataPath, ctx: &mut CheckContext
     check_fidelities(spec, ctx);
     check_metrics(spec, ctx);
     check_report(spec, ctx);
-    find_files(spec, data, ctx)
+    check_repetitions(spec, ctx);
+    check_target_speeds(spec, ctx);
+    find_files(spec, data, scope, ctx)
+}
+
+/// A baseline asked to drive faster than the vehicle can would silently drive at the
+/// vehicle's maximum: refuse it.
+fn check_target_speeds(spec: &Spec, ctx: &mut CheckContext<'_>) {
+    for (i, policy) in spec.policies.iter().enumerate() {
+        let Some(params) = &policy.lane_follow else {
+            continue;
+        };
+        if params.target_speed > spec.vehicle.max_speed {
+            let span = ctx.span(&format!("/policies/{i}/lane_follow/target_speed"));
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::target-speed",
+                    format!(
+                        "target speed {} m/s is above the vehicle's maximum speed {} m/s",
+                        params.target_speed, spec.vehicle.max_speed
+                    ),
+                    span,
+                    "faster than the vehicle can drive",
+                )
+                .with_help(format!(
+                    "choose at most {} m/s, or raise `vehicle.max_speed` (e.g. `vehicle: {{extends: stdlib:mu-car, max_speed: {}}}`)",
+                    spec.vehicle.max_speed, params.target_speed
+                )),
+            );
+        }
+    }
+}
+
+/// Whether a policy gives the same actions for the same states every time (a network's mean
+/// action, a rule-based baseline). Unknown kinds count as stochastic.
+fn policy_is_deterministic(policy: &crate::model::PolicySpec) -> bool {
+    if policy.builtin.is_some() {
+        true
+    } else if policy.mlp.is_some() {
+        policy.action != Some(crate::model::ActionMode::Sample)
+    } else {
+        false
+    }
+}
+
+/// Whether a fidelity draws no random number: simulated, without sensing noise or frame
+/// drops. The lab never repeats itself.
+fn fidelity_is_deterministic(fidelity: &Fidelity) -> bool {
+    use crate::model::SensingLayer;
+    match fidelity {
+        Fidelity::Lab(_) => false,
+        Fidelity::Simulated(stack) => match &stack.sensing {
+            None | Some(SensingLayer::Ideal(_)) => true,
+            Some(SensingLayer::Model(m)) => {
+                m.noise_position_m == 0.0 && m.noise_yaw_rad == 0.0 && m.drop_probability == 0.0
+            }
+        },
+    }
+}
+
+/// Warns when repetitions of a deterministic fidelity and policy would be copies of each
+/// other (they are counted once in the statistics, so running them only costs time).
+fn check_repetitions(spec: &Spec, ctx: &mut CheckContext<'_>) {
+    if spec.repetitions < 2 {
+        return;
+    }
+    let deterministic_policies: Vec<&str> = spec
+        .policies
+        .iter()
+        .filter(|p| policy_is_deterministic(p))
+        .map(|p| p.name.as_str())
+        .collect();
+    if deterministic_policies.is_empty() {
+        return;
+    }
+    for (name, fidelity) in &spec.fidelities {
+        if !fidelity_is_deterministic(fidelity) {
+            continue;
+        }
+        let spans = ctx.spans(&format!("/fidelities/{}", escape_pointer(name)));
+        let policies = deterministic_policies
+            .iter()
+            .map(|p| format!("`{p}`"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let so = if deterministic_policies.len() == 1 {
+            "so is policy"
+        } else {
+            "so are policies"
+        };
+        ctx.push(
+            Problem::warning(
+                "cpmx::check::deterministic-repetitions",
+                format!(
+                    "fidelity `{name}` is deterministic, and {so} {policies}: their {} repetitions \
+                     will be identical copies",
+                    spec.repetitions
+                ),
+                spans.key.unwrap_or(spans.value),
+                "no random draw in this stack",
+            )
+            .with_help(
+                "copies count once in the statistics (n is the number of distinct runs); for independent \
+                 repetitions use `action: sample`, give the fidelity sensing noise, or set `repetitions: 1`",
+            ),
+        );
+    }
 }
 
 fn check_version(spec: &Spec, ctx: &mut CheckContext<'_>) {
@@ -471,27 +582,70 @@ fn missing_file(what: &str, file: &str, tried: &[PathBuf], span: ByteSpan) -> Pr
     ))
 }
 
-fn find_files(spec: &Spec, data: &DataPath, ctx: &mut CheckContext<'_>) -> Resources {
+/// A problem for a pinned file: missing, or present only with other content.
+fn missing_pinned(what: &str, file: &str, sha256: Option<&str>, missing: &NotFound, span: ByteSpan) -> Problem {
+    let Some(expected) = sha256.filter(|_| !missing.other_content.is_empty()) else {
+        let mut problem = missing_file(what, file, &missing.tried, span);
+        if let Some(expected) = sha256 {
+            problem.message = format!("{what} `{file}` (sha256 {}…) was not found", &expected[..12]);
+        }
+        return problem;
+    };
+    let others: Vec<String> = missing
+        .other_content
+        .iter()
+        .map(|(path, found)| format!("  {} has sha256 {found}", path.display()))
+        .collect();
+    Problem::error(
+        "cpmx::check::file-content",
+        format!("no {what} `{file}` with sha256 {expected}"),
+        span,
+        "pinned to other content",
+    )
+    .with_help(format!(
+        "found only other versions:\n{}\nname the folder of the pinned version with `--data DIR`, or remove \
+         `sha256` to take any",
+        others.join("\n")
+    ))
+}
+
+/// Which files a check must find.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CheckScope {
+    /// Everything a run needs: map, weights, recorded run folders.
+    Run,
+    /// What measuring recorded runs needs (`cpmx report`, `cpmx evaluate`): the map only.
+    Measure,
+}
+
+fn find_files(spec: &Spec, data: &DataPath, scope: CheckScope, ctx: &mut CheckContext<'_>) -> Resources {
     let mut resources = Resources::default();
     if let MapSpec::File(map) = &spec.map {
-        match data.find(&map.file) {
+        match data.find_pinned(&map.file, map.sha256.as_deref()) {
             Ok(path) => resources.map_file = Some(path),
-            Err(tried) => {
+            Err(missing) => {
                 let span = ctx.span("/map/file");
-                ctx.push(missing_file("map file", &map.file, &tried, span));
+                ctx.push(missing_pinned("map file", &map.file, map.sha256.as_deref(), &missing, span));
             }
         }
     }
     for (i, policy) in spec.policies.iter().enumerate() {
-        let found = policy.mlp.as_ref().and_then(|mlp| match data.find(&mlp.weights) {
-            Ok(path) => Some(path),
-            Err(tried) => {
-                let span = ctx.span(&format!("/policies/{i}/mlp/weights"));
-                ctx.push(missing_file("weight file", &mlp.weights, &tried, span));
-                None
+        let found = policy.mlp.as_ref().and_then(|mlp| {
+            match data.find_pinned(&mlp.weights, mlp.sha256.as_deref()) {
+                Ok(path) => Some(path),
+                Err(_) if scope == CheckScope::Measure => None,
+                Err(missing) => {
+                    let span = ctx.span(&format!("/policies/{i}/mlp/weights"));
+                    ctx.push(missing_pinned("weight file", &mlp.weights, mlp.sha256.as_deref(), &missing, span));
+                    None
+                }
             }
         });
         resources.weights.push(found);
+    }
+    if scope == CheckScope::Measure {
+        resources.from_runs = vec![None; spec.initial_configurations.len()];
+        return resources;
     }
     for (i, c) in spec.initial_configurations.iter().enumerate() {
         let found = match c {
@@ -543,24 +697,39 @@ fn find_files(spec: &Spec, data: &DataPath, ctx: &mut CheckContext<'_>) -> Resou
     resources
 }
 
-/// Warns about fidelities this build cannot run (they still plan; `cpmx run` refuses them).
+/// Warns about fidelities this build cannot run (they still plan; `cpmx run` refuses them);
+/// when no fidelity of the spec can run, each is an error: nothing could be run.
 pub(crate) fn check_capabilities(
     spec: &Spec,
     interpreter: &dyn InterpreterChecks,
     ctx: &mut CheckContext<'_>,
 ) {
-    for (name, fidelity) in &spec.fidelities {
-        if let Some(reason) = interpreter.cannot_run(fidelity) {
-            let spans = ctx.spans(&format!("/fidelities/{}", escape_pointer(name)));
-            ctx.push(
-                Problem::warning(
-                    "cpmx::check::unsupported-fidelity",
-                    format!("this build of cpmx cannot run fidelity `{name}`: {reason}"),
-                    spans.key.unwrap_or(spans.value),
-                    "planned, but not runnable here",
-                )
-                .with_help("`cpmx run` refuses it; run the other fidelities with `--only fidelity=NAME,...`"),
-            );
-        }
+    let unrunnable: Vec<(&String, String)> = spec
+        .fidelities
+        .iter()
+        .filter_map(|(name, fidelity)| interpreter.cannot_run(fidelity).map(|reason| (name, reason)))
+        .collect();
+    let none_runs = !spec.fidelities.is_empty() && unrunnable.len() == spec.fidelities.len();
+    for (name, reason) in unrunnable {
+        let spans = ctx.spans(&format!("/fidelities/{}", escape_pointer(name)));
+        let message = format!("this build of cpmx cannot run fidelity `{name}`: {reason}");
+        let span = spans.key.unwrap_or(spans.value);
+        ctx.push(if none_runs {
+            Problem::error(
+                "cpmx::check::unsupported-fidelity",
+                message,
+                span,
+                "no fidelity of this spec can run here",
+            )
+            .with_help("add a fidelity this build runs (e.g. `sim: {control: direct, dynamics: kinematic}`)")
+        } else {
+            Problem::warning(
+                "cpmx::check::unsupported-fidelity",
+                message,
+                span,
+                "planned, but not runnable here",
+            )
+            .with_help("`cpmx run` refuses it; run the other fidelities with `--only fidelity=NAME,...`")
+        });
     }
 }

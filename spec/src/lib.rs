@@ -13,6 +13,7 @@ mod diagnostic;
 pub mod matrix;
 pub mod model;
 mod paths;
+pub mod reference;
 mod resolve;
 pub mod schema;
 mod yaml;
@@ -20,11 +21,11 @@ mod yaml;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-pub use check::{CheckContext, InterpreterChecks, Resources};
+pub use check::{CheckContext, CheckScope, InterpreterChecks, Resources};
 pub use diagnostic::{ByteSpan, Level, Problem, SpecDiagnostic, render};
 pub use matrix::{ConfigurationSource, NamedConfiguration, RunPlan};
 pub use model::Spec;
-pub use paths::DataPath;
+pub use paths::{DataPath, NotFound, sha256_hex};
 pub use resolve::STDLIB_PREFIX;
 pub use yaml::{NodeSpans, SpannedDocument};
 
@@ -85,6 +86,17 @@ pub fn check(
     data: &DataPath,
     interpreter: &dyn InterpreterChecks,
 ) -> Result<CheckedSpec, Vec<SpecDiagnostic>> {
+    check_scoped(source, data, interpreter, CheckScope::Run)
+}
+
+/// [`check`] for a purpose: [`CheckScope::Measure`] (scoring recorded runs) needs only the
+/// map, runs none of the interpreter's checks and gives no warnings.
+pub fn check_scoped(
+    source: &SpecSource,
+    data: &DataPath,
+    interpreter: &dyn InterpreterChecks,
+    scope: CheckScope,
+) -> Result<CheckedSpec, Vec<SpecDiagnostic>> {
     let named = Arc::new(miette::NamedSource::new(&source.name, source.text.clone()).with_language("yaml"));
     let attach = |problems: Vec<Problem>| -> Vec<SpecDiagnostic> {
         problems
@@ -116,15 +128,20 @@ pub fn check(
 
     // Check meaning, files, and what only the interpreter knows.
     let mut ctx = CheckContext::new(&doc);
-    let resources = check::check_meaning(&spec, data, &mut ctx);
+    let resources = check::check_meaning(&spec, data, scope, &mut ctx);
     let before_interpreter = ctx.into_problems();
     let mut ctx = CheckContext::new(&doc);
-    check::check_capabilities(&spec, interpreter, &mut ctx);
-    if !before_interpreter.iter().any(|p| p.level == Level::Error) {
-        interpreter.check(&spec, &resources, &mut ctx);
+    if scope == CheckScope::Run {
+        check::check_capabilities(&spec, interpreter, &mut ctx);
+        if !before_interpreter.iter().any(|p| p.level == Level::Error) {
+            interpreter.check(&spec, &resources, &mut ctx);
+        }
     }
     let mut problems = before_interpreter;
     problems.extend(ctx.into_problems());
+    if scope == CheckScope::Measure {
+        problems.retain(|p| p.level == Level::Error);
+    }
     problems.sort_by_key(|p| p.span.offset);
     let (errors, warnings): (Vec<Problem>, Vec<Problem>) =
         problems.into_iter().partition(|p| p.level == Level::Error);

@@ -2,7 +2,10 @@
 //!
 //! In order: the spec's folder, each `--data DIR`, each folder of `CPMX_DATA`
 //! (colon-separated). The first folder that has the file wins; when none has it, the error
-//! lists every place that was tried.
+//! lists every place that was tried. A file pinned by its SHA-256 is the first one found
+//! with that content: a run folder's resolved spec pins its map and weights this way, so a
+//! folder moved elsewhere finds them again on `--data`, and never a different file of the
+//! same name.
 
 use std::path::{Path, PathBuf};
 
@@ -38,9 +41,77 @@ impl DataPath {
     }
 }
 
+/// Why a file was not found: every place tried, and the files of that name whose content
+/// differed from the pinned hash.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct NotFound {
+    pub tried: Vec<PathBuf>,
+    /// Files that exist but have another SHA-256 (path, their hash).
+    pub other_content: Vec<(PathBuf, String)>,
+}
+
+impl DataPath {
+    /// The first file named `file` whose SHA-256 is `sha256` (any content when `None`).
+    pub fn find_pinned(&self, file: &str, sha256: Option<&str>) -> Result<PathBuf, NotFound> {
+        let path = Path::new(file);
+        let candidates: Vec<PathBuf> = if path.is_absolute() {
+            vec![path.to_path_buf()]
+        } else {
+            self.folders.iter().map(|f| f.join(path)).collect()
+        };
+        let mut other_content = Vec::new();
+        for candidate in &candidates {
+            if !candidate.is_file() && !(sha256.is_none() && candidate.exists()) {
+                continue;
+            }
+            let Some(expected) = sha256 else {
+                return Ok(candidate.clone());
+            };
+            match std::fs::read(candidate) {
+                Ok(bytes) => {
+                    let found = sha256_hex(&bytes);
+                    if found == expected {
+                        return Ok(candidate.clone());
+                    }
+                    other_content.push((candidate.clone(), found));
+                }
+                Err(_) => continue,
+            }
+        }
+        Err(NotFound {
+            tried: candidates,
+            other_content,
+        })
+    }
+}
+
+/// Lower-case hex SHA-256 of `bytes`.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::{Digest, Sha256};
+    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_pinned_file_is_the_one_with_that_content() {
+        let root = std::env::temp_dir().join(format!("cpmx-pinned-{}", std::process::id()));
+        let (a, b) = (root.join("a"), root.join("b"));
+        std::fs::create_dir_all(&a).unwrap();
+        std::fs::create_dir_all(&b).unwrap();
+        std::fs::write(a.join("map.xml"), "old").unwrap();
+        std::fs::write(b.join("map.xml"), "new").unwrap();
+        let data = DataPath::new(&a, std::slice::from_ref(&b), None);
+        let new = sha256_hex(b"new");
+        assert_eq!(data.find_pinned("map.xml", Some(&new)).unwrap(), b.join("map.xml"));
+        assert_eq!(data.find_pinned("map.xml", None).unwrap(), a.join("map.xml"));
+        let missing = data.find_pinned("map.xml", Some(&sha256_hex(b"other"))).unwrap_err();
+        assert_eq!(missing.other_content.len(), 2);
+        assert_eq!(missing.other_content[0], (a.join("map.xml"), sha256_hex(b"old")));
+        std::fs::remove_dir_all(&root).unwrap();
+    }
 
     #[test]
     fn lists_every_place_it_looked() {

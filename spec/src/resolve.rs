@@ -110,7 +110,13 @@ fn load_preset(kind: PresetKind, name: &str) -> Result<Value, String> {
     match cpmx_stdlib::preset(kind, name) {
         Some(preset) => serde_saphyr::from_str::<Value>(preset.yaml)
             .map_err(|e| format!("the shipped preset `stdlib:{name}` is broken ({e}); please report this")),
-        None => Err(available_help(kind)),
+        None => {
+            let names: Vec<String> = cpmx_stdlib::names(kind).into_iter().map(str::to_owned).collect();
+            Err(match crate::schema::did_you_mean(name, &names) {
+                Some(best) => format!("did you mean `{STDLIB_PREFIX}{best}`? {}", available_help(kind)),
+                None => available_help(kind),
+            })
+        }
     }
 }
 

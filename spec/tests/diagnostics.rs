@@ -32,7 +32,7 @@ initial_configurations:
     agents:
       - {ref_path: 1, arc_length: 0.2}
       - {ref_path: 4, arc_length: 0.2}
-repetitions: 2
+repetitions: 1
 seed: 5
 fidelities:
   sim: {control: direct, dynamics: kinematic}
@@ -78,7 +78,8 @@ macro_rules! case {
 #[test]
 fn the_base_spec_is_valid() {
     let checked = check(VALID).unwrap();
-    assert_eq!(checked.plan().len(), 2);
+    assert_eq!(checked.plan().len(), 1);
+    assert!(checked.warnings.is_empty());
 }
 
 case!(yaml_syntax, edit("agents: 2\n", "agents: [2\n"), 6, 9);
@@ -86,7 +87,7 @@ case!(empty_document, "# nothing here\n", 1, 1);
 case!(duplicate_key, edit("seed: 5\n", "seed: 5\nseed: 6\n"), 15, 1);
 case!(
     unknown_key_with_suggestion,
-    edit("repetitions: 2", "repetitons: 2"),
+    edit("repetitions: 1", "repetitons: 1"),
     13,
     1
 );
@@ -128,8 +129,8 @@ case!(
     format!(
         "{}",
         VALID.replace(
-            "repetitions: 2",
-            "  - name: one\n    agents: [{ref_path: 1}, {ref_path: 4}]\nrepetitions: 2"
+            "repetitions: 1",
+            "  - name: one\n    agents: [{ref_path: 1}, {ref_path: 4}]\nrepetitions: 1"
         )
     ),
     13,
@@ -263,10 +264,51 @@ fn unsupported_fidelities_are_warnings_not_errors() {
         "{VALID}  mpc: {{control: trajectory, dynamics: kinematic}}\nplanner: {{control_horizon: 4, prediction_horizon: 12}}\n"
     );
     let checked = check(&text).unwrap();
-    assert_eq!(checked.plan().len(), 4);
+    assert_eq!(checked.plan().len(), 2);
     assert_eq!(checked.warnings.len(), 1);
     assert_eq!((checked.warnings[0].line, checked.warnings[0].column), (17, 3));
     insta::assert_snapshot!(cpmx_spec::render(&checked.warnings, false));
+}
+
+#[test]
+fn repetitions_of_a_deterministic_stack_are_a_warning() {
+    let text = VALID.replace("repetitions: 1", "repetitions: 3");
+    let checked = check(&text).unwrap();
+    assert_eq!(checked.warnings.len(), 1);
+    assert_eq!((checked.warnings[0].line, checked.warnings[0].column), (16, 3));
+    insta::assert_snapshot!(cpmx_spec::render(&checked.warnings, false));
+    // A noisy fidelity's repetitions differ: still one warning, for `sim` only.
+    let noisy = format!(
+        "{text}  twin:\n    control: trajectory\n    dynamics: kinematic\n    sensing: stdlib:cpm-ips\n\
+         planner: {{control_horizon: 4, prediction_horizon: 12}}\n"
+    );
+    let checked = check(&noisy).unwrap();
+    let copies: Vec<String> = checked
+        .warnings
+        .iter()
+        .filter(|w| w.problem.code == "cpmx::check::deterministic-repetitions")
+        .map(ToString::to_string)
+        .collect();
+    assert_eq!(copies.len(), 1, "{copies:?}");
+    assert!(copies[0].contains("`sim`"));
+}
+
+#[test]
+fn a_target_speed_above_the_vehicle_maximum_is_refused() {
+    let text = VALID.replace(
+        "- {name: base, builtin: lane-follow}",
+        "- {name: base, builtin: lane-follow, lane_follow: {target_speed: 2.5}}",
+    );
+    let problems = check(&text).unwrap_err();
+    assert_eq!(problems.len(), 1);
+    insta::assert_snapshot!(cpmx_spec::render(&problems, false));
+}
+
+#[test]
+fn an_unknown_preset_gets_a_did_you_mean() {
+    let problems = check(&format!("{VALID}vehicle: stdlib:mucar\n")).unwrap_err();
+    let text = cpmx_spec::render(&problems, false);
+    assert!(text.contains("did you mean `stdlib:mu-car`?"), "{text}");
 }
 
 #[test]
@@ -292,9 +334,9 @@ fn from_runs_needs_runs_of_that_fidelity() {
     )
     .unwrap();
     let text = VALID.replace(
-        "repetitions: 2",
+        "repetitions: 1",
         &format!(
-            "  - from_runs: {{dir: {}, fidelity: lab}}\nrepetitions: 2",
+            "  - from_runs: {{dir: {}, fidelity: lab}}\nrepetitions: 1",
             dir.display()
         ),
     );

@@ -5,6 +5,7 @@ pub mod lab;
 pub mod plan;
 pub mod report;
 pub mod run;
+pub mod stdlib;
 pub mod validate;
 
 use std::io::IsTerminal;

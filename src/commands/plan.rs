@@ -1,8 +1,11 @@
-//! `cpmx plan SPEC`: the run matrix as a table, CSV or JSON.
+//! `cpmx plan SPEC`: the run matrix as a table, CSV or JSON, with the start poses of every
+//! initial configuration (sampled ones included): every run of a configuration starts from
+//! them, whatever its fidelity, policy and repetition.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
+use cpmx_engine::{InitialState, Scoring, initial_states};
 use cpmx_spec::RunPlan;
 
 use super::{Failure, load_checked};
@@ -16,10 +19,81 @@ pub enum PlanFormat {
     Json,
 }
 
+/// The start poses of each initial configuration, by name.
+pub type Starts = [(String, Vec<InitialState>)];
+
 pub fn run(spec: &Path, format: PlanFormat, data: &DataArgs) -> Result<(), Failure> {
     let checked = load_checked(spec, data)?;
-    print!("{}", render(&checked.plan(), format));
+    let scoring = Scoring::prepare(&checked).map_err(|e| {
+        eprintln!("error: {e}");
+        Failure::InvalidInput
+    })?;
+    let starts = initial_states(
+        &checked.spec,
+        &checked.configurations,
+        &checked.resources,
+        &scoring.map,
+        &scoring.vehicle,
+    )
+    .map_err(|e| {
+        eprintln!("error: {e}");
+        Failure::InvalidInput
+    })?;
+    let mut text = render(&checked.plan(), format);
+    match format {
+        PlanFormat::Table => text.push_str(&starts_table(&starts)),
+        PlanFormat::Json => text = starts_json(&checked.plan(), &starts),
+        PlanFormat::Csv => {}
+    }
+    print!("{text}");
     Ok(())
+}
+
+/// The start poses as a table, after the matrix.
+fn starts_table(starts: &Starts) -> String {
+    let mut out = String::from("\nstart poses (every run of a configuration starts here):\n");
+    let _ = writeln!(
+        out,
+        "{:<24} {:>5} {:>8} {:>8} {:>8} {:>8} {:>9}",
+        "initial_configuration", "agent", "ref_path", "x [m]", "y [m]", "yaw [°]", "v [m/s]"
+    );
+    for (name, agents) in starts {
+        for (agent, s) in agents.iter().enumerate() {
+            let _ = writeln!(
+                out,
+                "{:<24} {:>5} {:>8} {:>8.3} {:>8.3} {:>8.1} {:>9.3}",
+                name,
+                agent,
+                s.ref_path,
+                s.x_m,
+                s.y_m,
+                s.yaw_rad.to_degrees(),
+                s.speed_mps
+            );
+        }
+    }
+    out
+}
+
+/// The matrix and the start poses as one JSON document.
+fn starts_json(runs: &[RunPlan], starts: &Starts) -> String {
+    let starts: serde_json::Map<String, serde_json::Value> = starts
+        .iter()
+        .map(|(name, agents)| {
+            let agents: Vec<serde_json::Value> = agents
+                .iter()
+                .map(|s| {
+                    serde_json::json!({
+                        "ref_path": s.ref_path, "x_m": s.x_m, "y_m": s.y_m,
+                        "yaw_rad": s.yaw_rad, "speed_mps": s.speed_mps,
+                    })
+                })
+                .collect();
+            (name.clone(), serde_json::Value::from(agents))
+        })
+        .collect();
+    let value = serde_json::json!({ "runs": runs, "starts": starts });
+    format!("{}\n", serde_json::to_string_pretty(&value).unwrap_or_default())
 }
 
 /// The matrix in `format`.

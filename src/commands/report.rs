@@ -1,13 +1,14 @@
 //! `cpmx report DIR...`: recomputes every run's metrics from its stored trajectory, merges the
 //! folders (e.g. the shards of one sweep) and prints the summary, byte-identical to the summary
-//! file of that format that one `cpmx run` of the whole matrix writes.
+//! file of that format that one `cpmx run` of the whole matrix writes. `--metrics` scores the
+//! same recordings with other metric definitions.
 
 use std::path::{Path, PathBuf};
 
-use cpmx_engine::{Experiment, folder, measure, store};
+use cpmx_engine::{Scoring, folder, inputs_hash, store};
 use cpmx_recording::Recording;
 use cpmx_report::{Format, RunRecord, render, summarize};
-use cpmx_spec::{DataPath, SpecSource};
+use cpmx_spec::{CheckScope, CheckedSpec, DataPath, SpecSource};
 
 use super::Failure;
 use crate::DataArgs;
@@ -24,6 +25,10 @@ pub struct ReportArgs {
     /// Also write the summary files and plots into this folder.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Score the stored recordings with these metric definitions instead of the folder's:
+    /// a preset (`stdlib:at25-paper`) or a YAML file holding a `metrics:` section's value.
+    #[arg(long, value_name = "stdlib:NAME|FILE")]
+    pub metrics: Option<String>,
     #[command(flatten)]
     pub data: DataArgs,
 }
@@ -37,38 +42,110 @@ fn fail(message: String) -> Failure {
     Failure::InvalidInput
 }
 
-/// The experiment a run folder was made from (its `spec.resolved.yaml`).
-fn folder_experiment(dir: &Path, data: &DataArgs) -> Result<Experiment, Failure> {
-    let path = dir.join("spec.resolved.yaml");
-    let source = SpecSource::read(&path).map_err(|e| fail(format!("{}: {e}", path.display())))?;
-    let data_path = DataPath::new(dir, &data.data, std::env::var("CPMX_DATA").ok().as_deref());
-    let checked = cpmx_spec::check(&source, &data_path, &cpmx_engine::BuildChecks).map_err(|d| {
+/// A folder argument that is not a run folder: a spec file, or a folder without runs.
+fn check_is_run_folder(dir: &Path) -> Result<(), Failure> {
+    if dir.is_file() {
+        eprintln!(
+            "error: `{}` is a file; `cpmx report` takes run folders written by `cpmx run`\nhelp: run the spec \
+             first (`cpmx run {}`), then report its folder (by default `out/<name>`)",
+            dir.display(),
+            dir.display()
+        );
+        return Err(Failure::Usage);
+    }
+    if !dir.join("matrix.csv").is_file() {
+        eprintln!(
+            "error: `{}` is not a run folder (it has no matrix.csv)\nhelp: name a folder written by `cpmx run`",
+            dir.display()
+        );
+        return Err(Failure::Usage);
+    }
+    Ok(())
+}
+
+/// Checks a resolved spec text for scoring: the folder first, then `--data`, `CPMX_DATA`, and
+/// last the data path the folder was made with (files are pinned by hash).
+fn check_for_scoring(name: String, text: String, dir: &Path, data: &DataArgs) -> Result<CheckedSpec, Failure> {
+    let mut data_path = DataPath::new(dir, &data.data, std::env::var("CPMX_DATA").ok().as_deref());
+    data_path
+        .folders
+        .extend(folder::Provenance::read(dir).data_path);
+    let source = SpecSource {
+        name,
+        dir: dir.to_path_buf(),
+        text,
+    };
+    cpmx_spec::check_scoped(&source, &data_path, &cpmx_engine::BuildChecks, CheckScope::Measure).map_err(|d| {
         eprint!("{}", cpmx_spec::render(&d, false));
         Failure::InvalidInput
-    })?;
-    Experiment::prepare(&checked).map_err(|e| fail(format!("{}: {e}", path.display())))
+    })
+}
+
+/// The folder's resolved spec with its `metrics` section replaced by `metrics` (a preset name
+/// or a YAML file), as the text of a spec.
+fn with_metrics(resolved: &serde_json::Value, metrics: &str) -> Result<String, Failure> {
+    let value = if metrics.starts_with(cpmx_spec::STDLIB_PREFIX) {
+        serde_json::Value::from(metrics)
+    } else {
+        let text = std::fs::read_to_string(metrics).map_err(|e| fail(format!("--metrics `{metrics}`: {e}")))?;
+        serde_saphyr::from_str::<serde_json::Value>(&text)
+            .map_err(|e| fail(format!("--metrics `{metrics}`: not YAML: {e}")))?
+    };
+    let mut spec = resolved.clone();
+    if let Some(root) = spec.as_object_mut() {
+        root.insert("metrics".into(), value);
+    }
+    // JSON is YAML: the spec checker reads it as it reads any spec.
+    serde_json::to_string_pretty(&spec).map_err(|e| fail(e.to_string()))
 }
 
 pub fn run(args: &ReportArgs) -> Result<(), Failure> {
-    let experiment = folder_experiment(&args.dirs[0], &args.data)?;
-    let plans = folder::read_matrix(&args.dirs[0]).map_err(fail)?;
+    for dir in &args.dirs {
+        check_is_run_folder(dir)?;
+    }
+
+    // The folder's spec, checked against its hash, and what scores its runs.
+    let first = &args.dirs[0];
+    let resolved_path = first.join("spec.resolved.yaml");
+    let text = folder::read_resolved_spec(first).map_err(fail)?;
+    let checked = check_for_scoring(resolved_path.display().to_string(), text, first, &args.data)?;
+    let context = folder::context_hash(&checked);
+    let checked = match &args.metrics {
+        None => checked,
+        Some(metrics) => {
+            let text = with_metrics(&checked.resolved, metrics)?;
+            let name = format!("{} with --metrics {metrics}", resolved_path.display());
+            check_for_scoring(name, text, first, &args.data)?
+        }
+    };
+    let scoring = Scoring::prepare(&checked).map_err(|e| fail(format!("{}: {e}", resolved_path.display())))?;
+    let plans = folder::read_matrix(first).map_err(fail)?;
 
     // Every run of the matrix, from whichever folder holds it, measured from its trajectory.
     let mut records = Vec::new();
-    let mut missing = Vec::new();
+    let (mut missing, mut stale) = (Vec::new(), Vec::new());
     for plan in &plans {
         let Some(dir) = args.dirs.iter().find(|d| store::finished(d, plan)) else {
             missing.push(plan.key.clone());
             continue;
         };
-        let path = store::run_dir(dir, plan).join("trajectory.csv");
-        let file = std::fs::File::open(&path).map_err(|e| fail(format!("{}: {e}", path.display())))?;
-        let recording = Recording::read_csv(file).map_err(|e| fail(format!("{}: {e}", path.display())))?;
-        let metrics =
-            measure(&experiment, &recording).map_err(|e| fail(format!("{}: {e}", path.display())))?;
+        let run = store::run_dir(dir, plan);
+        let stored = store::read_stored(&run).map_err(fail)?;
+        if stored.inputs_hash != inputs_hash(&context, plan) {
+            stale.push(plan.key.clone());
+            continue;
+        }
+        let path = run.join("trajectory.csv");
+        let bytes = std::fs::read(&path).map_err(|e| fail(format!("{}: {e}", path.display())))?;
+        let recording =
+            Recording::read_csv(bytes.as_slice()).map_err(|e| fail(format!("{}: {e}", path.display())))?;
+        let metrics = scoring
+            .measure(&recording)
+            .map_err(|e| fail(format!("{}: {e}", path.display())))?;
         records.push(RunRecord {
             plan: plan.clone(),
             metrics,
+            recording_sha256: folder::sha256_hex(&bytes),
         });
     }
     if !missing.is_empty() {
@@ -79,10 +156,18 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
             missing[0]
         );
     }
+    if !stale.is_empty() {
+        eprintln!(
+            "note: {} runs were made from an earlier spec and are left out (e.g. {}); run them again with \
+             `cpmx run SPEC --resume`",
+            stale.len(),
+            stale[0]
+        );
+    }
 
-    let summary = summarize(&experiment.spec.name, &records, &experiment.spec.report);
+    let summary = summarize(&scoring.spec.name, &records, &scoring.spec.report);
     if let Some(out) = &args.out {
-        folder::write_summaries(out, &experiment, &records)
+        folder::write_summaries_from(out, &args.dirs, &scoring, &records)
             .map_err(|e| fail(format!("cannot write `{}`: {e}", out.display())))?;
     }
     print!("{}", render(&summary, args.format));

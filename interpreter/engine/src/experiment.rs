@@ -56,7 +56,45 @@ pub struct Experiment {
     pub starts: Vec<(String, Vec<InitialState>)>,
 }
 
+/// What scoring recorded runs needs: the spec, its map, vehicle and metric parameters. No
+/// network, no start: `cpmx report` and `cpmx evaluate` need only the map.
+#[derive(Debug, Clone)]
+pub struct Scoring {
+    pub spec: Spec,
+    pub map: Arc<Map>,
+    pub vehicle: VehicleParams,
+    pub metrics: MetricsConfig,
+}
+
+impl Scoring {
+    /// Loads the spec's map.
+    pub fn prepare(checked: &CheckedSpec) -> Result<Scoring, PrepareError> {
+        let spec = &checked.spec;
+        Ok(Scoring {
+            spec: spec.clone(),
+            map: Arc::new(load_map(spec, checked.resources.map_file.as_deref())?),
+            vehicle: vehicle_params(&spec.vehicle),
+            metrics: metrics_config(&spec.metrics),
+        })
+    }
+
+    /// The metrics of one recording.
+    pub fn measure(&self, recording: &cpmx_recording::Recording) -> Result<cpmx_metrics::RunMetrics, String> {
+        crate::runner::measure_recording(&self.map, &self.vehicle, &self.metrics, recording)
+    }
+}
+
 impl Experiment {
+    /// The part of the experiment that scores its recordings.
+    pub fn scoring(&self) -> Scoring {
+        Scoring {
+            spec: self.spec.clone(),
+            map: self.map.clone(),
+            vehicle: self.vehicle,
+            metrics: self.metrics,
+        }
+    }
+
     /// Loads the map and the networks and places every initial configuration.
     pub fn prepare(checked: &CheckedSpec) -> Result<Experiment, PrepareError> {
         let spec = &checked.spec;

@@ -6,72 +6,153 @@ use std::path::{Path, PathBuf};
 
 use cpmx_report::{Format, RunRecord, Summary, per_run_csv, render, summarize};
 use cpmx_spec::{CheckedSpec, RunPlan};
-use sha2::{Digest, Sha256};
 
-use crate::experiment::Experiment;
+use cpmx_recording::Recording;
+
+use crate::experiment::Scoring;
+use crate::runner::inputs_hash;
 use crate::store::{read_stored, run_dir, write_atomic};
 
-/// The resolved spec with the files it names replaced by the paths where they were found.
+/// The resolved spec as a run folder records it: every file it names keeps the path the spec
+/// gave (relative to the spec's folder or the data path) and is pinned by the SHA-256 of the
+/// bytes that were used, so the folder finds the same files wherever it and the data move.
 pub fn resolved_spec(checked: &CheckedSpec) -> serde_json::Value {
     let mut resolved = checked.resolved.clone();
     if let Some(path) = &checked.resources.map_file
-        && let Some(slot) = resolved.pointer_mut("/map/file")
+        && let Some(map) = resolved.pointer_mut("/map").and_then(|m| m.as_object_mut())
+        && let Ok(bytes) = std::fs::read(path)
     {
-        *slot = serde_json::Value::from(absolute(path));
+        map.insert("sha256".into(), sha256_hex(&bytes).into());
     }
     for (i, weights) in checked.resources.weights.iter().enumerate() {
         if let Some(path) = weights
-            && let Some(slot) = resolved.pointer_mut(&format!("/policies/{i}/mlp/weights"))
+            && let Some(mlp) = resolved
+                .pointer_mut(&format!("/policies/{i}/mlp"))
+                .and_then(|m| m.as_object_mut())
+            && let Ok(bytes) = std::fs::read(path)
         {
-            *slot = serde_json::Value::from(absolute(path));
+            mlp.insert("sha256".into(), sha256_hex(&bytes).into());
         }
     }
     resolved
 }
 
-fn absolute(path: &Path) -> String {
-    std::fs::canonicalize(path)
-        .unwrap_or_else(|_| path.to_path_buf())
-        .display()
-        .to_string()
-}
-
-fn sha256_hex(bytes: &[u8]) -> String {
-    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
+/// Lower-case hex SHA-256 of `bytes`.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    cpmx_spec::sha256_hex(bytes)
 }
 
 /// The hash every run's input hash starts from: the resolved spec without its `report`
-/// section (reports do not change runs), and the bytes of the map and weight files.
+/// section and description (reports do not change runs). The files it names enter through
+/// their pinned SHA-256.
 pub fn context_hash(checked: &CheckedSpec) -> String {
     let mut resolved = resolved_spec(checked);
     if let Some(root) = resolved.as_object_mut() {
         root.remove("report");
         root.remove("description");
     }
-    let mut hasher = Sha256::new();
-    hasher.update(resolved.to_string().as_bytes());
-    let files: Vec<&PathBuf> = checked
-        .resources
-        .map_file
-        .iter()
-        .chain(checked.resources.weights.iter().flatten())
-        .collect();
-    for file in files {
-        hasher.update([0]);
-        hasher.update(std::fs::read(file).unwrap_or_default());
-    }
-    hasher.finalize().iter().map(|b| format!("{b:02x}")).collect()
+    sha256_hex(resolved.to_string().as_bytes())
 }
 
-/// Writes `spec.resolved.yaml` (with its SHA-256 in the first line) and `matrix.csv`.
-pub fn write_header(out: &Path, checked: &CheckedSpec, plans: &[RunPlan]) -> std::io::Result<()> {
-    let resolved = resolved_spec(checked);
-    let yaml = serde_saphyr::to_string(&resolved).map_err(std::io::Error::other)?;
-    let text = format!(
-        "# sha256: {}\n{yaml}",
-        sha256_hex(resolved.to_string().as_bytes())
-    );
-    write_atomic(&out.join("spec.resolved.yaml"), text.as_bytes())?;
+/// Where the files of a folder's spec were found when it was made: the folders of the data
+/// path, absolute. `cpmx report` searches them last (files are pinned by hash, so a folder
+/// never picks up a different file of the same name).
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+pub struct Provenance {
+    /// The spec file `cpmx run` was given.
+    pub spec: PathBuf,
+    /// The data path of that run, in order.
+    pub data_path: Vec<PathBuf>,
+}
+
+impl Provenance {
+    /// Reads a folder's `provenance.json` (empty when absent or unreadable).
+    pub fn read(dir: &Path) -> Provenance {
+        std::fs::read_to_string(dir.join("provenance.json"))
+            .ok()
+            .and_then(|text| serde_json::from_str(&text).ok())
+            .unwrap_or_default()
+    }
+}
+
+/// The first line of `spec.resolved.yaml`: the SHA-256 of the rest of the file.
+const HASH_LINE_PREFIX: &str = "# sha256: ";
+
+/// The resolved spec of a run folder as YAML, checked against the hash in its first line.
+pub fn read_resolved_spec(dir: &Path) -> Result<String, String> {
+    let path = dir.join("spec.resolved.yaml");
+    let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let (first, body) = text.split_once('\n').unwrap_or((&text, ""));
+    let Some(recorded) = first.strip_prefix(HASH_LINE_PREFIX) else {
+        return Err(format!(
+            "{}: the first line should be `{HASH_LINE_PREFIX}<hash>`; this is not a file `cpmx run` wrote",
+            path.display()
+        ));
+    };
+    let actual = sha256_hex(body.as_bytes());
+    if recorded.trim() != actual {
+        return Err(format!(
+            "{} was edited after `cpmx run` wrote it (its content no longer has the sha256 of its first \
+             line), so it may not describe the runs in the folder; to score stored runs with other \
+             metrics use `cpmx report DIR --metrics stdlib:NAME|FILE` instead of editing the file",
+            path.display()
+        ));
+    }
+    Ok(body.to_owned())
+}
+
+/// The top-level sections (report and description aside: they do not change runs) in which a
+/// folder's resolved spec (`existing`, YAML) differs from `checked`'s.
+pub fn differing_sections(existing: &str, checked: &CheckedSpec) -> Vec<String> {
+    let Ok(old) = serde_saphyr::from_str::<serde_json::Value>(existing) else {
+        return vec!["(unreadable)".into()];
+    };
+    let new = resolved_spec(checked);
+    let (Some(old), Some(new)) = (old.as_object(), new.as_object()) else {
+        return vec!["(not a mapping)".into()];
+    };
+    let mut keys: Vec<&String> = old.keys().chain(new.keys()).collect();
+    keys.dedup();
+    let mut differing: Vec<String> = Vec::new();
+    for key in keys {
+        if key == "report" || key == "description" || differing.contains(key) {
+            continue;
+        }
+        if old.get(key).map(numbers_as_f64) != new.get(key).map(numbers_as_f64) {
+            differing.push(key.clone());
+        }
+    }
+    differing
+}
+
+/// `value` with every number as an f64, so that `1` read back from YAML equals `1.0`.
+fn numbers_as_f64(value: &serde_json::Value) -> serde_json::Value {
+    use serde_json::Value;
+    match value {
+        Value::Number(n) => n.as_f64().map_or(Value::Null, Value::from),
+        Value::Array(items) => Value::Array(items.iter().map(numbers_as_f64).collect()),
+        Value::Object(map) => Value::Object(map.iter().map(|(k, v)| (k.clone(), numbers_as_f64(v))).collect()),
+        other => other.clone(),
+    }
+}
+
+/// The text of `spec.resolved.yaml`: the hash line, then the resolved spec as YAML.
+pub fn resolved_spec_text(checked: &CheckedSpec) -> std::io::Result<String> {
+    let yaml = serde_saphyr::to_string(&resolved_spec(checked)).map_err(std::io::Error::other)?;
+    Ok(format!("{HASH_LINE_PREFIX}{}\n{yaml}", sha256_hex(yaml.as_bytes())))
+}
+
+/// Writes `spec.resolved.yaml` (with the SHA-256 of its content in the first line),
+/// `provenance.json` and `matrix.csv`.
+pub fn write_header(
+    out: &Path,
+    checked: &CheckedSpec,
+    plans: &[RunPlan],
+    provenance: &Provenance,
+) -> std::io::Result<()> {
+    write_atomic(&out.join("spec.resolved.yaml"), resolved_spec_text(checked)?.as_bytes())?;
+    let provenance = serde_json::to_vec_pretty(provenance).map_err(std::io::Error::other)?;
+    write_atomic(&out.join("provenance.json"), &provenance)?;
     let mut matrix = String::from("key,fidelity,policy,initial_configuration,repetition,seed\n");
     for p in plans {
         matrix.push_str(&format!(
@@ -82,27 +163,98 @@ pub fn write_header(out: &Path, checked: &CheckedSpec, plans: &[RunPlan]) -> std
     write_atomic(&out.join("matrix.csv"), matrix.as_bytes())
 }
 
-/// Writes `per_run.csv`, the summaries and the plots of `records` (in matrix order).
-pub fn write_summaries(
+/// Writes `per_run.csv`, the summaries, the plots and `report.html` of `records` (in matrix
+/// order), reading each run's trajectory from `out` (or from `sources`, the folders the runs
+/// were found in, for `cpmx report` of several folders).
+pub fn write_summaries(out: &Path, scoring: &Scoring, records: &[RunRecord]) -> std::io::Result<Summary> {
+    write_summaries_from(out, &[out.to_path_buf()], scoring, records)
+}
+
+/// [`write_summaries`] with the runs' trajectories read from the first of `sources` that has them.
+pub fn write_summaries_from(
     out: &Path,
-    experiment: &Experiment,
+    sources: &[PathBuf],
+    scoring: &Scoring,
     records: &[RunRecord],
 ) -> std::io::Result<Summary> {
-    let summary = summarize(&experiment.spec.name, records, &experiment.spec.report);
+    let summary = summarize(&scoring.spec.name, records, &scoring.spec.report);
     write_atomic(&out.join("per_run.csv"), per_run_csv(records).as_bytes())?;
     for format in Format::ALL {
         if let Some(name) = format.file_name() {
             write_atomic(&out.join(name), render(&summary, format).as_bytes())?;
         }
     }
-    write_plots(out, experiment, records, &summary)?;
+    let recordings: Vec<Option<Recording>> = records
+        .iter()
+        .map(|record| {
+            sources.iter().find_map(|dir| {
+                let file = std::fs::File::open(run_dir(dir, &record.plan).join("trajectory.csv")).ok()?;
+                Recording::read_csv(file).ok()
+            })
+        })
+        .collect();
+    write_plots(out, scoring, records, &recordings, &summary)?;
+    let page = cpmx_report_html::Page {
+        summary: &summary,
+        description: scoring.spec.description.as_deref(),
+        map: &scoring.map,
+        vehicle: &scoring.vehicle,
+        runs: records
+            .iter()
+            .zip(&recordings)
+            .filter_map(|(record, recording)| {
+                recording
+                    .as_ref()
+                    .map(|recording| cpmx_report_html::PageRun { record, recording })
+            })
+            .collect(),
+        learning_curves: learning_curves(out),
+    };
+    write_atomic(&out.join("report.html"), cpmx_report_html::report_html(&page).as_bytes())?;
     Ok(summary)
+}
+
+/// The learning curves of trainings kept in the folder (`*/learning_curve.csv`, by folder
+/// name): `episode_reward_mean` per `iteration`.
+fn learning_curves(out: &Path) -> Vec<cpmx_report_html::LearningCurve> {
+    let Ok(entries) = std::fs::read_dir(out) else {
+        return Vec::new();
+    };
+    let mut folders: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).collect();
+    folders.sort();
+    folders
+        .into_iter()
+        .filter_map(|dir| {
+            let text = std::fs::read_to_string(dir.join("learning_curve.csv")).ok()?;
+            let mut lines = text.lines();
+            let header: Vec<&str> = lines.next()?.split(',').collect();
+            let iteration = header.iter().position(|h| *h == "iteration")?;
+            let reward = header.iter().position(|h| *h == "episode_reward_mean")?;
+            let (mut iterations, mut rewards) = (Vec::new(), Vec::new());
+            for line in lines {
+                let cells: Vec<&str> = line.split(',').collect();
+                let (Some(i), Some(r)) = (cells.get(iteration), cells.get(reward)) else {
+                    continue;
+                };
+                if let (Ok(i), Ok(r)) = (i.parse::<f64>(), r.parse::<f64>()) {
+                    iterations.push(i);
+                    rewards.push(r);
+                }
+            }
+            Some(cpmx_report_html::LearningCurve {
+                name: dir.file_name()?.to_string_lossy().into_owned(),
+                iterations,
+                episode_reward_mean: rewards,
+            })
+        })
+        .collect()
 }
 
 fn write_plots(
     out: &Path,
-    experiment: &Experiment,
+    scoring: &Scoring,
     records: &[RunRecord],
+    recordings: &[Option<Recording>],
     summary: &Summary,
 ) -> std::io::Result<()> {
     let plots = out.join("plots");
@@ -113,16 +265,11 @@ fn write_plots(
             svg.as_bytes(),
         )?;
     }
-    for record in records {
-        let dir = run_dir(out, &record.plan);
-        let Ok(file) = std::fs::File::open(dir.join("trajectory.csv")) else {
+    for (record, recording) in records.iter().zip(recordings) {
+        let Some(recording) = recording else {
             continue;
         };
-        let Ok(recording) = cpmx_recording::Recording::read_csv(file) else {
-            continue;
-        };
-        let svg =
-            cpmx_report::trajectory_svg(&experiment.map, &recording, &record.metrics, &experiment.vehicle);
+        let svg = cpmx_report::trajectory_svg(&scoring.map, recording, &record.metrics, &scoring.vehicle);
         write_atomic(
             &plots.join(format!("{}.svg", record.plan.key.replace('/', "_"))),
             svg.as_bytes(),
@@ -154,18 +301,36 @@ pub fn read_matrix(dir: &Path) -> Result<Vec<RunPlan>, String> {
     Ok(plans)
 }
 
-/// The finished runs of a folder, in matrix order (unfinished ones are reported as missing).
-pub fn read_records(dir: &Path, plans: &[RunPlan]) -> (Vec<RunRecord>, Vec<String>) {
-    let mut records = Vec::new();
-    let mut missing = Vec::new();
+/// What a folder holds of a matrix.
+#[derive(Debug, Default)]
+pub struct FolderRuns {
+    /// Finished runs made from the folder's spec, in matrix order.
+    pub records: Vec<RunRecord>,
+    /// Runs of the matrix not finished in the folder.
+    pub missing: Vec<String>,
+    /// Runs finished from an earlier spec (their inputs differ): left out of every summary
+    /// until they are run again.
+    pub stale: Vec<String>,
+}
+
+/// The finished runs of a folder whose inputs match `context_hash` (see
+/// [`context_hash`]), in matrix order.
+pub fn read_records(dir: &Path, plans: &[RunPlan], context_hash: &str) -> FolderRuns {
+    let mut runs = FolderRuns::default();
     for plan in plans {
-        match read_stored(&run_dir(dir, plan)) {
-            Ok(stored) => records.push(RunRecord {
+        let run = run_dir(dir, plan);
+        let stored = read_stored(&run).ok().filter(|s| s.key == plan.key);
+        match (stored, std::fs::read(run.join("trajectory.csv"))) {
+            (Some(stored), Ok(_)) if stored.inputs_hash != inputs_hash(context_hash, plan) => {
+                runs.stale.push(plan.key.clone());
+            }
+            (Some(stored), Ok(trajectory)) => runs.records.push(RunRecord {
                 plan: plan.clone(),
                 metrics: stored.metrics,
+                recording_sha256: sha256_hex(&trajectory),
             }),
-            Err(_) => missing.push(plan.key.clone()),
+            _ => runs.missing.push(plan.key.clone()),
         }
     }
-    (records, missing)
+    runs
 }

@@ -18,9 +18,11 @@ mod twin;
 
 pub use checks::BuildChecks;
 pub use engine::{Engine, RunError, RunInputs, engine_for};
-pub use experiment::{Experiment, PrepareError, PreparedPolicy, load_map, metrics_config, vehicle_params};
-pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, simulate};
+pub use experiment::{
+    Experiment, PrepareError, PreparedPolicy, Scoring, load_map, metrics_config, vehicle_params,
+};
+pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, measure_recording, simulate};
 pub use sim::SimEngine;
 pub use stack::{CONTROL_PERIOD_S, VehicleStack};
-pub use starts::InitialState;
+pub use starts::{InitialState, initial_states};
 pub use twin::{TwinEngine, control_periods, planner, trajectory_points};

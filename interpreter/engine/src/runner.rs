@@ -2,7 +2,9 @@
 //! engine run followed by its metrics and stored at once, finished runs skipped on `--resume`.
 //! Results come back in matrix order whatever the thread count, so tables are identical.
 
+use std::collections::BTreeSet;
 use std::path::Path;
+use std::sync::Mutex;
 
 use cpmx_metrics::{PathGeometry, RunMetrics, evaluate};
 use cpmx_recording::Recording;
@@ -66,11 +68,21 @@ pub fn execute(
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(options.jobs.max(1))
         .build()?;
+    // Fidelities whose lab did not answer: their later runs fail at once instead of waiting
+    // for the same timeout again.
+    let silent: Mutex<BTreeSet<String>> = Mutex::new(BTreeSet::new());
     let outcomes = pool.install(|| {
         selected
             .par_iter()
             .map(|plan| {
-                let outcome = execute_one(experiment, plan, out, options.resume, context_hash);
+                let outcome = if silent.lock().is_ok_and(|s| s.contains(&plan.fidelity)) {
+                    RunOutcome::Failed(format!(
+                        "not started: the lab of fidelity `{}` did not answer an earlier run",
+                        plan.fidelity
+                    ))
+                } else {
+                    execute_one(experiment, plan, out, options.resume, context_hash, &silent)
+                };
                 on_done(plan, &outcome);
                 ((*plan).clone(), outcome)
             })
@@ -97,6 +109,7 @@ fn execute_one(
     out: &Path,
     resume: bool,
     context_hash: &str,
+    silent: &Mutex<BTreeSet<String>>,
 ) -> RunOutcome {
     let hash = inputs_hash(context_hash, plan);
     if resume && let Some(stored) = finished_run(out, plan, &hash) {
@@ -124,12 +137,20 @@ fn execute_one(
             Err(e) => RunOutcome::Failed(format!("{reason}; cannot store what was recorded: {e}")),
         },
         Err(RunFailure::Reason(reason)) => RunOutcome::Failed(reason),
+        Err(RunFailure::LabSilent(reason)) => {
+            if let Ok(mut silent) = silent.lock() {
+                silent.insert(plan.fidelity.clone());
+            }
+            RunOutcome::Failed(reason)
+        }
     }
 }
 
 /// Why a run has no result: a reason, and what it recorded before it failed, if anything.
 enum RunFailure {
     Reason(String),
+    /// The lab did not answer: later runs of the fidelity would wait in vain.
+    LabSilent(String),
     Partial {
         reason: String,
         recording: Box<Recording>,
@@ -149,6 +170,7 @@ impl From<RunError> for RunFailure {
                 reason: format!("{reason} after {} ticks", recording.times_s.len()),
                 recording,
             },
+            silent @ RunError::LabSilent { .. } => RunFailure::LabSilent(silent.to_string()),
             other => RunFailure::Reason(other.to_string()),
         }
     }
@@ -157,7 +179,9 @@ impl From<RunError> for RunFailure {
 impl RunFailure {
     fn reason(self) -> String {
         match self {
-            RunFailure::Reason(reason) | RunFailure::Partial { reason, .. } => reason,
+            RunFailure::Reason(reason) | RunFailure::LabSilent(reason) | RunFailure::Partial { reason, .. } => {
+                reason
+            }
         }
     }
 }
@@ -204,16 +228,24 @@ fn run_engine(experiment: &Experiment, plan: &RunPlan) -> Result<Recording, RunF
 
 /// The spec's metrics of a recording (the same function `cpmx evaluate` and `cpmx report` use).
 pub fn measure(experiment: &Experiment, recording: &Recording) -> Result<RunMetrics, String> {
+    measure_recording(&experiment.map, &experiment.vehicle, &experiment.metrics, recording)
+}
+
+/// The metrics of a recording on `map` with the vehicle's footprint and the metric parameters.
+pub fn measure_recording(
+    map: &cpmx_world::Map,
+    vehicle: &cpmx_vehicle::VehicleParams,
+    metrics: &cpmx_metrics::MetricsConfig,
+    recording: &Recording,
+) -> Result<RunMetrics, String> {
     let paths: Vec<PathGeometry<'_>> = recording
         .ref_paths
         .iter()
         .map(|&id| {
-            experiment
-                .map
-                .reference_path(id)
+            map.reference_path(id)
                 .map(PathGeometry::from)
                 .ok_or(format!("no reference path {id}"))
         })
         .collect::<Result<_, _>>()?;
-    evaluate(recording, &paths, &experiment.vehicle, &experiment.metrics).map_err(|e| e.to_string())
+    evaluate(recording, &paths, vehicle, metrics).map_err(|e| e.to_string())
 }

@@ -15,8 +15,25 @@ pub use paired::{
 
 use serde::{Deserialize, Serialize};
 
-/// z quantile of a two-sided 95 % normal interval.
-pub const Z_95: f64 = 1.959_963_984_540_054;
+/// The values a metric can take: a confidence interval never leaves them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Range {
+    pub low: f64,
+    pub high: f64,
+}
+
+impl Range {
+    /// Any real value.
+    pub const UNBOUNDED: Range = Range {
+        low: f64::NEG_INFINITY,
+        high: f64::INFINITY,
+    };
+    /// Zero or more (rates, distances, speeds).
+    pub const NON_NEGATIVE: Range = Range {
+        low: 0.0,
+        high: f64::INFINITY,
+    };
+}
 
 /// A sample with its NaN values removed.
 #[derive(Debug, Clone, PartialEq)]
@@ -63,12 +80,13 @@ pub struct Summary {
     pub std: f64,
     /// Interquartile mean.
     pub iqm: f64,
-    /// Normal 95 % CI of the mean, see [`ci95_normal`].
+    /// Student-t 95 % CI of the mean within the metric's range, see [`ci95_t`].
     pub ci95: Interval,
 }
 
-/// Mean, std, IQM and normal 95 % CI of `values` (NaNs excluded and counted).
-pub fn summarize(values: &[f64]) -> Summary {
+/// Mean, std, IQM and the Student-t 95 % CI of `values` within `range` (NaNs excluded and
+/// counted).
+pub fn summarize(values: &[f64], range: Range) -> Summary {
     let clean = finite(values);
     let v = &clean.values;
     Summary {
@@ -77,7 +95,7 @@ pub fn summarize(values: &[f64]) -> Summary {
         mean: mean(v),
         std: std(v),
         iqm: iqm(v),
-        ci95: ci95_normal(v),
+        ci95: ci95_t(v, range),
     }
 }
 
@@ -111,20 +129,31 @@ pub fn iqm(values: &[f64]) -> f64 {
     mean(&v[cut..v.len() - cut])
 }
 
-/// Normal 95 % CI of the mean: `mean ± 1.96 · std / √n` (z quantile, not Student's t:
-/// with few runs per group it is too narrow; prefer the bootstrap CIs there). NaN for n < 2.
-pub fn ci95_normal(values: &[f64]) -> Interval {
+/// Student-t 95 % CI of the mean, `mean ± t(0.975; n − 1) · std / √n`, intersected with
+/// `range` (a rate of collisions has no interval below 0: the part outside the values the
+/// metric can take holds no mean). NaN for n < 2.
+///
+/// Student's t, not the normal z: groups hold few independent units (9 in the paper's
+/// design), where z = 1.96 is too narrow (t(0.975; 8) = 2.306).
+pub fn ci95_t(values: &[f64], range: Range) -> Interval {
     let clean = finite(values);
     let n = clean.values.len();
     if n < 2 {
         return Interval::NAN;
     }
     let (m, s) = (mean(&clean.values), std(&clean.values));
-    let half = Z_95 * s / (n as f64).sqrt();
+    let half = t_quantile_975(n - 1) * s / (n as f64).sqrt();
     Interval {
-        low: m - half,
-        high: m + half,
+        low: (m - half).max(range.low),
+        high: (m + half).min(range.high),
     }
+}
+
+/// The 0.975 quantile of Student's t with `degrees_of_freedom` (≥ 1).
+pub fn t_quantile_975(degrees_of_freedom: usize) -> f64 {
+    use statrs::distribution::{ContinuousCDF, StudentsT};
+    StudentsT::new(0.0, 1.0, degrees_of_freedom as f64)
+        .map_or(f64::NAN, |t| t.inverse_cdf(0.975))
 }
 
 /// The `p`-quantile (0 ≤ p ≤ 1) of sorted values with linear interpolation between order
@@ -151,7 +180,7 @@ mod tests {
         // Reference: statrs' `Statistics::mean` / `std_dev` (n − 1) on the same data.
         assert!((mean(&with_nan) - data.mean()).abs() < 1e-15);
         assert!((std(&with_nan) - data.std_dev()).abs() < 1e-15);
-        let s = summarize(&with_nan);
+        let s = summarize(&with_nan, Range::UNBOUNDED);
         assert_eq!((s.n, s.nan_count), (8, 1));
         assert!(mean(&[f64::NAN]).is_nan() && std(&[1.0]).is_nan());
     }
@@ -166,14 +195,32 @@ mod tests {
     }
 
     #[test]
-    fn normal_ci_by_hand() {
-        // mean 5, std 2 (n − 1), n = 4: half width 1.959963984540054 · 2 / 2.
-        let ci = ci95_normal(&[3.0, 3.0, 7.0, 7.0]);
+    fn t_ci_by_hand() {
+        // mean 5, std √(16/3) (n − 1), n = 4: half width t(0.975; 3) · s / 2, with
+        // t(0.975; 3) = 3.182446305284263 (tables; scipy.stats.t.ppf(0.975, 3)).
+        let ci = ci95_t(&[3.0, 3.0, 7.0, 7.0], Range::UNBOUNDED);
         let s = std(&[3.0, 3.0, 7.0, 7.0]);
         assert!((s - (16.0f64 / 3.0).sqrt()).abs() < 1e-15);
-        assert!((ci.low - (5.0 - Z_95 * s / 2.0)).abs() < 1e-15);
-        assert!((ci.high - (5.0 + Z_95 * s / 2.0)).abs() < 1e-15);
-        assert!(ci95_normal(&[1.0]).low.is_nan());
+        let t3 = 3.182_446_305_284_263;
+        assert!((ci.low - (5.0 - t3 * s / 2.0)).abs() < 1e-9, "{ci:?}");
+        assert!((ci.high - (5.0 + t3 * s / 2.0)).abs() < 1e-9, "{ci:?}");
+        assert!(ci95_t(&[1.0], Range::UNBOUNDED).low.is_nan());
+        // t(0.975; 8) = 2.306004135204166, t(0.975; 26) = 2.055529438642871.
+        assert!((t_quantile_975(8) - 2.306_004_135_204_166).abs() < 1e-9);
+        assert!((t_quantile_975(26) - 2.055_529_438_642_871).abs() < 1e-9);
+    }
+
+    #[test]
+    fn intervals_stay_in_the_metric_range() {
+        // One collision in nine runs: the unbounded interval reaches below zero.
+        let values = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 6.0];
+        let open = ci95_t(&values, Range::UNBOUNDED);
+        assert!(open.low < 0.0);
+        let bounded = ci95_t(&values, Range::NON_NEGATIVE);
+        assert_eq!(bounded.low, 0.0);
+        assert_eq!(bounded.high, open.high);
+        let capped = ci95_t(&[99.0, 100.0, 100.0], Range { low: 0.0, high: 100.0 });
+        assert_eq!(capped.high, 100.0);
     }
 
     #[test]

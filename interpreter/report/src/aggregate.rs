@@ -1,5 +1,6 @@
-//! Grouping runs and summarising each metric per group: n, mean, std, IQM, normal 95 % CI
-//! and, when asked for, stratified bootstrap CIs of the mean and the IQM.
+//! Grouping runs and summarising each metric per group over its independent units (copies
+//! of a repetition count once, see `units`): n, mean, std, IQM, Student-t 95 % CI within the
+//! metric's range and, when asked for, stratified bootstrap CIs of the mean and the IQM.
 //!
 //! This module owns the [`Summary`] every renderer reads. It formats nothing and computes
 //! no statistic itself: the formulas live in `cpmx_metrics::stats`.
@@ -11,6 +12,7 @@ use cpmx_spec::model::{Bootstrap, GroupKey, ReportSpec, Statistic};
 use crate::RunRecord;
 use crate::compare::{Comparison, compare};
 use crate::metric::{Metric, Units};
+use crate::units::distinct_units;
 
 /// Confidence of every interval of the report.
 pub const CONFIDENCE: f64 = 0.95;
@@ -46,8 +48,11 @@ impl Summary {
 pub struct Group {
     /// One value per `group_by` axis, in that order.
     pub key: Vec<String>,
-    /// Runs in the group (NaN values included).
+    /// Runs in the group (NaN values and copies included).
     pub runs: usize,
+    /// Independent units among them: runs that are not bit-identical copies of an earlier
+    /// repetition. Every statistic of the group is computed over these.
+    pub units: usize,
     /// One summary per metric, in [`Metric::ALL`] order.
     pub metrics: Vec<MetricSummary>,
 }
@@ -64,16 +69,17 @@ impl Group {
 pub struct MetricSummary {
     /// Which metric.
     pub metric: Metric,
-    /// The per-run values in run order, NaN (undefined) included.
+    /// The values of the group's independent units in run order, NaN (undefined) included.
     pub values: Vec<f64>,
-    /// n (NaN excluded), NaN count, mean, std (n − 1), IQM, normal 95 % CI of the mean.
+    /// n (independent units, NaN excluded), NaN count, mean, std (n − 1), IQM, Student-t
+    /// 95 % CI of the mean within the metric's range.
     pub stats: stats::Summary,
     /// Stratified bootstrap intervals, when `bootstrap` is among the statistics.
     pub bootstrap: Option<BootstrapIntervals>,
 }
 
-/// Percentile bootstrap 95 % intervals of a group, resampled within each initial
-/// configuration (the strata), from `ChaCha8Rng::seed_from_u64(bootstrap.seed)`.
+/// Percentile bootstrap 95 % intervals of a group, resampling its independent units within
+/// each initial configuration (the strata), from `ChaCha8Rng::seed_from_u64(bootstrap.seed)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BootstrapIntervals {
     /// Of the mean.
@@ -107,16 +113,19 @@ pub fn axis_value(plan: &RunPlan, axis: GroupKey) -> &str {
 /// statistics where they are undefined).
 pub fn summarize(experiment: &str, runs: &[RunRecord], report: &ReportSpec) -> Summary {
     let with_bootstrap = report.statistics.contains(&Statistic::Bootstrap);
+    let units = Units::of_runs(runs.iter().map(|r| &r.metrics));
     let groups = group_runs(runs, &report.group_by)
         .into_iter()
-        .map(|(key, members)| summarize_group(key, &members, with_bootstrap.then_some(&report.bootstrap)))
+        .map(|(key, members)| {
+            summarize_group(key, &members, units, with_bootstrap.then_some(&report.bootstrap))
+        })
         .collect();
     Summary {
         experiment: experiment.to_owned(),
         group_by: report.group_by.clone(),
         statistics: report.statistics.clone(),
         bootstrap: report.bootstrap.clone(),
-        units: Units::of_runs(runs.iter().map(|r| &r.metrics)),
+        units,
         groups,
         comparison: report
             .compare
@@ -156,15 +165,21 @@ fn group_runs<'a>(runs: &'a [RunRecord], axes: &[GroupKey]) -> Vec<(Vec<String>,
     groups
 }
 
-fn summarize_group(key: Vec<String>, members: &[&RunRecord], bootstrap: Option<&Bootstrap>) -> Group {
+fn summarize_group(
+    key: Vec<String>,
+    members: &[&RunRecord],
+    units: Units,
+    bootstrap: Option<&Bootstrap>,
+) -> Group {
+    let independent = distinct_units(members.iter().copied());
     let metrics = Metric::ALL
         .iter()
         .map(|&metric| {
-            let values: Vec<f64> = members.iter().map(|r| metric.of(&r.metrics)).collect();
+            let values: Vec<f64> = independent.iter().map(|r| metric.of(&r.metrics)).collect();
             MetricSummary {
                 metric,
-                stats: stats::summarize(&values),
-                bootstrap: bootstrap.map(|b| bootstrap_intervals(members, metric, b)),
+                stats: stats::summarize(&values, metric.range(units)),
+                bootstrap: bootstrap.map(|b| bootstrap_intervals(&independent, metric, b)),
                 values,
             }
         })
@@ -172,6 +187,7 @@ fn summarize_group(key: Vec<String>, members: &[&RunRecord], bootstrap: Option<&
     Group {
         key,
         runs: members.len(),
+        units: independent.len(),
         metrics,
     }
 }
@@ -207,7 +223,7 @@ fn bootstrap_intervals(members: &[&RunRecord], metric: Metric, settings: &Bootst
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::{record, spec};
+    use crate::testing::{copy_of, record, spec};
 
     #[test]
     fn groups_keep_matrix_order_and_exclude_nan() {
@@ -225,6 +241,42 @@ mod tests {
         assert_eq!(cra_a.stats.mean, 2.0);
         assert!(cra_a.bootstrap.is_none());
         assert_eq!(summary.groups[0].runs, 3);
+    }
+
+    #[test]
+    fn copies_count_once() {
+        let a = record("sim", "p", "init1", 1, [0.0, 40.0, 0.04, 0.7]);
+        let b = record("sim", "p", "init2", 1, [0.0, 44.0, 0.08, 0.6]);
+        let runs = vec![
+            a.clone(),
+            copy_of(&a, 2),
+            copy_of(&a, 3),
+            b.clone(),
+            copy_of(&b, 2),
+            copy_of(&b, 3),
+        ];
+        let summary = summarize("x", &runs, &spec(&[GroupKey::Fidelity], true, None));
+        let group = &summary.groups[0];
+        assert_eq!((group.runs, group.units), (6, 2));
+        let cd = group.metric(Metric::Cd).unwrap();
+        assert_eq!(cd.stats.n, 2);
+        assert!((cd.stats.mean - 0.06).abs() < 1e-15);
+        // Two units: t(0.975; 1) = 12.706 makes the interval wide, not six-copies narrow.
+        let half = cd.stats.ci95.high - cd.stats.mean;
+        assert!((half - 12.706_204_736 * cd.stats.std / 2f64.sqrt()).abs() < 1e-6, "{half}");
+    }
+
+    #[test]
+    fn a_collision_rate_has_no_negative_interval() {
+        let runs: Vec<RunRecord> = (1..=9)
+            .map(|i| {
+                let collisions = if i == 9 { 6.0 } else { 0.0 };
+                record("twin", "p", &format!("init{i}"), 1, [collisions, 40.0, 0.04, 0.7])
+            })
+            .collect();
+        let summary = summarize("x", &runs, &spec(&[GroupKey::Fidelity], false, None));
+        let cra_a = summary.groups[0].metric(Metric::CraA).unwrap();
+        assert_eq!(cra_a.stats.ci95.low, 0.0);
     }
 
     #[test]

@@ -1,8 +1,14 @@
 //! The paired comparison of every fidelity with a reference fidelity, over runs that share
 //! their policy, initial configuration and repetition (`RunPlan::pair_key`).
 //!
+//! A pair whose two recordings are bit-identical to those of an earlier pair of the same
+//! policy and initial configuration is a copy (both fidelities deterministic) and is used
+//! once: the tests count independent pairs, not repetitions of one.
+//!
 //! This module owns which runs are paired and which way a difference points (test minus
 //! reference); the statistics come from `cpmx_metrics::stats`.
+
+use std::collections::{BTreeMap, BTreeSet};
 
 use cpmx_metrics::stats::{self, Interval};
 use cpmx_spec::model::Bootstrap;
@@ -36,8 +42,13 @@ pub struct FidelityComparison {
 pub struct PairedMetric {
     /// Which metric.
     pub metric: Metric,
-    /// Matched pairs used (no NaN on either side).
+    /// Independent matched pairs used (no NaN on either side, copies counted once).
     pub pairs: usize,
+    /// Matched pairs left out as copies of an earlier pair (both recordings identical).
+    pub copies: usize,
+    /// Distinct runs of the reference fidelity among the pairs used (fewer than `pairs` when
+    /// a deterministic reference is paired with a stochastic fidelity).
+    pub reference_units: usize,
     /// Runs whose pair key is present on one side only.
     pub unmatched: usize,
     /// Matched pairs dropped because a value was NaN.
@@ -48,6 +59,8 @@ pub struct PairedMetric {
     pub ci95_bootstrap: Interval,
     /// Two-sided Wilcoxon signed-rank p-value of the differences.
     pub wilcoxon_p: f64,
+    /// Differences above, below and equal to zero.
+    pub signs: Signs,
     /// Probability that a paired run of the test fidelity is better than one of the
     /// reference (Mann-Whitney over the paired values; the direction is the metric's:
     /// lower CRA-A, CRA-L, CD, higher AS). 0.5 means no difference.
@@ -82,6 +95,61 @@ pub fn compare(runs: &[RunRecord], reference: &str, bootstrap: &Bootstrap) -> Co
     }
 }
 
+/// How many paired differences are positive, negative and zero.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Signs {
+    pub positive: usize,
+    pub negative: usize,
+    pub zero: usize,
+}
+
+impl Signs {
+    fn of(differences: &[f64]) -> Signs {
+        let mut signs = Signs::default();
+        for &d in differences {
+            if d > 0.0 {
+                signs.positive += 1;
+            } else if d < 0.0 {
+                signs.negative += 1;
+            } else {
+                signs.zero += 1;
+            }
+        }
+        signs
+    }
+}
+
+/// The pair keys of `test` × `reference` that repeat an earlier pair of the same policy and
+/// initial configuration with both recordings identical.
+fn copied_pairs(runs: &[RunRecord], test: &str, reference: &str) -> BTreeSet<String> {
+    let digests = |fidelity: &str| -> BTreeMap<String, &RunRecord> {
+        runs.iter()
+            .filter(|r| r.plan.fidelity == fidelity)
+            .map(|r| (r.plan.pair_key(), r))
+            .collect()
+    };
+    let (tests, references) = (digests(test), digests(reference));
+    let mut seen: BTreeSet<(&str, &str, &str, &str)> = BTreeSet::new();
+    let mut copies = BTreeSet::new();
+    // Matrix order (repetition 1 first) decides which pair of a set of copies is kept.
+    for run in runs.iter().filter(|r| r.plan.fidelity == test) {
+        let key = run.plan.pair_key();
+        let (Some(t), Some(r)) = (tests.get(&key), references.get(&key)) else {
+            continue;
+        };
+        let signature = (
+            t.plan.policy.as_str(),
+            t.plan.initial_configuration.as_str(),
+            t.recording_sha256.as_str(),
+            r.recording_sha256.as_str(),
+        );
+        if !seen.insert(signature) {
+            copies.insert(key);
+        }
+    }
+    copies
+}
+
 fn paired_metric(
     runs: &[RunRecord],
     test: &str,
@@ -89,17 +157,32 @@ fn paired_metric(
     metric: Metric,
     bootstrap: &Bootstrap,
 ) -> PairedMetric {
+    let copies = copied_pairs(runs, test, reference);
     let side = |fidelity: &str| -> Vec<(String, f64)> {
         runs.iter()
-            .filter(|r| r.plan.fidelity == fidelity)
+            .filter(|r| r.plan.fidelity == fidelity && !copies.contains(&r.plan.pair_key()))
             .map(|r| (r.plan.pair_key(), metric.of(&r.metrics)))
             .collect()
     };
     let pairs = stats::match_pairs(side(test), side(reference));
     let differences: Vec<f64> = pairs.a.iter().zip(&pairs.b).map(|(t, r)| t - r).collect();
+    let reference_units: BTreeSet<(&str, &str, &str)> = runs
+        .iter()
+        .filter(|r| r.plan.fidelity == reference && pairs.keys.binary_search(&r.plan.pair_key()).is_ok())
+        .map(|r| {
+            (
+                r.plan.policy.as_str(),
+                r.plan.initial_configuration.as_str(),
+                r.recording_sha256.as_str(),
+            )
+        })
+        .collect();
     PairedMetric {
         metric,
         pairs: pairs.keys.len(),
+        copies: copies.len(),
+        reference_units: reference_units.len(),
+        signs: Signs::of(&differences),
         unmatched: pairs.unmatched,
         nan_pairs: pairs.nan_pairs,
         mean_difference: stats::mean(&differences),
@@ -118,7 +201,7 @@ fn paired_metric(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::record;
+    use crate::testing::{copy_of, record};
 
     fn settings() -> Bootstrap {
         Bootstrap {
@@ -145,6 +228,28 @@ mod tests {
         assert_eq!(cra_a.probability_of_improvement, 0.0);
         // AS: the lab is slower in both pairs: never an improvement on a ↑ metric either.
         assert_eq!(c.fidelities[0].metrics[3].probability_of_improvement, 0.0);
+    }
+
+    #[test]
+    fn deterministic_pairs_count_once() {
+        let mut runs = Vec::new();
+        for init in ["i1", "i2", "i3"] {
+            let sim = record("sim", "p", init, 1, [0.0, 40.0, 0.05, 0.70]);
+            let mpc = record("sim-mpc", "p", init, 1, [0.0, 40.0, 0.09, 0.70]);
+            runs.extend([copy_of(&sim, 2), sim.clone(), copy_of(&sim, 3)]);
+            runs.extend([mpc.clone(), copy_of(&mpc, 2), copy_of(&mpc, 3)]);
+            // A stochastic twin: every repetition its own recording.
+            for rep in 1..=3 {
+                runs.push(record("twin", "p", init, rep, [0.0, 40.0, 0.1, 0.70]));
+            }
+        }
+        let c = compare(&runs, "sim", &settings());
+        let mpc = &c.fidelities[0].metrics[2];
+        assert_eq!(c.fidelities[0].fidelity, "sim-mpc");
+        assert_eq!((mpc.pairs, mpc.copies, mpc.reference_units), (3, 6, 3));
+        assert_eq!(mpc.signs.positive, 3);
+        let twin = &c.fidelities[1].metrics[2];
+        assert_eq!((twin.pairs, twin.copies, twin.reference_units), (9, 0, 3));
     }
 
     #[test]

@@ -2,9 +2,10 @@
 //! tables of a run folder (`per_run.csv`, `summary.md`, `summary.csv`, `summary.json`, and a
 //! LaTeX `tabular` shaped like the paper's Table 2) and SVG plots.
 //!
-//! Modules: `metric` (names, units, directions, precision), `aggregate` (groups and their
-//! statistics), `compare` (paired differences with the reference fidelity), `table` (text
-//! renderers), `svg` (plots written as SVG text).
+//! Modules: `metric` (names, units, directions, precision, bounds), `units` (which runs are
+//! independent units and which are copies), `aggregate` (groups and their statistics),
+//! `compare` (paired differences with the reference fidelity), `table` (text renderers),
+//! `svg` (plots written as SVG text).
 //!
 //! Every renderer is a pure function of its input and byte-stable: fixed number formats,
 //! no hash-map order, no clock. This crate reads no files and runs no engine; the
@@ -15,6 +16,7 @@ mod compare;
 mod metric;
 mod svg;
 mod table;
+mod units;
 #[cfg(test)]
 mod testing;
 
@@ -22,19 +24,24 @@ pub use aggregate::{
     BootstrapIntervals, CONFIDENCE, Group, MetricSummary, Summary, axis_name, axis_value, sort_by_matrix,
     summarize,
 };
-pub use compare::{Comparison, FidelityComparison, PairedMetric};
+pub use compare::{Comparison, FidelityComparison, PairedMetric, Signs};
 pub use metric::{Metric, Units};
 pub use svg::{distribution_svg, trajectory_svg};
 pub use table::{Format, per_run_csv, render};
+pub use units::distinct_units;
 
 use cpmx_metrics::RunMetrics;
 use cpmx_spec::RunPlan;
 
-/// One finished run: where it sits in the matrix and its metrics.
+/// One finished run: where it sits in the matrix, its metrics, and the digest of its
+/// recording.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunRecord {
     /// Its row of the run matrix.
     pub plan: RunPlan,
     /// Its metrics (`metrics.json`).
     pub metrics: RunMetrics,
+    /// SHA-256 of its `trajectory.csv`: two repetitions with the same digest are one
+    /// independent unit, not two (see `units`).
+    pub recording_sha256: String,
 }

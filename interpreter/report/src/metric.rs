@@ -3,7 +3,7 @@
 //!
 //! This module owns presentation facts about metrics; it computes no metric.
 
-use cpmx_metrics::stats::Direction;
+use cpmx_metrics::stats::{Direction, Range};
 use cpmx_metrics::{MetricsConfig, RunMetrics};
 
 /// A metric of the summary, in the column order of the paper's Table 2.
@@ -67,6 +67,18 @@ impl Metric {
         }
     }
 
+    /// The values the metric can take: every rate, distance and speed is at least 0, and
+    /// CRA-L (metres outside the lane per distance driven) at most its normalising distance.
+    pub fn range(self, units: Units) -> Range {
+        match self {
+            Metric::CraL => Range {
+                low: 0.0,
+                high: units.cra_l_per_distance_m,
+            },
+            Metric::CraA | Metric::Cd | Metric::As => Range::NON_NEGATIVE,
+        }
+    }
+
     /// This metric's value in one run (NaN when undefined).
     pub fn of(self, metrics: &RunMetrics) -> f64 {
         match self {
@@ -124,6 +136,14 @@ mod tests {
         };
         assert_eq!(other.text(Metric::CraA), "events/1000 m");
         assert_eq!(other.text(Metric::CraL), "m/0.5 m");
+    }
+
+    #[test]
+    fn lane_violation_cannot_exceed_the_distance_driven() {
+        let units = Units::of_runs(std::iter::empty());
+        assert_eq!(Metric::CraL.range(units).high, 100.0);
+        assert_eq!(Metric::CraA.range(units).low, 0.0);
+        assert_eq!(Metric::As.range(units).high, f64::INFINITY);
     }
 
     #[test]

@@ -31,7 +31,21 @@ pub fn record(fidelity: &str, policy: &str, init: &str, repetition: u32, values:
             pair_events: vec![],
             agents: vec![],
         },
+        recording_sha256: format!("recording of {fidelity}/{policy}/{init}/rep{repetition}"),
     }
+}
+
+/// Repetition `repetition` of `run`'s cell with a bit-identical recording (what a
+/// deterministic fidelity and policy give).
+pub fn copy_of(run: &RunRecord, repetition: u32) -> RunRecord {
+    let mut copy = run.clone();
+    copy.plan.repetition = repetition;
+    copy.plan.seed = u64::from(repetition);
+    copy.plan.key = format!(
+        "{}/{}/{}/rep{repetition}",
+        run.plan.fidelity, run.plan.policy, run.plan.initial_configuration
+    );
+    copy
 }
 
 /// A report section.

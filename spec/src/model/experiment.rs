@@ -78,6 +78,12 @@ pub struct MapFile {
     /// (`--data DIR`, `CPMX_DATA`).
     #[schemars(length(min = 1))]
     pub file: String,
+    /// SHA-256 of the file's bytes (64 hex digits). When given, only a file with this content
+    /// is taken: the data path is searched for one. `cpmx run` records it in the run
+    /// folder's `spec.resolved.yaml`, so that a folder finds its map wherever it moves.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(regex(pattern = r"^[0-9a-f]{64}$"))]
+    pub sha256: Option<String>,
     /// File format; detected from the content when omitted.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub format: Option<MapFormat>,

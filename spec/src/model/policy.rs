@@ -38,6 +38,12 @@ pub struct MlpSpec {
     /// the spec's folder or found on the data path.
     #[schemars(length(min = 1))]
     pub weights: String,
+    /// SHA-256 of the weight file's bytes (64 hex digits). When given, only a file with this
+    /// content is taken: the data path is searched for one. `cpmx run` records it in the run
+    /// folder's `spec.resolved.yaml`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(regex(pattern = r"^[0-9a-f]{64}$"))]
+    pub sha256: Option<String>,
 }
 
 /// Deterministic or stochastic actions.

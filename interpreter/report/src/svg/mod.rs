@@ -45,6 +45,30 @@ fn open(width_px: f64, height_px: f64) -> String {
     )
 }
 
+/// A round length for a scale bar: the largest 1, 2 or 5 × 10^k m not above `at_most_m`.
+fn round_length_m(at_most_m: f64) -> f64 {
+    if !(at_most_m.is_finite() && at_most_m > 0.0) {
+        return 1.0;
+    }
+    let power = 10f64.powf(at_most_m.log10().floor());
+    [5.0, 2.0, 1.0]
+        .into_iter()
+        .map(|m| m * power)
+        .find(|&length| length <= at_most_m * (1.0 + 1e-9))
+        .unwrap_or(power)
+}
+
+/// `50 cm`, `1 m`, `200 m`, `2 km`.
+fn length_label(length_m: f64) -> String {
+    if length_m >= 1000.0 {
+        format!("{} km", length_m / 1000.0)
+    } else if length_m >= 1.0 {
+        format!("{length_m} m")
+    } else {
+        format!("{} cm", (length_m * 100.0).round())
+    }
+}
+
 /// A path through `points` (`M x y L x y ...`); empty for no points.
 fn path_data(points: impl IntoIterator<Item = (f64, f64)>) -> String {
     let mut d = String::new();
@@ -71,5 +95,17 @@ mod tests {
         assert_eq!(path_data([(0.0, 1.0), (2.0, 3.0)]), "M0.0 1.0 L2.0 3.0");
         assert_eq!(escape("a<b & \"c\""), "a&lt;b &amp; &quot;c&quot;");
         assert_eq!(colour(11), colour(1));
+    }
+
+    #[test]
+    fn scale_bars_have_round_lengths() {
+        assert_eq!(round_length_m(0.9), 0.5);
+        assert_eq!(round_length_m(1.0), 1.0);
+        assert_eq!(round_length_m(84.0), 50.0);
+        assert_eq!(round_length_m(190.0), 100.0);
+        assert_eq!(round_length_m(0.25), 0.2);
+        assert_eq!(length_label(0.5), "50 cm");
+        assert_eq!(length_label(200.0), "200 m");
+        assert_eq!(length_label(2000.0), "2 km");
     }
 }

@@ -12,10 +12,12 @@ use cpmx_world::{Bounds, Map, Point};
 
 use super::{colour, open, path_data, px};
 
-/// Pixels per metre.
-const SCALE_PX_PER_M: f64 = 200.0;
-/// Blank border around the drawing [px].
-const MARGIN_PX: f64 = 20.0;
+/// The largest drawing [px]: any map, from the 4.5 m lab to a few hundred metres, is scaled
+/// to fit (keeping its aspect ratio), with a scale bar.
+const MAX_WIDTH_PX: f64 = 900.0;
+const MAX_HEIGHT_PX: f64 = 800.0;
+/// Blank border around the drawing [px] (the scale bar sits in the bottom one).
+const MARGIN_PX: f64 = 30.0;
 
 /// The SVG of one run on its map.
 ///
@@ -113,8 +115,28 @@ pub fn trajectory_svg(
             }
         }
     }
+    scale_bar(&mut out, &frame);
     out.push_str("</svg>\n");
     out
+}
+
+/// A bar of a round length (1, 2 or 5 × 10^k m, about a fifth of the drawing) with its label,
+/// in the bottom-left corner.
+fn scale_bar(out: &mut String, frame: &Frame) {
+    let length_m = super::round_length_m((frame.bounds.max_x_m - frame.bounds.min_x_m) / 5.0);
+    let length_px = length_m * frame.scale_px_per_m;
+    let y = frame.height_px - MARGIN_PX / 2.0;
+    let _ = writeln!(
+        out,
+        "<g class=\"scale-bar\"><path d=\"M{x0} {y} L{x1} {y}\" stroke=\"black\" stroke-width=\"2\"/>\
+         <text x=\"{tx}\" y=\"{ty}\">{label}</text></g>",
+        x0 = px(MARGIN_PX),
+        x1 = px(MARGIN_PX + length_px),
+        y = px(y),
+        tx = px(MARGIN_PX + length_px + 6.0),
+        ty = px(y + 4.0),
+        label = super::length_label(length_m)
+    );
 }
 
 /// The states the metrics saw: resampled, rotated as `rotate180` asks, truncated.
@@ -183,9 +205,10 @@ fn footprint(
     );
 }
 
-/// Map metres to SVG pixels, y up.
+/// Map metres to SVG pixels, y up, scaled to fit the largest drawing.
 struct Frame {
     bounds: Bounds,
+    scale_px_per_m: f64,
     width_px: f64,
     height_px: f64,
 }
@@ -201,17 +224,24 @@ impl Frame {
             .map(|s| [s.x_m, s.y_m])
             .filter(|p| p[0].is_finite() && p[1].is_finite());
         let bounds = Bounds::of(corners.into_iter().chain(positions)).unwrap_or(b);
+        let (width_m, height_m) = (
+            (bounds.max_x_m - bounds.min_x_m).max(1e-3),
+            (bounds.max_y_m - bounds.min_y_m).max(1e-3),
+        );
+        let scale_px_per_m =
+            ((MAX_WIDTH_PX - 2.0 * MARGIN_PX) / width_m).min((MAX_HEIGHT_PX - 2.0 * MARGIN_PX) / height_m);
         Frame {
             bounds,
-            width_px: (bounds.max_x_m - bounds.min_x_m) * SCALE_PX_PER_M + 2.0 * MARGIN_PX,
-            height_px: (bounds.max_y_m - bounds.min_y_m) * SCALE_PX_PER_M + 2.0 * MARGIN_PX,
+            scale_px_per_m,
+            width_px: width_m * scale_px_per_m + 2.0 * MARGIN_PX,
+            height_px: height_m * scale_px_per_m + 2.0 * MARGIN_PX,
         }
     }
 
     fn to_px(&self, x_m: f64, y_m: f64) -> (f64, f64) {
         (
-            MARGIN_PX + (x_m - self.bounds.min_x_m) * SCALE_PX_PER_M,
-            MARGIN_PX + (self.bounds.max_y_m - y_m) * SCALE_PX_PER_M,
+            MARGIN_PX + (x_m - self.bounds.min_x_m) * self.scale_px_per_m,
+            MARGIN_PX + (self.bounds.max_y_m - y_m) * self.scale_px_per_m,
         )
     }
 

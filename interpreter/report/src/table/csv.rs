@@ -45,11 +45,12 @@ pub fn per_run_csv(runs: &[RunRecord]) -> String {
 }
 
 /// The statistic columns of `summary.csv`, after one column per `group_by` axis.
-const SUMMARY_COLUMNS: [&str; 18] = [
+const SUMMARY_COLUMNS: [&str; 19] = [
     "metric",
     "unit",
     "better",
     "runs",
+    "units",
     "n",
     "nan_count",
     "mean",
@@ -85,6 +86,7 @@ pub fn summary_csv(summary: &Summary) -> String {
                 summary.units.text(m.metric),
                 better(m.metric.direction()).to_owned(),
                 group.runs.to_string(),
+                group.units.to_string(),
                 s.n.to_string(),
                 s.nan_count.to_string(),
                 format_float(s.mean),

@@ -21,6 +21,7 @@ pub fn render(summary: &Summary) -> String {
         .collect();
     let document = json!({
         "experiment": summary.experiment,
+        "units": super::units_note(summary),
         "group_by": summary.group_by.iter().map(|&a| axis_name(a)).collect::<Vec<_>>(),
         "statistics": statistics,
         "confidence": CONFIDENCE,
@@ -52,7 +53,7 @@ fn group(summary: &Summary, g: &Group) -> Value {
         .iter()
         .map(|m| (m.metric.id().to_owned(), metric(m)))
         .collect();
-    json!({"key": key, "runs": g.runs, "metrics": metrics})
+    json!({"key": key, "runs": g.runs, "units": g.units, "metrics": metrics})
 }
 
 fn metric(m: &MetricSummary) -> Value {
@@ -86,17 +87,21 @@ fn comparison(c: &Comparison) -> Value {
         "reference_runs": c.reference_runs,
         "difference": "fidelity - reference",
         "fidelities": fidelities,
+        "notes": super::comparison_notes(c),
     })
 }
 
 fn paired(m: &PairedMetric) -> Value {
     json!({
         "pairs": m.pairs,
+        "copies": m.copies,
+        "reference_units": m.reference_units,
         "unmatched": m.unmatched,
         "nan_pairs": m.nan_pairs,
         "mean_difference": number(m.mean_difference),
         "ci95_bootstrap": interval(m.ci95_bootstrap),
         "wilcoxon_p": number(m.wilcoxon_p),
+        "signs": {"positive": m.signs.positive, "negative": m.signs.negative, "zero": m.signs.zero},
         "probability_of_improvement": number(m.probability_of_improvement),
     })
 }

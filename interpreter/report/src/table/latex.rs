@@ -13,9 +13,13 @@ use crate::metric::{Metric, Units};
 /// The `tabular`, preceded by a comment naming the experiment and the cell layout.
 pub fn render(summary: &Summary) -> String {
     let parts = CellParts::of(summary);
-    let runs: Vec<String> = summary.groups.iter().map(|g| g.runs.to_string()).collect();
+    let runs: Vec<String> = summary
+        .groups
+        .iter()
+        .map(|g| format!("{} ({} independent)", g.runs, g.units))
+        .collect();
     let mut out = format!(
-        "% cpmx: {}; cells: {}; runs per row: {}\n% needs \\usepackage{{booktabs,siunitx}}\n",
+        "% cpmx: {}; cells: {} over independent units; runs per row: {}\n% needs \\usepackage{{booktabs,siunitx}}\n",
         summary.experiment,
         parts.caption(),
         if runs.is_empty() {

@@ -34,9 +34,9 @@ fn main_table(out: &mut String, summary: &Summary) {
         parts.caption()
     );
     let mut header = group_header(summary);
-    header.push("runs".into());
+    header.extend(["runs".into(), "units".into()]);
     let mut align = vec![":--"; summary.group_by.len()];
-    align.push("--:");
+    align.extend(["--:", "--:"]);
     for metric in Metric::ALL {
         header.push(format!(
             "{} {} [{}]",
@@ -52,7 +52,7 @@ fn main_table(out: &mut String, summary: &Summary) {
     let best = best_groups(summary);
     for (index, group) in summary.groups.iter().enumerate() {
         let mut cells = group_cells(group);
-        cells.push(group.runs.to_string());
+        cells.extend([group.runs.to_string(), group.units.to_string()]);
         for (metric, best) in Metric::ALL.into_iter().zip(&best) {
             let bold = |s: String| {
                 if *best == Some(index) {
@@ -69,6 +69,11 @@ fn main_table(out: &mut String, summary: &Summary) {
         }
         row(out, &cells);
     }
+    let _ = writeln!(out, "\n{}", super::units_note(summary));
+    let _ = writeln!(
+        out,
+        "AS counts the time agents spend stopped, e.g. after reaching the end of an open path."
+    );
     let excluded = exclusions(summary);
     if !excluded.is_empty() {
         let _ = writeln!(
@@ -87,12 +92,18 @@ fn interval_table(out: &mut String, summary: &Summary) {
     );
     let _ = writeln!(out, "\n## 95 % confidence intervals\n");
     if normal {
-        let _ = writeln!(out, "Normal: mean ± 1.96 · std / √n.");
+        let _ = writeln!(
+            out,
+            "t: mean ± t(0.975; n − 1) · std / √n over the n independent units, cut to the values the \
+             metric can take (rates, distances and speeds ≥ 0; CRA-L ≤ {}).",
+            summary.units.cra_l_per_distance_m
+        );
     }
     if bootstrap {
         let _ = writeln!(
             out,
-            "Bootstrap: percentile, resampled within each initial configuration; {} resamples, seed {}.",
+            "Bootstrap: percentile, independent units resampled within each initial configuration; \
+             {} resamples, seed {}.",
             summary.bootstrap.resamples, summary.bootstrap.seed
         );
     }
@@ -100,7 +111,7 @@ fn interval_table(out: &mut String, summary: &Summary) {
     let mut header = group_header(summary);
     header.extend(["metric".into(), "n".into()]);
     if normal {
-        header.push("mean (normal)".into());
+        header.push("mean (t)".into());
     }
     if bootstrap {
         header.extend(["mean (bootstrap)".into(), "IQM (bootstrap)".into()]);
@@ -133,8 +144,10 @@ fn comparison_table(out: &mut String, summary: &Summary, comparison: &Comparison
     let _ = writeln!(out, "\n## Paired comparison with `{}`\n", comparison.reference);
     let _ = writeln!(
         out,
-        "Differences fidelity − {} over runs with the same policy, initial configuration and repetition. \
+        "Differences fidelity − {} over runs with the same policy, initial configuration and repetition; \
+         a pair whose two recordings repeat an earlier pair's (both fidelities deterministic) counts once. \
          CI: paired percentile bootstrap, {} resamples, seed {}. p: two-sided Wilcoxon signed-rank test. \
+         +/−/0: differences above, below and at zero. \
          P(better): probability that a run of the fidelity is better than one of the reference \
          (by the metric's arrow; 0.5: no difference).\n",
         comparison.reference, summary.bootstrap.resamples, summary.bootstrap.seed
@@ -151,13 +164,14 @@ fn comparison_table(out: &mut String, summary: &Summary, comparison: &Comparison
             "difference",
             "95 % CI",
             "p",
+            "+/−/0",
             "P(better)",
         ]
         .map(String::from),
     );
     row(
         out,
-        &[":--", ":--", "--:", "--:", "--:", "--:", "--:"].map(String::from),
+        &[":--", ":--", "--:", "--:", "--:", "--:", "--:", "--:"].map(String::from),
     );
     for fidelity in &comparison.fidelities {
         for m in &fidelity.metrics {
@@ -171,9 +185,17 @@ fn comparison_table(out: &mut String, summary: &Summary, comparison: &Comparison
                     fixed(m.mean_difference, d),
                     interval(m.ci95_bootstrap, d),
                     p_value(m.wilcoxon_p),
+                    format!("{}/{}/{}", m.signs.positive, m.signs.negative, m.signs.zero),
                     fixed(m.probability_of_improvement, 2),
                 ],
             );
+        }
+    }
+    let notes = super::comparison_notes(comparison);
+    if !notes.is_empty() {
+        out.push('\n');
+        for note in notes {
+            let _ = writeln!(out, "- {note}");
         }
     }
 }

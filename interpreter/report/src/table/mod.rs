@@ -195,6 +195,107 @@ fn exclusions(summary: &Summary) -> Vec<String> {
         .collect()
 }
 
+/// What the tables count as a sample, and how many copies the groups held.
+fn units_note(summary: &Summary) -> String {
+    let runs: usize = summary.groups.iter().map(|g| g.runs).sum();
+    let units: usize = summary.groups.iter().map(|g| g.units).sum();
+    let mut note = String::from(
+        "Statistics count independent units: a repetition whose recording is bit-identical to an \
+         earlier one of the same fidelity, policy and initial configuration (a deterministic \
+         fidelity and policy) is a copy and counts once.",
+    );
+    if units < runs {
+        note.push_str(&format!(
+            " Here {} of {runs} runs are copies; n below is the number of units.",
+            runs - units
+        ));
+    }
+    note
+}
+
+/// Notes on a comparison: copies left out, references shared by several pairs, and every
+/// metric whose confidence interval and p-value disagree, with the reason.
+fn comparison_notes(comparison: &crate::Comparison) -> Vec<String> {
+    let mut notes = Vec::new();
+    for fidelity in &comparison.fidelities {
+        let Some(first) = fidelity.metrics.first() else {
+            continue;
+        };
+        if first.copies > 0 {
+            notes.push(format!(
+                "`{}`: {} pairs are copies of earlier pairs (both fidelities gave bit-identical \
+                 repetitions) and are counted once: {} independent pairs.",
+                fidelity.fidelity, first.copies, first.pairs
+            ));
+        }
+        if first.reference_units > 0 && first.reference_units < first.pairs {
+            notes.push(format!(
+                "`{}`: its {} pairs share {} distinct `{}` runs (the reference repeats itself), \
+                 so the differences of one policy and initial configuration are not independent \
+                 of each other; read the intervals as conditional on those reference runs.",
+                fidelity.fidelity, first.pairs, first.reference_units, comparison.reference
+            ));
+        }
+        for m in &fidelity.metrics {
+            if let Some(reason) = disagreement(m) {
+                notes.push(format!("`{}` {}: {reason}", fidelity.fidelity, m.metric.label()));
+            }
+        }
+    }
+    notes
+}
+
+/// Why the bootstrap interval of the mean difference and the Wilcoxon p-value disagree
+/// about a difference at the 5 % level, or `None` when they agree.
+fn disagreement(m: &crate::PairedMetric) -> Option<String> {
+    let (low, high, p) = (m.ci95_bootstrap.low, m.ci95_bootstrap.high, m.wilcoxon_p);
+    if low.is_nan() || high.is_nan() || p.is_nan() {
+        return None;
+    }
+    let ci_excludes_zero = low > 0.0 || high < 0.0;
+    let test_rejects = p < 0.05;
+    if ci_excludes_zero == test_rejects {
+        return None;
+    }
+    let signs = m.signs;
+    let nonzero = signs.positive + signs.negative;
+    let mixed = format!(
+        "{} differences are above zero, {} below{}",
+        signs.positive,
+        signs.negative,
+        if signs.zero > 0 {
+            format!(" and {} exactly zero (the test leaves those out)", signs.zero)
+        } else {
+            String::new()
+        }
+    );
+    Some(if ci_excludes_zero {
+        // Exact signed-rank test: with k non-zero differences the smallest two-sided p is 2 / 2^k.
+        let smallest_p = 2.0 / 2f64.powi(nonzero as i32);
+        let floor = if smallest_p >= 0.05 {
+            format!(
+                " With {nonzero} non-zero differences no p-value can fall below {}, whatever the data.",
+                fixed(smallest_p, 3)
+            )
+        } else {
+            String::new()
+        };
+        format!(
+            "the interval of the mean difference excludes 0 but p = {}: the interval is about the mean, \
+             which a few large differences can carry, while the signed-rank test weighs every pair by \
+             rank; {mixed}. A percentile bootstrap of {} pairs is also narrower than it should be.{floor}",
+            p_value(p),
+            m.pairs
+        )
+    } else {
+        format!(
+            "p = {} but the interval of the mean difference includes 0: the ranks point one way ({mixed}) \
+             while a few large differences the other way pull the mean toward zero.",
+            p_value(p)
+        )
+    })
+}
+
 /// How many pairs a comparison used, e.g. `25 (2 unmatched, 1 NaN)`.
 fn pairs_text(m: &crate::PairedMetric) -> String {
     let mut notes = Vec::new();
@@ -203,6 +304,9 @@ fn pairs_text(m: &crate::PairedMetric) -> String {
     }
     if m.nan_pairs > 0 {
         notes.push(format!("{} NaN", m.nan_pairs));
+    }
+    if m.copies > 0 {
+        notes.push(format!("{} copies", m.copies));
     }
     if notes.is_empty() {
         m.pairs.to_string()

@@ -79,6 +79,7 @@ pub fn record(
             pair_events: vec![],
             agents: vec![],
         },
+        recording_sha256: format!("recording of {fidelity}/{policy}/{init}/rep{repetition}"),
     }
 }
 

@@ -1,0 +1,255 @@
+//! The JSON the page draws from: the map (boundaries simplified for display), the vehicle's
+//! footprint, every run on the metrics' time grid (so the metrics' sample indices of
+//! collision events and lane violations point at drawn states), the pairs of runs that
+//! replay together, Figure 3's choices, and the learning curves.
+//!
+//! Display only: coordinates are rounded to a millimetre (or the map's scale) and polylines
+//! simplified; the metrics were computed from every sample of the recording.
+
+use std::collections::BTreeMap;
+
+use cpmx_metrics::resample::resample;
+use cpmx_recording::AgentSample;
+use cpmx_world::Point;
+use serde_json::{Value, json};
+
+use crate::{Page, PageRun};
+
+/// The data of the page (what the insta snapshots hold).
+pub fn page_data(page: &Page<'_>) -> Value {
+    let bounds = page.map.bounds();
+    let diagonal_m = (bounds.max_x_m - bounds.min_x_m).hypot(bounds.max_y_m - bounds.min_y_m);
+    // A tolerance invisible at any size the page draws the map (≤ 1/2000 of it, ≥ 1 mm).
+    let tolerance_m = (diagonal_m / 2000.0).max(0.001);
+    let lanelets: Vec<Value> = page
+        .map
+        .lanelets()
+        .flat_map(|l| [&l.left_boundary, &l.right_boundary])
+        .map(|line| flat(&simplify(&line.points, tolerance_m)))
+        .collect();
+    let mut paths: BTreeMap<String, Value> = BTreeMap::new();
+    for run in &page.runs {
+        for id in &run.recording.ref_paths {
+            if let Some(path) = page.map.reference_path(*id) {
+                paths
+                    .entry(id.to_string())
+                    .or_insert_with(|| flat(&simplify(&path.center_line.points, tolerance_m)));
+            }
+        }
+    }
+    let runs: Vec<Value> = page.runs.iter().map(run_data).collect();
+    json!({
+        "experiment": page.summary.experiment,
+        "map": {
+            "bounds": [round(bounds.min_x_m), round(bounds.min_y_m), round(bounds.max_x_m), round(bounds.max_y_m)],
+            "lanelets": lanelets,
+            "paths": paths,
+        },
+        "vehicle": {"length_m": page.vehicle.length_m, "width_m": page.vehicle.width_m},
+        "runs": runs,
+        "pairs": pairs(&page.runs),
+        "figure3": figure3(&page.runs),
+        "learning_curves": page.learning_curves.iter().map(|c| json!({
+            "name": c.name,
+            "iteration": c.iterations,
+            "episode_reward_mean": c.episode_reward_mean,
+        })).collect::<Vec<_>>(),
+    })
+}
+
+/// One run: its place in the matrix, metrics, and each agent's states on the metrics' grid.
+fn run_data(run: &PageRun<'_>) -> Value {
+    let (plan, metrics) = (&run.record.plan, &run.record.metrics);
+    let period_s = metrics.config.sample_period_s;
+    let grid = resample(run.recording, period_s);
+    let rows: Vec<&Vec<AgentSample>> = grid.samples.iter().take(metrics.num_samples).collect();
+    let agents: Vec<Value> = (0..run.recording.agent_count())
+        .map(|agent| {
+            let column = |f: &dyn Fn(&AgentSample) -> f64, digits: i32| -> Vec<Value> {
+                rows.iter()
+                    .map(|row| row.get(agent).map_or(Value::Null, |s| number(f(s), digits)))
+                    .collect()
+            };
+            json!({
+                "x": column(&|s| s.x_m, 3),
+                "y": column(&|s| s.y_m, 3),
+                "yaw": column(&|s| s.yaw_rad, 3),
+                "v": column(&|s| s.velocity_mps[0].hypot(s.velocity_mps[1]), 2),
+            })
+        })
+        .collect();
+    let collisions: Vec<Value> = metrics
+        .pair_events
+        .iter()
+        .map(|e| json!([e.sample, e.agents[0], e.agents[1]]))
+        .collect();
+    let violations: Vec<Value> = metrics
+        .agents
+        .iter()
+        .enumerate()
+        .flat_map(|(agent, a)| a.violation_samples.iter().map(move |&k| json!([agent, k])))
+        .collect();
+    json!({
+        "key": plan.key,
+        "fidelity": plan.fidelity,
+        "policy": plan.policy,
+        "configuration": plan.initial_configuration,
+        "repetition": plan.repetition,
+        "pair": plan.pair_key(),
+        "metrics": {
+            "cra_a": number(metrics.cra_a, 4),
+            "cra_l": number(metrics.cra_l, 4),
+            "cd_m": number(metrics.cd_m, 5),
+            "as_mps": number(metrics.as_mps, 4),
+        },
+        "dt": period_s,
+        "ref_paths": run.recording.ref_paths,
+        "agents": agents,
+        "collisions": collisions,
+        "violations": violations,
+    })
+}
+
+/// The runs that replay together: one list of run indices per pair key (policy, initial
+/// configuration, repetition), in matrix order.
+fn pairs(runs: &[PageRun<'_>]) -> Vec<Value> {
+    let mut order: Vec<String> = Vec::new();
+    let mut members: BTreeMap<String, Vec<usize>> = BTreeMap::new();
+    for (i, run) in runs.iter().enumerate() {
+        let key = run.record.plan.pair_key();
+        if !members.contains_key(&key) {
+            order.push(key.clone());
+        }
+        members.entry(key).or_default().push(i);
+    }
+    order
+        .into_iter()
+        .map(|key| json!({"key": key, "runs": members[&key]}))
+        .collect()
+}
+
+/// Figure 3 of the paper for each initial configuration: a run to show the setup from (its
+/// first sample: starts are shared by every run of the configuration), and per fidelity the run
+/// whose CD is closest to that fidelity's mean CD.
+fn figure3(runs: &[PageRun<'_>]) -> Vec<Value> {
+    let mut fidelities: Vec<&str> = Vec::new();
+    let mut cd_sums: BTreeMap<&str, (f64, usize)> = BTreeMap::new();
+    let mut configurations: Vec<&str> = Vec::new();
+    for run in runs {
+        let plan = &run.record.plan;
+        if !fidelities.contains(&plan.fidelity.as_str()) {
+            fidelities.push(&plan.fidelity);
+        }
+        if !configurations.contains(&plan.initial_configuration.as_str()) {
+            configurations.push(&plan.initial_configuration);
+        }
+        let cd = run.record.metrics.cd_m;
+        if cd.is_finite() {
+            let entry = cd_sums.entry(&plan.fidelity).or_insert((0.0, 0));
+            entry.0 += cd;
+            entry.1 += 1;
+        }
+    }
+    configurations
+        .into_iter()
+        .map(|configuration| {
+            let of_configuration =
+                |i: &usize| runs[*i].record.plan.initial_configuration == configuration;
+            let setup = (0..runs.len()).find(of_configuration);
+            let representatives: Vec<Value> = fidelities
+                .iter()
+                .filter_map(|&fidelity| {
+                    let (sum, n) = cd_sums.get(fidelity).copied().unwrap_or((0.0, 0));
+                    let mean = if n > 0 { sum / n as f64 } else { f64::NAN };
+                    let best = (0..runs.len())
+                        .filter(of_configuration)
+                        .filter(|&i| runs[i].record.plan.fidelity == fidelity)
+                        .min_by(|&a, &b| {
+                            let gap = |i: usize| {
+                                let cd = runs[i].record.metrics.cd_m;
+                                if cd.is_finite() && mean.is_finite() { (cd - mean).abs() } else { f64::INFINITY }
+                            };
+                            gap(a).total_cmp(&gap(b))
+                        })?;
+                    Some(json!({"fidelity": fidelity, "mean_cd_m": number(mean, 5), "run": best}))
+                })
+                .collect();
+            json!({"configuration": configuration, "setup": setup, "representatives": representatives})
+        })
+        .collect()
+}
+
+/// A polyline without the points that lie within `tolerance_m` of the line through their
+/// neighbours kept (Douglas-Peucker), first and last point always kept.
+fn simplify(points: &[Point], tolerance_m: f64) -> Vec<Point> {
+    if points.len() < 3 {
+        return points.to_vec();
+    }
+    let mut keep = vec![false; points.len()];
+    keep[0] = true;
+    keep[points.len() - 1] = true;
+    let mut stack = vec![(0, points.len() - 1)];
+    while let Some((first, last)) = stack.pop() {
+        let (a, b) = (points[first], points[last]);
+        let (mut farthest, mut distance) = (first, 0.0);
+        for (i, &p) in points.iter().enumerate().take(last).skip(first + 1) {
+            let d = distance_to_segment(p, a, b);
+            if d > distance {
+                (farthest, distance) = (i, d);
+            }
+        }
+        if distance > tolerance_m {
+            keep[farthest] = true;
+            stack.push((first, farthest));
+            stack.push((farthest, last));
+        }
+    }
+    points.iter().zip(keep).filter(|(_, k)| *k).map(|(p, _)| *p).collect()
+}
+
+fn distance_to_segment(p: Point, a: Point, b: Point) -> f64 {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let length2 = dx * dx + dy * dy;
+    let t = if length2 > 0.0 {
+        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / length2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p[0] - a[0] - t * dx).hypot(p[1] - a[1] - t * dy)
+}
+
+/// `[x0, y0, x1, y1, ...]`, rounded to a millimetre.
+fn flat(points: &[Point]) -> Value {
+    Value::from(
+        points
+            .iter()
+            .flat_map(|&[x, y]| [round(x), round(y)])
+            .collect::<Vec<f64>>(),
+    )
+}
+
+fn round(value: f64) -> f64 {
+    // `+ 0.0` turns -0.0 into 0.0.
+    (value * 1000.0).round() / 1000.0 + 0.0
+}
+
+/// A finite value with `digits` decimals; `null` otherwise.
+fn number(value: f64, digits: i32) -> Value {
+    if !value.is_finite() {
+        return Value::Null;
+    }
+    let scale = 10f64.powi(digits);
+    json!((value * scale).round() / scale)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn simplifying_keeps_corners_and_drops_collinear_points() {
+        let line: Vec<Point> = vec![[0.0, 0.0], [1.0, 0.0], [2.0, 0.0001], [3.0, 0.0], [3.0, 1.0], [3.0, 2.0]];
+        assert_eq!(simplify(&line, 0.001), vec![[0.0, 0.0], [3.0, 0.0], [3.0, 2.0]]);
+        assert_eq!(simplify(&line[..2], 0.001).len(), 2);
+    }
+}

@@ -1,0 +1,223 @@
+//! A run folder is a small database: `--only` never shrinks its summary, a typo changes
+//! nothing, another spec is refused without `--force`, a hand-edited resolved spec is caught,
+//! and a folder reports the same wherever it and its data move (files are pinned by hash).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn reference() -> PathBuf {
+    let dir = root().join("../shared/reference");
+    assert!(dir.is_dir(), "SigmaRL's reference data must be at {}", dir.display());
+    dir
+}
+
+/// `cpmx ARGS` in the repository, without `CPMX_DATA`.
+fn cpmx(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .args(args)
+        .current_dir(root())
+        .env_remove("CPMX_DATA")
+        .output()
+        .expect("cpmx runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("cpmx-folder-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Every file of a folder with its bytes, sorted by path.
+fn files(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                out.push((path.strip_prefix(dir).unwrap().to_path_buf(), std::fs::read(&path).unwrap()));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+fn ok(out: &Output) -> String {
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout.clone()).unwrap()
+}
+
+#[test]
+fn the_quickstart_counts_its_copies_once() {
+    let dir = scratch("units");
+    let out = dir.join("out");
+    let table = ok(&cpmx(&["run", "experiments/quickstart.yaml", "--out", out.to_str().unwrap()]));
+    // Four configurations × two repetitions of a deterministic fidelity and policy.
+    assert!(table.contains("| runs | units |"), "{table}");
+    assert!(table.contains("| sim | cautious | 8 | 4 |"), "{table}");
+    assert!(table.contains("4 of 24 runs") || table.contains("12 of 24 runs are copies"), "{table}");
+    let validate = cpmx(&["validate", "experiments/quickstart.yaml"]);
+    assert!(validate.status.success());
+    let warnings = String::from_utf8_lossy(&validate.stderr);
+    assert!(warnings.contains("deterministic"), "{warnings}");
+    assert!(warnings.contains("repetitions: 1"), "{warnings}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn only_never_shrinks_the_summary_and_a_typo_changes_nothing() {
+    let dir = scratch("only");
+    let out = dir.join("out");
+    let out_arg = out.to_str().unwrap();
+    ok(&cpmx(&["run", "experiments/quickstart.yaml", "--out", out_arg]));
+    let before = files(&out);
+
+    // A name the spec does not have: a usage error naming the valid ones; nothing written.
+    let typo = cpmx(&["run", "experiments/quickstart.yaml", "--out", out_arg, "--only", "policy=nominl"]);
+    assert_eq!(typo.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&typo.stderr);
+    assert!(stderr.contains("did you mean `nominal`"), "{stderr}");
+    assert!(stderr.contains("cautious, nominal, eager"), "{stderr}");
+    assert!(files(&out) == before, "a refused --only left the folder changed");
+
+    // A subset re-run into the finished folder: its summary still covers every run.
+    ok(&cpmx(&["run", "experiments/quickstart.yaml", "--out", out_arg, "--only", "policy=eager"]));
+    let summary = std::fs::read_to_string(out.join("summary.csv")).unwrap();
+    let whole = before.iter().find(|(p, _)| p == Path::new("summary.csv")).unwrap();
+    assert_eq!(summary.as_bytes(), whole.1.as_slice());
+    let reported = ok(&cpmx(&["report", out_arg, "--format", "csv"]));
+    assert_eq!(summary, reported);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_folder_of_another_spec_is_refused_without_force() {
+    let dir = scratch("force");
+    let out = dir.join("out");
+    let out_arg = out.to_str().unwrap();
+    ok(&cpmx(&["run", "experiments/quickstart.yaml", "--out", out_arg]));
+    let text = std::fs::read_to_string(root().join("experiments/quickstart.yaml")).unwrap();
+    let other = dir.join("other.yaml");
+    std::fs::write(&other, text.replace("seed: 2026", "seed: 7")).unwrap();
+    let before = files(&out);
+
+    let refused = cpmx(&["run", other.to_str().unwrap(), "--out", out_arg]);
+    assert_eq!(refused.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(stderr.contains("different spec") && stderr.contains("seed"), "{stderr}");
+    assert!(files(&out) == before);
+
+    // --force: the new spec is the folder's; runs it left alone are not summarised with it.
+    let forced = cpmx(&["run", other.to_str().unwrap(), "--out", out_arg, "--force", "--only", "policy=eager"]);
+    let table = ok(&forced);
+    let stderr = String::from_utf8_lossy(&forced.stderr);
+    assert!(stderr.contains("earlier spec"), "{stderr}");
+    assert!(table.contains("| sim | eager | 8 |") && !table.contains("cautious"), "{table}");
+    assert_eq!(ok(&cpmx(&["report", out_arg, "--format", "csv"])), std::fs::read_to_string(out.join("summary.csv")).unwrap());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_hand_edited_resolved_spec_is_caught() {
+    let dir = scratch("edited");
+    let out = dir.join("out");
+    ok(&cpmx(&["run", "experiments/quickstart.yaml", "--out", out.to_str().unwrap()]));
+    let path = out.join("spec.resolved.yaml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(&path, text.replace("slack: 0.0", "slack: 0.1")).unwrap();
+    let report = cpmx(&["report", out.to_str().unwrap()]);
+    assert_eq!(report.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&report.stderr);
+    assert!(stderr.contains("was edited") && stderr.contains("--metrics"), "{stderr}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn stored_runs_are_rescored_with_other_metrics() {
+    let dir = scratch("metrics");
+    let out = dir.join("out");
+    let out_arg = out.to_str().unwrap();
+    let script = ok(&cpmx(&["run", "experiments/quickstart.yaml", "--out", out_arg]));
+    let paper = ok(&cpmx(&["report", out_arg, "--metrics", "stdlib:at25-paper"]));
+    assert_ne!(script, paper, "a 10 % lane slack changes CRA-L");
+    let file = dir.join("metrics.yaml");
+    std::fs::write(&file, "{extends: stdlib:at25, cra_l: {slack: 0.1, per_distance_m: 100}}\n").unwrap();
+    assert_eq!(ok(&cpmx(&["report", out_arg, "--metrics", file.to_str().unwrap()])), paper);
+    let unknown = cpmx(&["report", out_arg, "--metrics", "stdlib:at52"]);
+    assert_eq!(unknown.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&unknown.stderr).contains("stdlib:at25"));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn report_takes_run_folders_not_specs() {
+    let out = cpmx(&["report", "experiments/quickstart.yaml"]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("takes run folders") && stderr.contains("cpmx run"), "{stderr}");
+}
+
+#[test]
+fn a_moved_folder_reports_the_same_with_its_data_elsewhere() {
+    // A small spec on the CPM Lab map with SigmaRL's actor, both found on --data.
+    let dir = scratch("moved");
+    let data = dir.join("data");
+    std::fs::create_dir_all(data.join("maps")).unwrap();
+    std::fs::create_dir_all(data.join("policy")).unwrap();
+    std::fs::copy(reference().join("maps/cpm.xml"), data.join("maps/cpm.xml")).unwrap();
+    std::fs::copy(reference().join("policy/actor.safetensors"), data.join("policy/actor.safetensors")).unwrap();
+    let spec = dir.join("small.yaml");
+    std::fs::write(
+        &spec,
+        "cpmx: 1\nname: small\nmap: {file: maps/cpm.xml}\ntiming: {dt: 0.1, steps: 30}\nagents: 2\n\
+         policies:\n  - {name: seed1, mlp: {weights: policy/actor.safetensors}}\n\
+         initial_configurations:\n  - name: a\n    agents:\n      - {ref_path: 6, arc_length: 0.3}\n      - {ref_path: 2, arc_length: 0.3}\n\
+         repetitions: 1\nseed: 1\nfidelities:\n  sim: {control: direct, dynamics: kinematic}\n",
+    )
+    .unwrap();
+    let out = dir.join("out");
+    ok(&cpmx(&["run", spec.to_str().unwrap(), "--out", out.to_str().unwrap(), "--data", data.to_str().unwrap()]));
+    let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    let resolved = std::fs::read_to_string(out.join("spec.resolved.yaml")).unwrap();
+    assert!(!resolved.contains(dir.to_str().unwrap()), "no absolute path in the resolved spec");
+    assert!(resolved.contains("sha256"), "{resolved}");
+
+    // Move the folder and the data; only the map is left.
+    let (moved, elsewhere) = (dir.join("moved"), dir.join("elsewhere"));
+    std::fs::rename(&out, &moved).unwrap();
+    std::fs::rename(&data, &elsewhere).unwrap();
+    std::fs::remove_file(elsewhere.join("policy/actor.safetensors")).unwrap();
+    let lost = cpmx(&["report", moved.to_str().unwrap()]);
+    assert_eq!(lost.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&lost.stderr);
+    assert!(stderr.contains("maps/cpm.xml") && stderr.contains("sha256"), "{stderr}");
+    let found = ok(&cpmx(&["report", moved.to_str().unwrap(), "--data", elsewhere.to_str().unwrap()]));
+    assert_eq!(found, summary);
+
+    // A different file of the same name is not taken for the pinned one.
+    std::fs::write(elsewhere.join("maps/cpm.xml"), "<CommonRoad/>").unwrap();
+    let other = cpmx(&["report", moved.to_str().unwrap(), "--data", elsewhere.to_str().unwrap()]);
+    assert_eq!(other.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&other.stderr).contains("other versions"));
+
+    // evaluate needs only the map, too.
+    std::fs::copy(reference().join("maps/cpm.xml"), elsewhere.join("maps/cpm.xml")).unwrap();
+    let trajectory = moved.join("runs/sim/seed1/a/rep1/trajectory.csv");
+    let metrics = ok(&cpmx(&[
+        "evaluate",
+        spec.to_str().unwrap(),
+        trajectory.to_str().unwrap(),
+        "--data",
+        elsewhere.to_str().unwrap(),
+    ]));
+    assert!(metrics.contains("\"cd_m\""), "{metrics}");
+    std::fs::remove_dir_all(&dir).ok();
+}
