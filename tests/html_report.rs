@@ -12,10 +12,14 @@ fn root() -> PathBuf {
 }
 
 fn chromium() -> Option<PathBuf> {
-    ["/usr/bin/chromium", "/usr/bin/chromium-browser", "/usr/bin/google-chrome"]
-        .into_iter()
-        .map(PathBuf::from)
-        .find(|p| p.is_file())
+    [
+        "/usr/bin/chromium",
+        "/usr/bin/chromium-browser",
+        "/usr/bin/google-chrome",
+    ]
+    .into_iter()
+    .map(PathBuf::from)
+    .find(|p| p.is_file())
 }
 
 /// Chromium headless with a fresh profile and no background network.
@@ -82,14 +86,37 @@ fn the_report_page_renders_and_replays_in_chromium() {
         &["--virtual-time-budget=4000", "--dump-dom", &url],
     );
     let dom = String::from_utf8_lossy(&dom.stdout).into_owned();
-    assert_eq!(body_attribute(&dom, "data-ready").as_deref(), Some("1"), "the script ran to its end");
-    assert_eq!(body_attribute(&dom, "data-errors"), None, "script errors: {dom:.2000}");
-    let pixels: usize = body_attribute(&dom, "data-vehicle-pixels").unwrap().parse().unwrap();
-    assert!(pixels > 200, "vehicles and paths drawn in colour: {pixels} pixels");
-    let frame: usize = body_attribute(&dom, "data-replay-frame").unwrap().parse().unwrap();
+    assert_eq!(
+        body_attribute(&dom, "data-ready").as_deref(),
+        Some("1"),
+        "the script ran to its end"
+    );
+    assert_eq!(
+        body_attribute(&dom, "data-errors"),
+        None,
+        "script errors: {dom:.2000}"
+    );
+    let pixels: usize = body_attribute(&dom, "data-vehicle-pixels")
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(
+        pixels > 200,
+        "vehicles and paths drawn in colour: {pixels} pixels"
+    );
+    let frame: usize = body_attribute(&dom, "data-replay-frame")
+        .unwrap()
+        .parse()
+        .unwrap();
     assert!(frame > 0, "the replay advanced");
-    assert!(dom.contains("initial configuration "), "Figure 3 per initial configuration");
-    assert!(dom.matches("<canvas").count() >= 4, "setup, representatives and replay panels");
+    assert!(
+        dom.contains("initial configuration "),
+        "Figure 3 per initial configuration"
+    );
+    assert!(
+        dom.matches("<canvas").count() >= 4,
+        "setup, representatives and replay panels"
+    );
 
     // A screenshot for people (kept beside the folder); it must be a real PNG.
     let screenshot = dir.join("report.png");
@@ -103,6 +130,10 @@ fn the_report_page_renders_and_replays_in_chromium() {
         ],
     );
     let png = std::fs::read(&screenshot).expect("chromium wrote the screenshot");
-    assert!(png.starts_with(b"\x89PNG") && png.len() > 20_000, "{} bytes", png.len());
+    assert!(
+        png.starts_with(b"\x89PNG") && png.len() > 20_000,
+        "{} bytes",
+        png.len()
+    );
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -11,7 +11,11 @@ fn root() -> PathBuf {
 
 fn reference() -> PathBuf {
     let dir = root().join("../shared/reference");
-    assert!(dir.is_dir(), "SigmaRL's reference data must be at {}", dir.display());
+    assert!(
+        dir.is_dir(),
+        "SigmaRL's reference data must be at {}",
+        dir.display()
+    );
     dir
 }
 
@@ -42,7 +46,10 @@ fn files(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
             if path.is_dir() {
                 stack.push(path);
             } else {
-                out.push((path.strip_prefix(dir).unwrap().to_path_buf(), std::fs::read(&path).unwrap()));
+                out.push((
+                    path.strip_prefix(dir).unwrap().to_path_buf(),
+                    std::fs::read(&path).unwrap(),
+                ));
             }
         }
     }
@@ -59,11 +66,19 @@ fn ok(out: &Output) -> String {
 fn the_quickstart_counts_its_copies_once() {
     let dir = scratch("units");
     let out = dir.join("out");
-    let table = ok(&cpmx(&["run", "experiments/quickstart.yaml", "--out", out.to_str().unwrap()]));
+    let table = ok(&cpmx(&[
+        "run",
+        "experiments/quickstart.yaml",
+        "--out",
+        out.to_str().unwrap(),
+    ]));
     // Four configurations × two repetitions of a deterministic fidelity and policy.
     assert!(table.contains("| runs | units |"), "{table}");
     assert!(table.contains("| sim | cautious | 8 | 4 |"), "{table}");
-    assert!(table.contains("4 of 24 runs") || table.contains("12 of 24 runs are copies"), "{table}");
+    assert!(
+        table.contains("4 of 24 runs") || table.contains("12 of 24 runs are copies"),
+        "{table}"
+    );
     let validate = cpmx(&["validate", "experiments/quickstart.yaml"]);
     assert!(validate.status.success());
     let warnings = String::from_utf8_lossy(&validate.stderr);
@@ -81,7 +96,14 @@ fn only_never_shrinks_the_summary_and_a_typo_changes_nothing() {
     let before = files(&out);
 
     // A name the spec does not have: a usage error naming the valid ones; nothing written.
-    let typo = cpmx(&["run", "experiments/quickstart.yaml", "--out", out_arg, "--only", "policy=nominl"]);
+    let typo = cpmx(&[
+        "run",
+        "experiments/quickstart.yaml",
+        "--out",
+        out_arg,
+        "--only",
+        "policy=nominl",
+    ]);
     assert_eq!(typo.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&typo.stderr);
     assert!(stderr.contains("did you mean `nominal`"), "{stderr}");
@@ -89,9 +111,19 @@ fn only_never_shrinks_the_summary_and_a_typo_changes_nothing() {
     assert!(files(&out) == before, "a refused --only left the folder changed");
 
     // A subset re-run into the finished folder: its summary still covers every run.
-    ok(&cpmx(&["run", "experiments/quickstart.yaml", "--out", out_arg, "--only", "policy=eager"]));
+    ok(&cpmx(&[
+        "run",
+        "experiments/quickstart.yaml",
+        "--out",
+        out_arg,
+        "--only",
+        "policy=eager",
+    ]));
     let summary = std::fs::read_to_string(out.join("summary.csv")).unwrap();
-    let whole = before.iter().find(|(p, _)| p == Path::new("summary.csv")).unwrap();
+    let whole = before
+        .iter()
+        .find(|(p, _)| p == Path::new("summary.csv"))
+        .unwrap();
     assert_eq!(summary.as_bytes(), whole.1.as_slice());
     let reported = ok(&cpmx(&["report", out_arg, "--format", "csv"]));
     assert_eq!(summary, reported);
@@ -112,16 +144,33 @@ fn a_folder_of_another_spec_is_refused_without_force() {
     let refused = cpmx(&["run", other.to_str().unwrap(), "--out", out_arg]);
     assert_eq!(refused.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&refused.stderr);
-    assert!(stderr.contains("different spec") && stderr.contains("seed"), "{stderr}");
+    assert!(
+        stderr.contains("different spec") && stderr.contains("seed"),
+        "{stderr}"
+    );
     assert!(files(&out) == before);
 
     // --force: the new spec is the folder's; runs it left alone are not summarised with it.
-    let forced = cpmx(&["run", other.to_str().unwrap(), "--out", out_arg, "--force", "--only", "policy=eager"]);
+    let forced = cpmx(&[
+        "run",
+        other.to_str().unwrap(),
+        "--out",
+        out_arg,
+        "--force",
+        "--only",
+        "policy=eager",
+    ]);
     let table = ok(&forced);
     let stderr = String::from_utf8_lossy(&forced.stderr);
     assert!(stderr.contains("earlier spec"), "{stderr}");
-    assert!(table.contains("| sim | eager | 8 |") && !table.contains("cautious"), "{table}");
-    assert_eq!(ok(&cpmx(&["report", out_arg, "--format", "csv"])), std::fs::read_to_string(out.join("summary.csv")).unwrap());
+    assert!(
+        table.contains("| sim | eager | 8 |") && !table.contains("cautious"),
+        "{table}"
+    );
+    assert_eq!(
+        ok(&cpmx(&["report", out_arg, "--format", "csv"])),
+        std::fs::read_to_string(out.join("summary.csv")).unwrap()
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -129,14 +178,22 @@ fn a_folder_of_another_spec_is_refused_without_force() {
 fn a_hand_edited_resolved_spec_is_caught() {
     let dir = scratch("edited");
     let out = dir.join("out");
-    ok(&cpmx(&["run", "experiments/quickstart.yaml", "--out", out.to_str().unwrap()]));
+    ok(&cpmx(&[
+        "run",
+        "experiments/quickstart.yaml",
+        "--out",
+        out.to_str().unwrap(),
+    ]));
     let path = out.join("spec.resolved.yaml");
     let text = std::fs::read_to_string(&path).unwrap();
     std::fs::write(&path, text.replace("slack: 0.0", "slack: 0.1")).unwrap();
     let report = cpmx(&["report", out.to_str().unwrap()]);
     assert_eq!(report.status.code(), Some(1));
     let stderr = String::from_utf8_lossy(&report.stderr);
-    assert!(stderr.contains("was edited") && stderr.contains("--metrics"), "{stderr}");
+    assert!(
+        stderr.contains("was edited") && stderr.contains("--metrics"),
+        "{stderr}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -149,8 +206,15 @@ fn stored_runs_are_rescored_with_other_metrics() {
     let paper = ok(&cpmx(&["report", out_arg, "--metrics", "stdlib:at25-paper"]));
     assert_ne!(script, paper, "a 10 % lane slack changes CRA-L");
     let file = dir.join("metrics.yaml");
-    std::fs::write(&file, "{extends: stdlib:at25, cra_l: {slack: 0.1, per_distance_m: 100}}\n").unwrap();
-    assert_eq!(ok(&cpmx(&["report", out_arg, "--metrics", file.to_str().unwrap()])), paper);
+    std::fs::write(
+        &file,
+        "{extends: stdlib:at25, cra_l: {slack: 0.1, per_distance_m: 100}}\n",
+    )
+    .unwrap();
+    assert_eq!(
+        ok(&cpmx(&["report", out_arg, "--metrics", file.to_str().unwrap()])),
+        paper
+    );
     let unknown = cpmx(&["report", out_arg, "--metrics", "stdlib:at52"]);
     assert_eq!(unknown.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&unknown.stderr).contains("stdlib:at25"));
@@ -162,7 +226,10 @@ fn report_takes_run_folders_not_specs() {
     let out = cpmx(&["report", "experiments/quickstart.yaml"]);
     assert_eq!(out.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("takes run folders") && stderr.contains("cpmx run"), "{stderr}");
+    assert!(
+        stderr.contains("takes run folders") && stderr.contains("cpmx run"),
+        "{stderr}"
+    );
 }
 
 #[test]
@@ -173,7 +240,11 @@ fn a_moved_folder_reports_the_same_with_its_data_elsewhere() {
     std::fs::create_dir_all(data.join("maps")).unwrap();
     std::fs::create_dir_all(data.join("policy")).unwrap();
     std::fs::copy(reference().join("maps/cpm.xml"), data.join("maps/cpm.xml")).unwrap();
-    std::fs::copy(reference().join("policy/actor.safetensors"), data.join("policy/actor.safetensors")).unwrap();
+    std::fs::copy(
+        reference().join("policy/actor.safetensors"),
+        data.join("policy/actor.safetensors"),
+    )
+    .unwrap();
     let spec = dir.join("small.yaml");
     std::fs::write(
         &spec,
@@ -184,10 +255,20 @@ fn a_moved_folder_reports_the_same_with_its_data_elsewhere() {
     )
     .unwrap();
     let out = dir.join("out");
-    ok(&cpmx(&["run", spec.to_str().unwrap(), "--out", out.to_str().unwrap(), "--data", data.to_str().unwrap()]));
+    ok(&cpmx(&[
+        "run",
+        spec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--data",
+        data.to_str().unwrap(),
+    ]));
     let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
     let resolved = std::fs::read_to_string(out.join("spec.resolved.yaml")).unwrap();
-    assert!(!resolved.contains(dir.to_str().unwrap()), "no absolute path in the resolved spec");
+    assert!(
+        !resolved.contains(dir.to_str().unwrap()),
+        "no absolute path in the resolved spec"
+    );
     assert!(resolved.contains("sha256"), "{resolved}");
 
     // Move the folder and the data; only the map is left.
@@ -198,13 +279,26 @@ fn a_moved_folder_reports_the_same_with_its_data_elsewhere() {
     let lost = cpmx(&["report", moved.to_str().unwrap()]);
     assert_eq!(lost.status.code(), Some(1));
     let stderr = String::from_utf8_lossy(&lost.stderr);
-    assert!(stderr.contains("maps/cpm.xml") && stderr.contains("sha256"), "{stderr}");
-    let found = ok(&cpmx(&["report", moved.to_str().unwrap(), "--data", elsewhere.to_str().unwrap()]));
+    assert!(
+        stderr.contains("maps/cpm.xml") && stderr.contains("sha256"),
+        "{stderr}"
+    );
+    let found = ok(&cpmx(&[
+        "report",
+        moved.to_str().unwrap(),
+        "--data",
+        elsewhere.to_str().unwrap(),
+    ]));
     assert_eq!(found, summary);
 
     // A different file of the same name is not taken for the pinned one.
     std::fs::write(elsewhere.join("maps/cpm.xml"), "<CommonRoad/>").unwrap();
-    let other = cpmx(&["report", moved.to_str().unwrap(), "--data", elsewhere.to_str().unwrap()]);
+    let other = cpmx(&[
+        "report",
+        moved.to_str().unwrap(),
+        "--data",
+        elsewhere.to_str().unwrap(),
+    ]);
     assert_eq!(other.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&other.stderr).contains("other versions"));
 
@@ -219,5 +313,41 @@ fn a_moved_folder_reports_the_same_with_its_data_elsewhere() {
         elsewhere.to_str().unwrap(),
     ]));
     assert!(metrics.contains("\"cd_m\""), "{metrics}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn agents_that_finish_early_can_leave_the_measurement() {
+    let dir = scratch("end-agent");
+    let text = std::fs::read_to_string(root().join("experiments/quickstart.yaml")).unwrap();
+    let ended = dir.join("ended.yaml");
+    std::fs::write(
+        &ended,
+        text.replace(
+            "timing: {dt: 0.1, steps: 80}",
+            "timing: {dt: 0.1, steps: 80, stop_at_path_end: end-agent}",
+        )
+        .replace("repetitions: 2", "repetitions: 1"),
+    )
+    .unwrap();
+    let waiting = dir.join("waiting.yaml");
+    std::fs::write(&waiting, text.replace("repetitions: 2", "repetitions: 1")).unwrap();
+    let speed = |spec: &Path, out: &str| -> f64 {
+        let out = dir.join(out);
+        ok(&cpmx(&[
+            "run",
+            spec.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]));
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+        json["groups"][1]["metrics"]["as_mps"]["mean"].as_f64().unwrap()
+    };
+    let (waiting_as, ended_as) = (speed(&waiting, "waiting"), speed(&ended, "ended"));
+    assert!(
+        ended_as > waiting_as + 0.01,
+        "waiting {waiting_as} m/s, ended {ended_as} m/s"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }

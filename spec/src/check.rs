@@ -583,7 +583,13 @@ fn missing_file(what: &str, file: &str, tried: &[PathBuf], span: ByteSpan) -> Pr
 }
 
 /// A problem for a pinned file: missing, or present only with other content.
-fn missing_pinned(what: &str, file: &str, sha256: Option<&str>, missing: &NotFound, span: ByteSpan) -> Problem {
+fn missing_pinned(
+    what: &str,
+    file: &str,
+    sha256: Option<&str>,
+    missing: &NotFound,
+    span: ByteSpan,
+) -> Problem {
     let Some(expected) = sha256.filter(|_| !missing.other_content.is_empty()) else {
         let mut problem = missing_file(what, file, &missing.tried, span);
         if let Some(expected) = sha256 {
@@ -625,22 +631,35 @@ fn find_files(spec: &Spec, data: &DataPath, scope: CheckScope, ctx: &mut CheckCo
             Ok(path) => resources.map_file = Some(path),
             Err(missing) => {
                 let span = ctx.span("/map/file");
-                ctx.push(missing_pinned("map file", &map.file, map.sha256.as_deref(), &missing, span));
+                ctx.push(missing_pinned(
+                    "map file",
+                    &map.file,
+                    map.sha256.as_deref(),
+                    &missing,
+                    span,
+                ));
             }
         }
     }
     for (i, policy) in spec.policies.iter().enumerate() {
-        let found = policy.mlp.as_ref().and_then(|mlp| {
-            match data.find_pinned(&mlp.weights, mlp.sha256.as_deref()) {
-                Ok(path) => Some(path),
-                Err(_) if scope == CheckScope::Measure => None,
-                Err(missing) => {
-                    let span = ctx.span(&format!("/policies/{i}/mlp/weights"));
-                    ctx.push(missing_pinned("weight file", &mlp.weights, mlp.sha256.as_deref(), &missing, span));
-                    None
-                }
-            }
-        });
+        let found =
+            policy.mlp.as_ref().and_then(
+                |mlp| match data.find_pinned(&mlp.weights, mlp.sha256.as_deref()) {
+                    Ok(path) => Some(path),
+                    Err(_) if scope == CheckScope::Measure => None,
+                    Err(missing) => {
+                        let span = ctx.span(&format!("/policies/{i}/mlp/weights"));
+                        ctx.push(missing_pinned(
+                            "weight file",
+                            &mlp.weights,
+                            mlp.sha256.as_deref(),
+                            &missing,
+                            span,
+                        ));
+                        None
+                    }
+                },
+            );
         resources.weights.push(found);
     }
     if scope == CheckScope::Measure {

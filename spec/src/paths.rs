@@ -61,7 +61,9 @@ impl DataPath {
         };
         let mut other_content = Vec::new();
         for candidate in &candidates {
-            if !candidate.is_file() && !(sha256.is_none() && candidate.exists()) {
+            // A pinned file must be a readable file; an unpinned name may be a folder too.
+            let usable = candidate.is_file() || (sha256.is_none() && candidate.exists());
+            if !usable {
                 continue;
             }
             let Some(expected) = sha256 else {
@@ -105,9 +107,14 @@ mod tests {
         std::fs::write(b.join("map.xml"), "new").unwrap();
         let data = DataPath::new(&a, std::slice::from_ref(&b), None);
         let new = sha256_hex(b"new");
-        assert_eq!(data.find_pinned("map.xml", Some(&new)).unwrap(), b.join("map.xml"));
+        assert_eq!(
+            data.find_pinned("map.xml", Some(&new)).unwrap(),
+            b.join("map.xml")
+        );
         assert_eq!(data.find_pinned("map.xml", None).unwrap(), a.join("map.xml"));
-        let missing = data.find_pinned("map.xml", Some(&sha256_hex(b"other"))).unwrap_err();
+        let missing = data
+            .find_pinned("map.xml", Some(&sha256_hex(b"other")))
+            .unwrap_err();
         assert_eq!(missing.other_content.len(), 2);
         assert_eq!(missing.other_content[0], (a.join("map.xml"), sha256_hex(b"old")));
         std::fs::remove_dir_all(&root).unwrap();

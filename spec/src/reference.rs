@@ -33,7 +33,11 @@ pub fn language_reference_markdown() -> String {
                 object_table(&mut out, def);
             } else {
                 let _ = writeln!(out, "Type: {}", type_of(def));
-                if let Some(variants) = def.get("oneOf").or_else(|| def.get("anyOf")).and_then(Value::as_array) {
+                if let Some(variants) = def
+                    .get("oneOf")
+                    .or_else(|| def.get("anyOf"))
+                    .and_then(Value::as_array)
+                {
                     out.push('\n');
                     for variant in variants {
                         let description = variant
@@ -84,7 +88,11 @@ fn object_table(out: &mut String, schema: &Value) {
             out,
             "| `{key}` | {} | {} | {default} | {} |",
             cell(&type_of(property)),
-            if required.contains(&key.as_str()) { "yes" } else { "" },
+            if required.contains(&key.as_str()) {
+                "yes"
+            } else {
+                ""
+            },
             cell(&description)
         );
     }
@@ -97,7 +105,11 @@ fn type_of(schema: &Value) -> String {
         return format!("[{name}](#{})", name.to_lowercase());
     }
     if let Some(values) = schema.get("enum").and_then(Value::as_array) {
-        return values.iter().map(|v| format!("`{v}`")).collect::<Vec<_>>().join(" \\| ");
+        return values
+            .iter()
+            .map(|v| format!("`{v}`"))
+            .collect::<Vec<_>>()
+            .join(" \\| ");
     }
     if let Some(value) = schema.get("const") {
         return format!("`{value}`");
@@ -122,7 +134,11 @@ fn type_of(schema: &Value) -> String {
     let mut text = match base.as_str() {
         "array" => {
             let item = schema.get("items").map(type_of).unwrap_or_default();
-            if item.is_empty() { "list".into() } else { format!("list of {item}") }
+            if item.is_empty() {
+                "list".into()
+            } else {
+                format!("list of {item}")
+            }
         }
         "object" => match schema.get("additionalProperties") {
             Some(inner @ Value::Object(_)) => format!("map of name → {}", type_of(inner)),
@@ -164,7 +180,14 @@ mod tests {
     #[test]
     fn every_top_level_key_is_documented() {
         let reference = language_reference_markdown();
-        for key in ["cpmx", "map", "fidelities", "initial_configurations", "metrics", "report"] {
+        for key in [
+            "cpmx",
+            "map",
+            "fidelities",
+            "initial_configurations",
+            "metrics",
+            "report",
+        ] {
             assert!(reference.contains(&format!("| `{key}` |")), "{key}");
         }
         assert!(reference.contains("## Fidelity"));

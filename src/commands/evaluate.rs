@@ -16,12 +16,21 @@ pub fn run(spec: &Path, recording: &Path, data: &DataArgs) -> Result<(), Failure
         eprintln!("error: cannot read spec `{}`: {e}", spec.display());
         Failure::InvalidInput
     })?;
-    let data_path = DataPath::new(&source.dir, &data.data, std::env::var("CPMX_DATA").ok().as_deref());
-    let checked = cpmx_spec::check_scoped(&source, &data_path, &cpmx_engine::BuildChecks, CheckScope::Measure)
-        .map_err(|d| {
-            eprint!("{}", cpmx_spec::render(&d, std::io::stderr().is_terminal()));
-            Failure::InvalidInput
-        })?;
+    let data_path = DataPath::new(
+        &source.dir,
+        &data.data,
+        std::env::var("CPMX_DATA").ok().as_deref(),
+    );
+    let checked = cpmx_spec::check_scoped(
+        &source,
+        &data_path,
+        &cpmx_engine::BuildChecks,
+        CheckScope::Measure,
+    )
+    .map_err(|d| {
+        eprint!("{}", cpmx_spec::render(&d, std::io::stderr().is_terminal()));
+        Failure::InvalidInput
+    })?;
     let scoring = Scoring::prepare(&checked).map_err(|e| {
         eprintln!("error: {e}");
         Failure::InvalidInput

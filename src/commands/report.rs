@@ -65,17 +65,26 @@ fn check_is_run_folder(dir: &Path) -> Result<(), Failure> {
 
 /// Checks a resolved spec text for scoring: the folder first, then `--data`, `CPMX_DATA`, and
 /// last the data path the folder was made with (files are pinned by hash).
-fn check_for_scoring(name: String, text: String, dir: &Path, data: &DataArgs) -> Result<CheckedSpec, Failure> {
+fn check_for_scoring(
+    name: String,
+    text: String,
+    dir: &Path,
+    data: &DataArgs,
+) -> Result<CheckedSpec, Failure> {
     let mut data_path = DataPath::new(dir, &data.data, std::env::var("CPMX_DATA").ok().as_deref());
-    data_path
-        .folders
-        .extend(folder::Provenance::read(dir).data_path);
+    data_path.folders.extend(folder::Provenance::read(dir).data_path);
     let source = SpecSource {
         name,
         dir: dir.to_path_buf(),
         text,
     };
-    cpmx_spec::check_scoped(&source, &data_path, &cpmx_engine::BuildChecks, CheckScope::Measure).map_err(|d| {
+    cpmx_spec::check_scoped(
+        &source,
+        &data_path,
+        &cpmx_engine::BuildChecks,
+        CheckScope::Measure,
+    )
+    .map_err(|d| {
         eprint!("{}", cpmx_spec::render(&d, false));
         Failure::InvalidInput
     })
@@ -87,7 +96,8 @@ fn with_metrics(resolved: &serde_json::Value, metrics: &str) -> Result<String, F
     let value = if metrics.starts_with(cpmx_spec::STDLIB_PREFIX) {
         serde_json::Value::from(metrics)
     } else {
-        let text = std::fs::read_to_string(metrics).map_err(|e| fail(format!("--metrics `{metrics}`: {e}")))?;
+        let text =
+            std::fs::read_to_string(metrics).map_err(|e| fail(format!("--metrics `{metrics}`: {e}")))?;
         serde_saphyr::from_str::<serde_json::Value>(&text)
             .map_err(|e| fail(format!("--metrics `{metrics}`: not YAML: {e}")))?
     };
@@ -118,7 +128,8 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
             check_for_scoring(name, text, first, &args.data)?
         }
     };
-    let scoring = Scoring::prepare(&checked).map_err(|e| fail(format!("{}: {e}", resolved_path.display())))?;
+    let scoring =
+        Scoring::prepare(&checked).map_err(|e| fail(format!("{}: {e}", resolved_path.display())))?;
     let plans = folder::read_matrix(first).map_err(fail)?;
 
     // Every run of the matrix, from whichever folder holds it, measured from its trajectory.

@@ -107,7 +107,9 @@ fn check_folder_spec(out: &Path, checked: &cpmx_spec::CheckedSpec, force: bool) 
             return Ok(());
         }
         Err(e) => {
-            eprintln!("error: {e}\nhelp: choose another `--out`, or `--force` to make this spec the folder's spec");
+            eprintln!(
+                "error: {e}\nhelp: choose another `--out`, or `--force` to make this spec the folder's spec"
+            );
             return Err(Failure::Usage);
         }
     };
@@ -219,8 +221,8 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     // Summarise every finished run the folder holds for this spec (other shards and earlier
     // `--only` selections included), so the folder's summary is what `cpmx report` gives.
     let held = folder::read_records(&out, &all_plans, &context);
-    let summary =
-        folder::write_summaries(&out, &experiment.scoring(), &held.records).map_err(|e| io_failure(&out, e))?;
+    let summary = folder::write_summaries(&out, &experiment.scoring(), &held.records)
+        .map_err(|e| io_failure(&out, e))?;
     print!("{}", render(&summary, Format::Markdown));
     if !held.stale.is_empty() {
         eprintln!(
@@ -266,7 +268,10 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
 
 /// The data path of a spec as absolute folders, for `provenance.json`.
 fn data_path(spec: &Path, data: &DataArgs) -> Vec<PathBuf> {
-    let spec_dir = spec.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let spec_dir = spec
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     let cpmx_data = std::env::var("CPMX_DATA").ok();
     cpmx_spec::DataPath::new(spec_dir, &data.data, cpmx_data.as_deref())
         .folders

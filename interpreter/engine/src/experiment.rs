@@ -74,7 +74,7 @@ impl Scoring {
             spec: spec.clone(),
             map: Arc::new(load_map(spec, checked.resources.map_file.as_deref())?),
             vehicle: vehicle_params(&spec.vehicle),
-            metrics: metrics_config(&spec.metrics),
+            metrics: metrics_config(&spec.metrics, &spec.timing),
         })
     }
 
@@ -109,7 +109,7 @@ impl Experiment {
             spec: spec.clone(),
             map,
             vehicle,
-            metrics: metrics_config(&spec.metrics),
+            metrics: metrics_config(&spec.metrics, &spec.timing),
             policies,
             starts,
         })
@@ -219,7 +219,7 @@ pub fn prepare_policy(policy: &PolicySpec, weights: Option<&Path>) -> Result<Pre
 }
 
 /// The spec's metric parameters as the metrics crate's.
-pub fn metrics_config(m: &MetricsSpec) -> MetricsConfig {
+pub fn metrics_config(m: &MetricsSpec, timing: &cpmx_spec::model::Timing) -> MetricsConfig {
     let defaults = MetricsConfig::sigmarl_script(100.0);
     let cra_a = m.cra_a.as_ref().map_or(defaults.cra_a, |c| CraAConfig {
         hysteresis: Hysteresis {
@@ -246,5 +246,6 @@ pub fn metrics_config(m: &MetricsSpec) -> MetricsConfig {
         cra_l,
         max_steps: None,
         rotate180: None,
+        end_at_path_end: timing.stop_at_path_end == cpmx_spec::model::StopAtPathEnd::EndAgent,
     }
 }

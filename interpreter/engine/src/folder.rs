@@ -131,7 +131,9 @@ fn numbers_as_f64(value: &serde_json::Value) -> serde_json::Value {
     match value {
         Value::Number(n) => n.as_f64().map_or(Value::Null, Value::from),
         Value::Array(items) => Value::Array(items.iter().map(numbers_as_f64).collect()),
-        Value::Object(map) => Value::Object(map.iter().map(|(k, v)| (k.clone(), numbers_as_f64(v))).collect()),
+        Value::Object(map) => {
+            Value::Object(map.iter().map(|(k, v)| (k.clone(), numbers_as_f64(v))).collect())
+        }
         other => other.clone(),
     }
 }
@@ -139,7 +141,10 @@ fn numbers_as_f64(value: &serde_json::Value) -> serde_json::Value {
 /// The text of `spec.resolved.yaml`: the hash line, then the resolved spec as YAML.
 pub fn resolved_spec_text(checked: &CheckedSpec) -> std::io::Result<String> {
     let yaml = serde_saphyr::to_string(&resolved_spec(checked)).map_err(std::io::Error::other)?;
-    Ok(format!("{HASH_LINE_PREFIX}{}\n{yaml}", sha256_hex(yaml.as_bytes())))
+    Ok(format!(
+        "{HASH_LINE_PREFIX}{}\n{yaml}",
+        sha256_hex(yaml.as_bytes())
+    ))
 }
 
 /// Writes `spec.resolved.yaml` (with the SHA-256 of its content in the first line),
@@ -150,7 +155,10 @@ pub fn write_header(
     plans: &[RunPlan],
     provenance: &Provenance,
 ) -> std::io::Result<()> {
-    write_atomic(&out.join("spec.resolved.yaml"), resolved_spec_text(checked)?.as_bytes())?;
+    write_atomic(
+        &out.join("spec.resolved.yaml"),
+        resolved_spec_text(checked)?.as_bytes(),
+    )?;
     let provenance = serde_json::to_vec_pretty(provenance).map_err(std::io::Error::other)?;
     write_atomic(&out.join("provenance.json"), &provenance)?;
     let mut matrix = String::from("key,fidelity,policy,initial_configuration,repetition,seed\n");
@@ -210,7 +218,10 @@ pub fn write_summaries_from(
             .collect(),
         learning_curves: learning_curves(out),
     };
-    write_atomic(&out.join("report.html"), cpmx_report_html::report_html(&page).as_bytes())?;
+    write_atomic(
+        &out.join("report.html"),
+        cpmx_report_html::report_html(&page).as_bytes(),
+    )?;
     Ok(summary)
 }
 

@@ -179,9 +179,9 @@ impl From<RunError> for RunFailure {
 impl RunFailure {
     fn reason(self) -> String {
         match self {
-            RunFailure::Reason(reason) | RunFailure::LabSilent(reason) | RunFailure::Partial { reason, .. } => {
-                reason
-            }
+            RunFailure::Reason(reason)
+            | RunFailure::LabSilent(reason)
+            | RunFailure::Partial { reason, .. } => reason,
         }
     }
 }
@@ -228,7 +228,12 @@ fn run_engine(experiment: &Experiment, plan: &RunPlan) -> Result<Recording, RunF
 
 /// The spec's metrics of a recording (the same function `cpmx evaluate` and `cpmx report` use).
 pub fn measure(experiment: &Experiment, recording: &Recording) -> Result<RunMetrics, String> {
-    measure_recording(&experiment.map, &experiment.vehicle, &experiment.metrics, recording)
+    measure_recording(
+        &experiment.map,
+        &experiment.vehicle,
+        &experiment.metrics,
+        recording,
+    )
 }
 
 /// The metrics of a recording on `map` with the vehicle's footprint and the metric parameters.

@@ -24,7 +24,18 @@ pub struct MetricsConfig {
     /// Map positions, yaws and lanes by a half turn about this centre before any metric, as
     /// the script's `rotate180` (for lab data recorded in a rotated frame).
     pub rotate180: Option<Rotate180>,
+    /// Leave out each agent's samples after it reached the end of an open reference path
+    /// (its centre within [`END_REACHED_M`] of the last centre-line point, along the path)
+    /// from CD, AS, CRA-L and the distance travelled (the spec's
+    /// `timing.stop_at_path_end: end-agent`), so that agents that finish early and wait are
+    /// not slower for it. Collisions still count: the vehicle is still there.
+    #[serde(default)]
+    pub end_at_path_end: bool,
 }
+
+/// How close to the end of an open reference path (along it) an agent has reached it [m]:
+/// a little more than `lane-follow` leaves when it stops there (0.15 m).
+pub const END_REACHED_M: f64 = 0.2;
 
 /// The half-turn of the script's `rotate180`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -114,6 +125,7 @@ impl Default for MetricsConfig {
             },
             max_steps: None,
             rotate180: None,
+            end_at_path_end: false,
         }
     }
 }
@@ -136,6 +148,7 @@ impl MetricsConfig {
             },
             max_steps: None,
             rotate180: None,
+            end_at_path_end: false,
         }
     }
 

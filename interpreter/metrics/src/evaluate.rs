@@ -11,7 +11,7 @@ use cpmx_world::{Point, Polyline, ReferencePath, polyline::dist};
 
 use crate::MetricsError;
 use crate::collision::{PlacedBox, signed_distance_m};
-use crate::config::{EventCount, MetricsConfig};
+use crate::config::{END_REACHED_M, EventCount, MetricsConfig};
 use crate::hysteresis::event_samples;
 use crate::lane::Lane;
 use crate::output::{AgentMetrics, PairEvent, RunMetrics};
@@ -28,6 +28,8 @@ pub struct PathGeometry<'a> {
     pub left_boundary: &'a [Point],
     /// Own-lane right boundary, in driving direction.
     pub right_boundary: &'a [Point],
+    /// Whether the path is a closed loop (it has no end to reach).
+    pub is_loop: bool,
 }
 
 impl<'a> From<&'a ReferencePath> for PathGeometry<'a> {
@@ -37,6 +39,7 @@ impl<'a> From<&'a ReferencePath> for PathGeometry<'a> {
             center_line: &path.center_line.points,
             left_boundary: &path.left_boundary.points,
             right_boundary: &path.right_boundary.points,
+            is_loop: path.is_loop,
         }
     }
 }
@@ -115,9 +118,10 @@ pub fn evaluate(
         })
         .collect();
 
-    // Each agent's centre line and own lane, in the same frame.
+    // Each agent's centre line and own lane, in the same frame, and whether it has an end.
     let mut centre_lines = Vec::with_capacity(agent_count);
     let mut lanes = Vec::with_capacity(agent_count);
+    let mut open_paths = Vec::with_capacity(agent_count);
     for (agent, &id) in recording.ref_paths.iter().enumerate() {
         let path = ref_paths
             .iter()
@@ -126,6 +130,7 @@ pub fn evaluate(
         let map = |line: &[Point]| -> Vec<Point> { line.iter().map(|&p| rotate(p)).collect() };
         centre_lines.push(Polyline::new(map(path.center_line)));
         lanes.push(Lane::new(map(path.left_boundary), map(path.right_boundary)));
+        open_paths.push(!path.is_loop);
     }
 
     // Footprints: the real one for collisions, the one shrunk by the slack for the lane.
@@ -174,7 +179,17 @@ pub fn evaluate(
         let mut lane_violation_m = 0.0;
         let mut violation_samples = Vec::new();
         let (mut cd_sum_m, mut speed_sum_mps) = (0.0, 0.0);
-        for (k, row) in states.iter().enumerate() {
+        // With `end_at_path_end`, the samples up to (and with) the one that reached the end.
+        let counted = if config.end_at_path_end && open_paths[agent] {
+            let line = &centre_lines[agent];
+            states
+                .iter()
+                .position(|row| line.remaining_m([row[agent].x_m, row[agent].y_m]) <= END_REACHED_M)
+                .map_or(states.len(), |k| k + 1)
+        } else {
+            states.len()
+        };
+        for (k, row) in states.iter().enumerate().take(counted) {
             let s = &row[agent];
             let step_m = if k == 0 {
                 0.0
@@ -195,8 +210,8 @@ pub fn evaluate(
             ref_path: recording.ref_paths[agent],
             distance_m,
             lane_violation_m,
-            cd_m: cd_sum_m / kept as f64,
-            as_mps: speed_sum_mps / kept as f64,
+            cd_m: cd_sum_m / counted as f64,
+            as_mps: speed_sum_mps / counted as f64,
             event_samples: events,
             violation_samples,
         });
@@ -262,6 +277,7 @@ mod tests {
                 center_line: &self.centre,
                 left_boundary: &self.left,
                 right_boundary: &self.right,
+                is_loop: false,
             }]
         }
     }
@@ -371,5 +387,29 @@ mod tests {
             let listed: usize = per_agent.agents.iter().map(|a| a.event_samples.len()).sum();
             prop_assert_eq!(listed, per_agent.a2a_events);
         }
+    }
+
+    #[test]
+    fn waiting_at_the_end_of_the_path_can_be_left_out() {
+        // Drives 1 m/s to 0.1 m before the end of the 20 m lane, then waits for 10 samples.
+        let mut rows: Vec<Vec<AgentSample>> = (0..=10)
+            .map(|k| vec![sample(18.9 + k as f64 * 0.1, 0.0, 0.0)])
+            .collect();
+        for _ in 0..10 {
+            let mut waiting = sample(19.9, 0.0, 0.0);
+            waiting.velocity_mps = [0.0, 0.0];
+            rows.push(vec![waiting]);
+        }
+        let lane = Straight::new();
+        let recording = recording(rows);
+        let mut config = MetricsConfig::default();
+        let waiting = evaluate(&recording, &lane.geometry(), &VehicleParams::MU_CAR, &config).unwrap();
+        assert!((waiting.as_mps - 11.0 / 21.0).abs() < 1e-12, "{}", waiting.as_mps);
+        config.end_at_path_end = true;
+        let ended = evaluate(&recording, &lane.geometry(), &VehicleParams::MU_CAR, &config).unwrap();
+        // Sample 9 (x = 19.8 m, 0.2 m before the end up to round-off) or 10 is the first within
+        // 0.2 m of the end: the waiting samples are left out either way.
+        assert!((ended.as_mps - 1.0).abs() < 1e-12, "{}", ended.as_mps);
+        assert!((0.9 - 1e-9..=1.0 + 1e-9).contains(&ended.distance_m), "{}", ended.distance_m);
     }
 }

@@ -152,8 +152,7 @@ pub fn ci95_t(values: &[f64], range: Range) -> Interval {
 /// The 0.975 quantile of Student's t with `degrees_of_freedom` (≥ 1).
 pub fn t_quantile_975(degrees_of_freedom: usize) -> f64 {
     use statrs::distribution::{ContinuousCDF, StudentsT};
-    StudentsT::new(0.0, 1.0, degrees_of_freedom as f64)
-        .map_or(f64::NAN, |t| t.inverse_cdf(0.975))
+    StudentsT::new(0.0, 1.0, degrees_of_freedom as f64).map_or(f64::NAN, |t| t.inverse_cdf(0.975))
 }
 
 /// The `p`-quantile (0 ≤ p ≤ 1) of sorted values with linear interpolation between order
@@ -219,7 +218,13 @@ mod tests {
         let bounded = ci95_t(&values, Range::NON_NEGATIVE);
         assert_eq!(bounded.low, 0.0);
         assert_eq!(bounded.high, open.high);
-        let capped = ci95_t(&[99.0, 100.0, 100.0], Range { low: 0.0, high: 100.0 });
+        let capped = ci95_t(
+            &[99.0, 100.0, 100.0],
+            Range {
+                low: 0.0,
+                high: 100.0,
+            },
+        );
         assert_eq!(capped.high, 100.0);
     }
 

@@ -16,7 +16,7 @@
   const data = JSON.parse(document.getElementById("cpmx-data").textContent);
   const COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
                    "#7f7f7f", "#bcbd22", "#17becf"];
-  const PANEL_W = 440, PANEL_H = 400, MARGIN = 14;
+  const PANEL_W = 340, PANEL_H = 310, MARGIN = 12;
 
   // Map metres to canvas pixels: the whole map fits the panel, y up.
   function frameOf(canvas) {

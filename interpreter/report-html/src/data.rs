@@ -153,8 +153,7 @@ fn figure3(runs: &[PageRun<'_>]) -> Vec<Value> {
     configurations
         .into_iter()
         .map(|configuration| {
-            let of_configuration =
-                |i: &usize| runs[*i].record.plan.initial_configuration == configuration;
+            let of_configuration = |i: &usize| runs[*i].record.plan.initial_configuration == configuration;
             let setup = (0..runs.len()).find(of_configuration);
             let representatives: Vec<Value> = fidelities
                 .iter()
@@ -167,7 +166,11 @@ fn figure3(runs: &[PageRun<'_>]) -> Vec<Value> {
                         .min_by(|&a, &b| {
                             let gap = |i: usize| {
                                 let cd = runs[i].record.metrics.cd_m;
-                                if cd.is_finite() && mean.is_finite() { (cd - mean).abs() } else { f64::INFINITY }
+                                if cd.is_finite() && mean.is_finite() {
+                                    (cd - mean).abs()
+                                } else {
+                                    f64::INFINITY
+                                }
                             };
                             gap(a).total_cmp(&gap(b))
                         })?;
@@ -204,7 +207,12 @@ fn simplify(points: &[Point], tolerance_m: f64) -> Vec<Point> {
             stack.push((farthest, last));
         }
     }
-    points.iter().zip(keep).filter(|(_, k)| *k).map(|(p, _)| *p).collect()
+    points
+        .iter()
+        .zip(keep)
+        .filter(|(_, k)| *k)
+        .map(|(p, _)| *p)
+        .collect()
 }
 
 fn distance_to_segment(p: Point, a: Point, b: Point) -> f64 {
@@ -248,7 +256,14 @@ mod tests {
 
     #[test]
     fn simplifying_keeps_corners_and_drops_collinear_points() {
-        let line: Vec<Point> = vec![[0.0, 0.0], [1.0, 0.0], [2.0, 0.0001], [3.0, 0.0], [3.0, 1.0], [3.0, 2.0]];
+        let line: Vec<Point> = vec![
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [2.0, 0.0001],
+            [3.0, 0.0],
+            [3.0, 1.0],
+            [3.0, 2.0],
+        ];
         assert_eq!(simplify(&line, 0.001), vec![[0.0, 0.0], [3.0, 0.0], [3.0, 2.0]]);
         assert_eq!(simplify(&line[..2], 0.001).len(), 2);
     }

@@ -64,7 +64,12 @@ fn table(rows: &[&str]) -> String {
     };
     let right: Vec<bool> = rows
         .get(1)
-        .map(|r| cells(r).iter().map(|c| c.ends_with(':') && !c.starts_with(':')).collect())
+        .map(|r| {
+            cells(r)
+                .iter()
+                .map(|c| c.ends_with(':') && !c.starts_with(':'))
+                .collect()
+        })
         .unwrap_or_default();
     let mut out = String::from("<table>\n<thead><tr>");
     for cell in cells(rows[0]) {
@@ -74,7 +79,11 @@ fn table(rows: &[&str]) -> String {
     for row in rows.iter().skip(2) {
         out.push_str("<tr>");
         for (i, cell) in cells(row).iter().enumerate() {
-            let class = if right.get(i).copied().unwrap_or(false) { " class=\"num\"" } else { "" };
+            let class = if right.get(i).copied().unwrap_or(false) {
+                " class=\"num\""
+            } else {
+                ""
+            };
             out.push_str(&format!("<td{class}>{}</td>", inline(cell)));
         }
         out.push_str("</tr>\n");

@@ -49,7 +49,13 @@ fn record(map: &Map, fidelity: &str, recording: &Recording) -> RunRecord {
         .iter()
         .map(|&id| PathGeometry::from(map.reference_path(id).unwrap()))
         .collect();
-    let metrics = evaluate(recording, &paths, &VehicleParams::MU_CAR, &MetricsConfig::default()).unwrap();
+    let metrics = evaluate(
+        recording,
+        &paths,
+        &VehicleParams::MU_CAR,
+        &MetricsConfig::default(),
+    )
+    .unwrap();
     RunRecord {
         plan: RunPlan {
             key: format!("{fidelity}/p/init1/rep1"),
@@ -72,7 +78,10 @@ fn page_data_of_a_small_folder() {
     let report = ReportSpec {
         group_by: vec![GroupKey::Fidelity],
         statistics: vec![Statistic::Mean, Statistic::Std],
-        bootstrap: Bootstrap { resamples: 100, seed: 7 },
+        bootstrap: Bootstrap {
+            resamples: 100,
+            seed: 7,
+        },
         compare: Some(Compare {
             reference: "sim".into(),
             test: PairedTest::Paired,
@@ -86,8 +95,14 @@ fn page_data_of_a_small_folder() {
         map: &map,
         vehicle: &vehicle,
         runs: vec![
-            PageRun { record: &records[0], recording: &sim },
-            PageRun { record: &records[1], recording: &twin },
+            PageRun {
+                record: &records[0],
+                recording: &sim,
+            },
+            PageRun {
+                record: &records[1],
+                recording: &twin,
+            },
         ],
         learning_curves: vec![],
     };
@@ -104,5 +119,8 @@ fn page_data_of_a_small_folder() {
     let html = report_html(&page);
     assert!(!html.contains("src=\"http") && !html.contains("<link") && !html.contains("url(http"));
     assert!(html.contains("<script id=\"cpmx-data\" type=\"application/json\">"));
-    assert!(html.contains("<th>CRA-A ↓ [events/100 m]</th>"), "the summary table is in the page");
+    assert!(
+        html.contains("<th>CRA-A ↓ [events/100 m]</th>"),
+        "the summary table is in the page"
+    );
 }

@@ -263,7 +263,10 @@ mod tests {
         assert!((cd.stats.mean - 0.06).abs() < 1e-15);
         // Two units: t(0.975; 1) = 12.706 makes the interval wide, not six-copies narrow.
         let half = cd.stats.ci95.high - cd.stats.mean;
-        assert!((half - 12.706_204_736 * cd.stats.std / 2f64.sqrt()).abs() < 1e-6, "{half}");
+        assert!(
+            (half - 12.706_204_736 * cd.stats.std / 2f64.sqrt()).abs() < 1e-6,
+            "{half}"
+        );
     }
 
     #[test]

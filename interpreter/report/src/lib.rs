@@ -16,9 +16,9 @@ mod compare;
 mod metric;
 mod svg;
 mod table;
-mod units;
 #[cfg(test)]
 mod testing;
+mod units;
 
 pub use aggregate::{
     BootstrapIntervals, CONFIDENCE, Group, MetricSummary, Summary, axis_name, axis_value, sort_by_matrix,

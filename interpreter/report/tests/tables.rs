@@ -97,7 +97,8 @@ fn degenerate_inputs_render_in_every_format() {
         "{markdown}"
     );
     assert!(
-        markdown.contains("| lab | CRA-A ↓ [events/100 m] | 0 (1 unmatched) | n/a | n/a | n/a | 0/0/0 | n/a |"),
+        markdown
+            .contains("| lab | CRA-A ↓ [events/100 m] | 0 (1 unmatched) | n/a | n/a | n/a | 0/0/0 | n/a |"),
         "{markdown}"
     );
 }

@@ -74,6 +74,20 @@ impl Polyline {
     pub fn length_m(&self) -> f64 {
         self.points.windows(2).map(|w| dist(w[0], w[1])).sum()
     }
+
+    /// Length along the polyline from the projection of `p` (on its nearest segment) to the
+    /// last point [m]; infinite for fewer than two points.
+    pub fn remaining_m(&self, p: Point) -> f64 {
+        let Some(nearest) = self.nearest_segment(p) else {
+            return f64::INFINITY;
+        };
+        let (a, b) = (self.points[nearest.segment], self.points[nearest.segment + 1]);
+        let rest: f64 = self.points[nearest.segment + 1..]
+            .windows(2)
+            .map(|w| dist(w[0], w[1]))
+            .sum();
+        dist(a, b) * (1.0 - nearest.t) + rest
+    }
 }
 
 /// Distance from `p` to the segment `a`–`b` and the projection parameter clamped to [0, 1].
@@ -107,6 +121,18 @@ mod tests {
         assert_eq!(d.segment, 1);
         assert_eq!(d.closest_point_index(), 2);
         assert!((d.distance_m - 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn what_remains_is_measured_along_the_line() {
+        let line = Polyline::new(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 2.0]]);
+        assert!((line.remaining_m([0.25, 0.1]) - 2.75).abs() < 1e-12);
+        assert!((line.remaining_m([1.2, 1.5]) - 0.5).abs() < 1e-12);
+        assert_eq!(line.remaining_m([1.0, 3.0]), 0.0);
+        assert_eq!(
+            Polyline::new(vec![[0.0, 0.0]]).remaining_m([0.0, 0.0]),
+            f64::INFINITY
+        );
     }
 
     #[test]

@@ -155,6 +155,30 @@ pub struct Timing {
     /// Number of policy steps per run (the paper: 180, i.e. 18 s).
     #[schemars(range(min = 1, max = 1000000))]
     pub steps: u32,
+    /// What becomes of an agent that reaches the end of an open reference path. `stop`
+    /// (default): it stays there, and the metrics count the time it waits (AS drops).
+    /// `end-agent`: its samples after it reached the end (its centre within 0.2 m of the last
+    /// centre-line point) are left out of CD, AS, CRA-L and the distance, so that speeds of
+    /// policies that finish early stay comparable; its collisions still count.
+    #[serde(default, skip_serializing_if = "StopAtPathEnd::is_default")]
+    pub stop_at_path_end: StopAtPathEnd,
+}
+
+/// The rule of `timing.stop_at_path_end`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum StopAtPathEnd {
+    /// The agent stays at the end; its waiting time counts.
+    #[default]
+    Stop,
+    /// The agent's run ends there: later samples are not measured.
+    EndAgent,
+}
+
+impl StopAtPathEnd {
+    fn is_default(&self) -> bool {
+        *self == StopAtPathEnd::Stop
+    }
 }
 
 /// How a policy becomes a timed reference trajectory (`control: trajectory`).

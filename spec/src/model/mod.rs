@@ -14,7 +14,7 @@ mod start;
 
 pub use experiment::{
     AfterControlHorizon, MapFile, MapFormat, MapSpec, OnCollision, Planner, RefPathDefinition, Spec,
-    SpeedAfterHc, SteeringAfterHc, Timing, VehicleSpec,
+    SpeedAfterHc, SteeringAfterHc, StopAtPathEnd, Timing, VehicleSpec,
 };
 pub use fidelity::{
     ActuationLayer, ActuationModel, Control, DynamicsLayer, Fidelity, GreyBoxModel, IdealKeyword,

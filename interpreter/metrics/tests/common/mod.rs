@@ -51,6 +51,7 @@ pub struct PathLines {
     pub center_line: Vec<Point>,
     pub left_boundary: Vec<Point>,
     pub right_boundary: Vec<Point>,
+    pub is_loop: bool,
 }
 
 impl PathLines {
@@ -60,6 +61,7 @@ impl PathLines {
             center_line: &self.center_line,
             left_boundary: &self.left_boundary,
             right_boundary: &self.right_boundary,
+            is_loop: self.is_loop,
         }
     }
 }
@@ -75,6 +77,7 @@ pub fn reference_paths(map: &Value) -> Vec<PathLines> {
             center_line: points(&p["center_line"]),
             left_boundary: points(&p["left_boundary"]),
             right_boundary: points(&p["right_boundary"]),
+            is_loop: p["is_loop"].as_bool().unwrap_or(false),
         })
         .collect()
 }

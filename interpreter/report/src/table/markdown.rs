@@ -30,7 +30,7 @@ fn main_table(out: &mut String, summary: &Summary) {
     let parts = CellParts::of(summary);
     let _ = writeln!(
         out,
-        "Per group: {} over its runs. ↓ lower is better, ↑ higher is better; bold: the best mean of a column.\n",
+        "Per group: {} over its independent units. ↓ lower is better, ↑ higher is better; bold: the best mean of a column.\n",
         parts.caption()
     );
     let mut header = group_header(summary);
