@@ -70,6 +70,7 @@ pub(crate) fn unsupported_reason(fidelity: &Fidelity) -> Option<String> {
             dynamics,
             sensing,
             actuation,
+            follower,
         }) => {
             let mut extra = Vec::new();
             if matches!(dynamics, DynamicsLayer::GreyBox(_)) {
@@ -80,6 +81,9 @@ pub(crate) fn unsupported_reason(fidelity: &Fidelity) -> Option<String> {
             }
             if matches!(actuation, Some(ActuationLayer::Model(_))) {
                 extra.push("an actuation model");
+            }
+            if follower.is_some() {
+                extra.push("a `follower`");
             }
             (!extra.is_empty()).then(|| {
                 format!(

@@ -29,6 +29,12 @@ pub enum RunError {
         "the lab did not answer within {timeout_s} s: is `cpmx lab emulate` or the lab running on domain {domain}?"
     )]
     LabSilent { timeout_s: f64, domain: u32 },
+    #[error(
+        "the lab's middleware ticks every {period_ms} ms, but `timing.dt` is {dt_ms} ms: the planner \
+         must be called every `dt`; set the Lab Control Center's parameter `middleware_period_ms` \
+         to {dt_ms} (lab_control_center/parameters.yaml, default 400) and restart the middleware"
+    )]
+    LabPeriod { period_ms: u64, dt_ms: u64 },
     #[error("the lab ended the run before its first tick: {0}")]
     LabStopped(String),
     #[error("the lab's middleware: {0}")]

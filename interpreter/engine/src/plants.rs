@@ -18,6 +18,8 @@ pub struct PlantStep<const NX: usize> {
     pub velocity_mps: [f64; 2],
     /// Distance the odometer counted during the step [m].
     pub odometer_increment_m: f64,
+    /// The battery voltage the vehicle measures after the step [V], if it has a battery.
+    pub battery_voltage_v: Option<f64>,
 }
 
 /// A vehicle model as the twin engine drives it.
@@ -36,9 +38,14 @@ pub trait Plant<const NX: usize, const NU: usize> {
     fn speed_mps(&self, state: &[f64; NX]) -> f64;
     /// The state with pose and speed replaced by an estimate (the rest is known on board).
     fn with_pose(&self, state: &[f64; NX], pose: Pose2, speed_mps: f64) -> [f64; NX];
-    /// The steering angle the planner's bicycle sees [rad].
-    fn steering_rad(&self, state: &[f64; NX], applied: &[f64; NU]) -> f64;
-    fn velocity_mps(&self, state: &[f64; NX], applied: &[f64; NU]) -> [f64; 2];
+    /// The steering angle the vehicle reports for the follower's current `command` [rad]: the
+    /// lab's `VehicleState.steering_servo` is the command the MPC has just computed, and the
+    /// planner reads it as σ = σ_max · servo (the paper's §Observation).
+    fn reported_steering_rad(&self, state: &[f64; NX], command: &[f64; NU]) -> f64;
+    /// The velocity a run records [m/s]: the odometer speed along the bicycle's course
+    /// ψ + β(σ) with the reported steering σ, the quantity the lab driver records from a
+    /// `VehicleState` (`lab::mapping::recorded_sample`).
+    fn recorded_velocity_mps(&self, state: &[f64; NX], steering_rad: f64) -> [f64; 2];
 }
 
 /// The kinematic bicycle under MPC control (sim-mpc).
@@ -80,6 +87,7 @@ impl Plant<5, 2> for KinematicPlant {
             state: BicycleModel::from_state(&out.state),
             velocity_mps: out.velocity_mps,
             odometer_increment_m: state[3] * dt_s,
+            battery_voltage_v: None,
         }
     }
     fn pose(&self, state: &[f64; 5]) -> Pose2 {
@@ -101,11 +109,15 @@ impl Plant<5, 2> for KinematicPlant {
             state[4],
         ]
     }
-    fn steering_rad(&self, state: &[f64; 5], _: &[f64; 2]) -> f64 {
-        state[4]
+    /// The steering command (the bicycle's analogue of the lab's servo command).
+    fn reported_steering_rad(&self, _: &[f64; 5], command: &[f64; 2]) -> f64 {
+        let max = self.model.params.max_steering_rad;
+        command[1].clamp(-max, max)
     }
-    fn velocity_mps(&self, state: &[f64; 5], _: &[f64; 2]) -> [f64; 2] {
-        self.model.velocity_mps(&BicycleModel::to_state(state))
+    fn recorded_velocity_mps(&self, state: &[f64; 5], steering_rad: f64) -> [f64; 2] {
+        let mut state = BicycleModel::to_state(state);
+        state.steering_rad = steering_rad;
+        self.model.velocity_mps(&state)
     }
 }
 
@@ -125,7 +137,10 @@ impl GreyBoxPlant {
         };
         let model = GreyBoxVehicle::new(params).map_err(|e| e.to_string())?;
         Ok(Self {
-            model: GreyBoxMpcModel { model },
+            model: GreyBoxMpcModel {
+                model,
+                battery_voltage_v: params.battery_voltage_v,
+            },
             vehicle,
         })
     }
@@ -168,6 +183,10 @@ impl Plant<4, 2> for GreyBoxPlant {
                 ],
                 velocity_mps: out.velocity_mps,
                 odometer_increment_m: out.odometer_increment_m,
+                // The lab's simulated battery: V − 0.03·|v̇| (`SimulationVehicle.cxx`).
+                battery_voltage_v: (dt_s > 0.0).then(|| {
+                    grey_input.battery_voltage_v - 0.03 * ((out.state.speed_mps - state[3]) / dt_s).abs()
+                }),
             },
             // The engine only asks for whole positive control periods; a refused step leaves
             // the car where it is rather than inventing motion.
@@ -175,6 +194,7 @@ impl Plant<4, 2> for GreyBoxPlant {
                 state: *state,
                 velocity_mps: [0.0, 0.0],
                 odometer_increment_m: 0.0,
+                battery_voltage_v: None,
             },
         }
     }
@@ -191,42 +211,118 @@ impl Plant<4, 2> for GreyBoxPlant {
     fn with_pose(&self, state: &[f64; 4], pose: Pose2, speed_mps: f64) -> [f64; 4] {
         [pose.x_m, pose.y_m, unwrap_near(pose.yaw_rad, state[2]), speed_mps]
     }
-    /// The servo position as a steering angle: the bicycle steering whose curvature equals the
-    /// grey-box model's curvature `p4·δ'/(p1·(1 + p2·δ'²))` at this servo position.
-    fn steering_rad(&self, _: &[f64; 4], applied: &[f64; 2]) -> f64 {
-        let p = &self.model.model.params().parameters;
-        let effective = self.model.model.effective_steering(applied[1]);
-        let curvature = p[3] * effective / (p[0] * (1.0 + p[1] * effective * effective));
-        let (wheelbase, rear) = (self.vehicle.wheelbase_m, self.vehicle.rear_axle_m);
-        // tan δ = κL / sqrt(1 − (κ l_r)²), clamped to the steering limit.
-        let root = (1.0 - (curvature * rear).powi(2)).max(1e-9).sqrt();
-        (curvature * wheelbase / root)
-            .atan()
-            .clamp(-self.vehicle.max_steering_rad, self.vehicle.max_steering_rad)
+    /// σ = σ_max · servo, the servo command clipped to [-1, 1] as the lab's controller clips it
+    /// (the paper's §Observation; `lab::mapping::policy_state` reads the lab's states so).
+    fn reported_steering_rad(&self, _: &[f64; 4], command: &[f64; 2]) -> f64 {
+        self.vehicle.max_steering_rad * command[1].clamp(-1.0, 1.0)
     }
-    fn velocity_mps(&self, state: &[f64; 4], applied: &[f64; 2]) -> [f64; 2] {
-        self.model.model.velocity_mps(&grey_state(state), applied[1])
+    fn recorded_velocity_mps(&self, state: &[f64; 4], steering_rad: f64) -> [f64; 2] {
+        KinematicBicycle::new(self.vehicle).velocity_mps(&cpmx_vehicle::BicycleState {
+            x_m: state[0],
+            y_m: state[1],
+            yaw_rad: state[2],
+            speed_mps: state[3],
+            steering_rad,
+        })
     }
 }
 
+/// Gain of the lab's stop signal on the measured speed [throttle per m/s].
+pub const STOP_BRAKE_GAIN: f64 = 0.5;
+
 /// The grey-box model as the MPC predicts with it: state `[x, y, yaw, speed]`, input
-/// `[throttle, steering servo]`.
+/// `[throttle, steering servo]`, one explicit Euler step per call whatever its length (the
+/// lab's `VehicleModel::step`: 20 ms for the delay compensation, 50 ms per prediction step),
+/// at the battery voltage the MPC's filter holds.
 #[derive(Debug, Clone)]
 pub struct GreyBoxMpcModel {
     model: GreyBoxVehicle,
+    battery_voltage_v: f64,
 }
 
 impl Model<4, 2> for GreyBoxMpcModel {
     fn step(&self, state: &[f64; 4], input: &[f64; 2], dt_s: f64) -> [f64; 4] {
-        let grey_input = self.model.input(input[0], input[1]);
-        match self.model.step(&grey_state(state), &grey_input, dt_s) {
-            Ok(out) => [
-                out.state.x_m,
-                out.state.y_m,
-                out.state.yaw_rad,
-                out.state.speed_mps,
-            ],
-            Err(_) => *state,
+        let grey_input = cpmx_vehicle::GreyBoxInput {
+            throttle: input[0],
+            steering_servo: input[1],
+            battery_voltage_v: self.battery_voltage_v,
+        };
+        let out = self.model.euler_step(&grey_state(state), &grey_input, dt_s);
+        [out.x_m, out.y_m, out.yaw_rad, out.speed_mps]
+    }
+
+    /// The Euler step's exact Jacobians (inputs inside [-1, 1], where the lab's solver keeps
+    /// them; the motor term's slope `p8·|f|^(p8−1)` vanishes at f = 0 as CasADi's does).
+    fn step_jacobians(
+        &self,
+        state: &[f64; 4],
+        input: &[f64; 2],
+        h: f64,
+    ) -> (
+        [f64; 4],
+        nalgebra::SMatrix<f64, 4, 4>,
+        nalgebra::SMatrix<f64, 4, 2>,
+    ) {
+        let p = &self.model.params().parameters;
+        let [x, y, yaw, v] = *state;
+        let f = input[0].clamp(-1.0, 1.0);
+        let d = input[1].clamp(-1.0, 1.0) + p[8];
+        let gain = p[0] * (1.0 + p[1] * d * d);
+        let s = gain * v;
+        let (sin, cos) = (yaw + p[2] * d + p[9]).sin_cos();
+        let motor = p[5] + p[6] * self.battery_voltage_v;
+        let magnitude = f.abs().powf(p[7]);
+        let sign = if f >= 0.0 { 1.0 } else { -1.0 };
+        let next = [
+            x + h * s * cos,
+            y + h * s * sin,
+            yaw + h * p[3] * v * d,
+            v + h * (p[4] * v + motor * sign * magnitude),
+        ];
+        let a = nalgebra::SMatrix::<f64, 4, 4>::new(
+            1.0,
+            0.0,
+            -h * s * sin,
+            h * gain * cos,
+            0.0,
+            1.0,
+            h * s * cos,
+            h * gain * sin,
+            0.0,
+            0.0,
+            1.0,
+            h * p[3] * d,
+            0.0,
+            0.0,
+            0.0,
+            1.0 + h * p[4],
+        );
+        let ds = 2.0 * p[0] * p[1] * d * v;
+        let motor_slope = if f == 0.0 {
+            0.0
+        } else {
+            motor * p[7] * magnitude / f.abs()
+        };
+        let b = nalgebra::SMatrix::<f64, 4, 2>::new(
+            0.0,
+            h * (ds * cos - s * sin * p[2]),
+            0.0,
+            h * (ds * sin + s * cos * p[2]),
+            0.0,
+            h * p[3] * v,
+            h * motor_slope,
+            0.0,
+        );
+        (next, a, b)
+    }
+
+    fn position_jacobian(&self, _: &[f64; 4]) -> nalgebra::SMatrix<f64, 2, 4> {
+        nalgebra::SMatrix::<f64, 2, 4>::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0)
+    }
+
+    fn set_battery_voltage_v(&mut self, voltage_v: f64) {
+        if voltage_v.is_finite() && voltage_v > 0.0 {
+            self.battery_voltage_v = voltage_v;
         }
     }
 
@@ -238,7 +334,7 @@ impl Model<4, 2> for GreyBoxMpcModel {
     /// and the throttle whose steady-state speed (v̇ = 0) is the reference speed.
     fn feedforward(&self, sample: &TrajectorySample, near: &[f64; 4]) -> ([f64; 4], [f64; 2]) {
         let p = &self.model.params().parameters;
-        let voltage = self.model.params().battery_voltage_v;
+        let voltage = self.battery_voltage_v;
         // Throttle whose steady-state speed is `speed`: 0 = p5·v + (p6 + p7·V)·sign(f)·|f|^p8.
         let motor = p[5] + p[6] * voltage;
         let throttle_for = |speed: f64| {
@@ -276,8 +372,10 @@ impl Model<4, 2> for GreyBoxMpcModel {
         }
     }
 
-    fn stop_input(&self, _: &[f64; 4]) -> [f64; 2] {
-        [0.0, 0.0]
+    /// The lab's stop signals (`Controller::get_stop_signals`): a proportional brake on the
+    /// measured speed, throttle = clip(0.5 · (0 − v), −1, 1), servo 0.
+    fn stop_input(&self, state: &[f64; 4]) -> [f64; 2] {
+        [(STOP_BRAKE_GAIN * (0.0 - state[3])).clamp(-1.0, 1.0), 0.0]
     }
 }
 
@@ -364,5 +462,41 @@ mod tests {
             worst = worst.max(err);
         }
         assert!(worst < 0.03, "worst tracking error {worst} m");
+    }
+
+    /// The lab's stop signal (a P-brake on the measured speed) with the lab's 80 ms input
+    /// delay stops a cruising car in the distances the review reproduced from the lab's code
+    /// (6.2 / 11.0 / 15.9 cm from 0.25 / 0.5 / 0.8 m/s; coasting took 12.7 / 25.6 / 41.1 cm).
+    #[test]
+    fn the_lab_stop_signal_stops_in_the_labs_distances() {
+        let spec = GreyBoxModel {
+            parameters: cpmx_vehicle::LAB_GREYBOX_PARAMETERS,
+            euler_step_s: 0.02,
+            battery_voltage_v: 7.8,
+        };
+        let plant = GreyBoxPlant::new(&spec, VehicleParams::MU_CAR).unwrap();
+        let model = plant.mpc_model();
+        let p = cpmx_vehicle::LAB_GREYBOX_PARAMETERS;
+        for (v0, expected_cm) in [(0.25, 6.2), (0.5, 11.0), (0.8, 15.9)] {
+            // Cruising at v0: the delay line holds the steady-state throttle.
+            let cruise = (-p[4] * v0 / (p[5] + p[6] * 7.8)).powf(1.0 / p[7]);
+            let mut delay = cpmx_sensing::ActuationDelay::new(80.0, 0.02, [cruise, 0.0]).unwrap();
+            let mut state = [0.0, 0.0, 0.0, v0];
+            let mut distance_m = 0.0;
+            let mut steps = 0;
+            while state[3] >= 0.005 {
+                let applied = delay.push(model.stop_input(&state));
+                let step = plant.step(&state, &applied, 0.02);
+                distance_m += step.odometer_increment_m;
+                state = step.state;
+                steps += 1;
+                assert!(steps < 500, "the car does not stop from {v0} m/s");
+            }
+            let distance_cm = 100.0 * distance_m;
+            assert!(
+                (distance_cm - expected_cm).abs() < 0.1,
+                "from {v0} m/s: {distance_cm:.2} cm, the lab {expected_cm} cm"
+            );
+        }
     }
 }

@@ -1,15 +1,30 @@
 //! One simulated µCar with the lab's on-board stack: plant, actuation delay, on-car sensing
 //! and the 50 Hz MPC trajectory follower. The twin engine drives several of them from the
 //! planner; `cpmx lab emulate` drives them from trajectories received over DDS.
+//!
+//! What a vehicle reports is what the lab's vehicles publish (`mid_level_controller/main.cxx`):
+//! after each 20 ms step, the estimated pose after the step, the odometer speed and
+//! `steering_servo` = the command the follower has just computed (not the delayed servo the
+//! plant applies), stamped `valid_after = create + 60 ms`. The middleware lists, at each tick,
+//! the newest state that is valid by then ([`VehicleStack::listed_state`]), so the planner sees
+//! states 60 ms old, as in the lab. `create` is the time the pose holds (the step's end), as a
+//! real car's estimate holds at its stamp; the lab's simulated vehicles stamp the post-step
+//! pose with the step's start, 20 ms early, which would make every plan anchored at its state's
+//! time (`twin.rs`) start 20 ms·v ahead of the car and the cars drive ~20 % faster than planned.
 
 use cpmx_follower::{
-    Follower, FollowerConfig, Mpc, MpcConfig, StateEstimate, Status, TrajectoryCommand, TrajectoryPoint,
+    Follower, FollowerConfig, Mpc, MpcConfig, Solver, StateEstimate, Status, TrajectoryCommand,
+    TrajectoryPoint,
 };
 use cpmx_recording::AgentSample;
 use cpmx_sensing::{ActuationDelay, IpsParams, LocalizationParams, OdometryReading, OnCarSensing, Pose2};
 use cpmx_spec::matrix::stream_key;
-use cpmx_spec::model::{ActuationLayer, DynamicsLayer, SensingLayer, SensingModel, SimulatedFidelity};
+use cpmx_spec::model::{
+    ActuationLayer, DynamicsLayer, FollowerSolver, SensingLayer, SensingModel, SimulatedFidelity,
+};
 use cpmx_vehicle::{BicycleState, VehicleParams};
+use std::collections::VecDeque;
+
 use rand::SeedableRng;
 use rand_chacha::ChaCha20Rng;
 
@@ -18,6 +33,29 @@ use crate::starts::InitialState;
 
 /// The period of the vehicle-side loop [s] (the µCar's 50 Hz).
 pub const CONTROL_PERIOD_S: f64 = 0.02;
+
+/// A vehicle's state becomes valid this long after its creation [s] (the lab's vehicles
+/// stamp `valid_after = create + 60 ms`, `cpm::stamp_message(vehicleState, t_now, 60000000)`).
+pub const STATE_VALID_AFTER_S: f64 = 0.06;
+
+/// How many published states a vehicle keeps for the middleware to choose from.
+const PUBLISHED_STATES: usize = 8;
+
+/// A state as a vehicle publishes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StampedState {
+    /// The time its pose holds: the end of the 20 ms step that produced it [s].
+    pub create_s: f64,
+    /// Pose and odometer speed as estimated on the car, steering σ = σ_max · servo command.
+    pub state: BicycleState,
+}
+
+impl StampedState {
+    /// When the middleware may list it [s].
+    pub fn valid_after_s(&self) -> f64 {
+        self.create_s + STATE_VALID_AFTER_S
+    }
+}
 
 /// A simulated vehicle with either plant.
 #[derive(Debug)]
@@ -31,8 +69,10 @@ pub enum VehicleStack {
 pub struct Vehicle<P: Plant<NX, NU>, const NX: usize, const NU: usize> {
     plant: P,
     state: [f64; NX],
-    velocity_mps: [f64; 2],
-    applied: [f64; NU],
+    /// The follower's current command (what the vehicle reports as its servo).
+    command: [f64; NU],
+    /// The newest published states, oldest first.
+    published: VecDeque<StampedState>,
     follower: Follower<P::Model, NX, NU>,
     delay: Option<ActuationDelay<[f64; NU]>>,
     sensing: Option<OnCarSensing>,
@@ -87,10 +127,21 @@ impl VehicleStack {
         each!(self, v => v.step(now_s))
     }
 
-    /// What the vehicle reports: its estimate (the truth with ideal sensing), with the steering
-    /// angle the planner's bicycle expects.
+    /// What the vehicle reports now: its estimate (the truth with ideal sensing), with the
+    /// steering σ = σ_max · its current servo command.
     pub fn reported_state(&self) -> BicycleState {
         each!(self, v => v.reported_state())
+    }
+
+    /// The state the lab's middleware lists at `t_now_s`: the newest published state whose
+    /// `valid_after` has passed (before the first step, the start, stamped to be valid at 0).
+    pub fn listed_state(&self, t_now_s: f64) -> StampedState {
+        each!(self, v => v.listed_state(t_now_s))
+    }
+
+    /// The follower's current command (plant inputs).
+    pub fn command(&self) -> [f64; 2] {
+        each!(self, v => v.command)
     }
 
     /// The true state, as recorded.
@@ -122,7 +173,18 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
         } else {
             0
         };
-        let mpc = Mpc::new(plant.mpc_model(), MpcConfig { delay_steps, ..lab });
+        let solver = match fidelity.follower.unwrap_or_default().solver {
+            FollowerSolver::Gradient => Solver::Gradient,
+            FollowerSolver::Qp => Solver::Qp,
+        };
+        let mpc = Mpc::new(
+            plant.mpc_model(),
+            MpcConfig {
+                delay_steps,
+                solver,
+                ..lab
+            },
+        );
         let delay = match &fidelity.actuation {
             Some(ActuationLayer::Model(a)) => {
                 Some(ActuationDelay::new(a.delay_ms, CONTROL_PERIOD_S, neutral).map_err(|e| e.to_string())?)
@@ -133,16 +195,43 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
             Some(SensingLayer::Model(s)) => Some(on_car_sensing(s, plant.pose(&state), start.speed_mps)?),
             _ => None,
         };
-        Ok(Self {
-            velocity_mps: plant.velocity_mps(&state, &neutral),
+        let mut vehicle = Self {
             plant,
             state,
-            applied: neutral,
+            command: neutral,
+            published: VecDeque::with_capacity(PUBLISHED_STATES + 1),
             follower: Follower::new(mpc, FollowerConfig::default()),
             delay,
             sensing,
             rng: ChaCha20Rng::from_seed(stream_key(run_seed, &format!("sensing/{agent}"))),
-        })
+        };
+        // The vehicle stood at its start before the run: that state is valid at time 0 (for a
+        // start with speed, it is 60 ms early).
+        vehicle.publish(-STATE_VALID_AFTER_S);
+        Ok(vehicle)
+    }
+
+    /// Publishes the current report stamped `create_s`.
+    fn publish(&mut self, create_s: f64) {
+        let state = self.reported_state();
+        self.published.push_back(StampedState { create_s, state });
+        if self.published.len() > PUBLISHED_STATES {
+            self.published.pop_front();
+        }
+    }
+
+    fn listed_state(&self, t_now_s: f64) -> StampedState {
+        // Stamps are sums of 20 ms steps: compare with a nanosecond's tolerance.
+        self.published
+            .iter()
+            .rev()
+            .find(|s| s.valid_after_s() <= t_now_s + 1e-9)
+            .or(self.published.front())
+            .copied()
+            .unwrap_or(StampedState {
+                create_s: t_now_s,
+                state: self.reported_state(),
+            })
     }
 
     fn receive(&mut self, points: Vec<TrajectoryPoint>, create_stamp_s: f64, valid_after_s: f64) {
@@ -176,11 +265,13 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
             Some(delay) => delay.push(output.input),
             None => output.input,
         };
+        self.command = output.input;
         let before = self.plant.pose(&self.state);
         let step = self.plant.step(&self.state, &input, CONTROL_PERIOD_S);
         self.state = step.state;
-        self.velocity_mps = step.velocity_mps;
-        self.applied = input;
+        if let Some(voltage_v) = step.battery_voltage_v {
+            self.follower.measure_battery_voltage(voltage_v);
+        }
         if let Some(sensing) = &mut self.sensing {
             let after = self.plant.pose(&self.state);
             let reading = OdometryReading {
@@ -190,6 +281,7 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
             };
             sensing.step(now_s + CONTROL_PERIOD_S, after, &reading, &mut self.rng);
         }
+        self.publish(now_s + CONTROL_PERIOD_S);
         output.status
     }
 
@@ -206,18 +298,21 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
             y_m: pose.y_m,
             yaw_rad: pose.yaw_rad,
             speed_mps,
-            steering_rad: self.plant.steering_rad(&self.state, &self.applied),
+            steering_rad: self.plant.reported_steering_rad(&self.state, &self.command),
         }
     }
 
+    /// The true pose and speed, with the reported steering and the velocity the lab driver
+    /// would record of them.
     fn true_sample(&self) -> AgentSample {
         let pose = self.plant.pose(&self.state);
+        let steering_rad = self.plant.reported_steering_rad(&self.state, &self.command);
         AgentSample {
             x_m: pose.x_m,
             y_m: pose.y_m,
             yaw_rad: cpmx_sensing::wrap_angle_rad(pose.yaw_rad),
-            velocity_mps: self.velocity_mps,
-            steering_rad: self.plant.steering_rad(&self.state, &self.applied),
+            velocity_mps: self.plant.recorded_velocity_mps(&self.state, steering_rad),
+            steering_rad,
         }
     }
 }
@@ -235,4 +330,110 @@ fn on_car_sensing(s: &SensingModel, pose: Pose2, speed_mps: f64) -> Result<OnCar
         ..LocalizationParams::LAB
     };
     OnCarSensing::new(&ips, &localization, pose, speed_mps, 0.0).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cpmx_spec::model::{ActuationModel, Control, GreyBoxModel};
+
+    fn twin_without_sensing() -> SimulatedFidelity {
+        SimulatedFidelity {
+            control: Control::Trajectory,
+            dynamics: DynamicsLayer::GreyBox(GreyBoxModel {
+                parameters: cpmx_vehicle::LAB_GREYBOX_PARAMETERS,
+                euler_step_s: 0.02,
+                battery_voltage_v: 7.8,
+            }),
+            sensing: None,
+            actuation: Some(ActuationLayer::Model(ActuationModel { delay_ms: 80.0 })),
+            follower: None,
+        }
+    }
+
+    /// A left arc of radius 0.5 m at 0.5 m/s from the origin, heading +x, points every 0.1 s.
+    fn left_arc() -> Vec<TrajectoryPoint> {
+        let (speed, radius) = (0.5, 0.5);
+        (0..30)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                let a = speed * t / radius;
+                TrajectoryPoint {
+                    t_s: t,
+                    x_m: radius * a.sin(),
+                    y_m: radius * (1.0 - a.cos()),
+                    vx_mps: speed * a.cos(),
+                    vy_mps: speed * a.sin(),
+                }
+            })
+            .collect()
+    }
+
+    fn start() -> InitialState {
+        InitialState {
+            ref_path: 0,
+            x_m: 0.0,
+            y_m: 0.0,
+            yaw_rad: 0.0,
+            speed_mps: 0.5,
+        }
+    }
+
+    /// The lab's vehicles report the servo command the MPC has just computed, and the
+    /// planner reads it as σ = σ_max · servo: not the servo the plant applies 80 ms later, and
+    /// not the grey-box curvature's angle with its offset p9.
+    #[test]
+    fn a_vehicle_reports_its_current_servo_command_as_sigma_max_times_servo() {
+        let vehicle = VehicleParams::MU_CAR;
+        let mut stack = VehicleStack::new(&twin_without_sensing(), vehicle, &start(), 1, 0).unwrap();
+        stack.receive(left_arc(), 0.0, 0.0);
+        let mut servos = Vec::new();
+        for k in 0..10 {
+            assert_eq!(stack.step(f64::from(k) * CONTROL_PERIOD_S), Status::Following);
+            let servo = stack.command()[1];
+            servos.push(servo);
+            let reported = stack.reported_state();
+            assert_eq!(
+                reported.steering_rad,
+                vehicle.max_steering_rad * servo.clamp(-1.0, 1.0)
+            );
+        }
+        // The servo moves into the turn within the delay, so the delayed one would differ.
+        assert!(servos[9] > 0.2 && servos[5] > servos[1] + 0.1, "{servos:?}");
+        // What is recorded carries the same steering.
+        let sample = stack.true_sample();
+        assert_eq!(sample.steering_rad, stack.reported_state().steering_rad);
+        let speed = sample.velocity_mps[0].hypot(sample.velocity_mps[1]);
+        let VehicleStack::GreyBox(v) = &stack else {
+            unreachable!("a grey-box vehicle")
+        };
+        assert!(
+            (speed - v.plant.speed_mps(&v.state)).abs() < 1e-12,
+            "odometer speed is recorded"
+        );
+    }
+
+    /// The middleware lists the newest state whose `valid_after = create + 60 ms` has passed;
+    /// before the first step, the start.
+    #[test]
+    fn the_middleware_lists_states_60_ms_after_their_creation() {
+        let vehicle = VehicleParams::MU_CAR;
+        let mut stack = VehicleStack::new(&twin_without_sensing(), vehicle, &start(), 1, 0).unwrap();
+        let initial = stack.listed_state(0.0);
+        assert_eq!(initial.create_s, -STATE_VALID_AFTER_S);
+        assert_eq!((initial.state.x_m, initial.state.speed_mps), (0.0, 0.5));
+        stack.receive(left_arc(), 0.0, 0.0);
+        let mut reports = Vec::new();
+        for k in 0..5 {
+            let now_s = f64::from(k) * CONTROL_PERIOD_S;
+            stack.step(now_s);
+            reports.push((now_s + CONTROL_PERIOD_S, stack.reported_state()));
+        }
+        // At the tick 0.1 s the states of 0.06, 0.08 and 0.1 are not valid yet.
+        let listed = stack.listed_state(0.1);
+        assert_eq!(listed.create_s, reports[1].0);
+        assert_eq!(listed.state, reports[1].1);
+        assert_eq!(stack.listed_state(0.08).create_s, reports[0].0);
+        assert_eq!(stack.listed_state(0.07).create_s, -STATE_VALID_AFTER_S);
+    }
 }

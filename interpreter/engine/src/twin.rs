@@ -4,15 +4,21 @@
 //! until the next period. With `dynamics: kinematic` this is sim-mpc, with the grey-box model,
 //! the IPS and the actuation delay it is the digital twin. The recording holds the true state
 //! at every policy period, as the sim engine's does.
+//!
+//! The planner starts from the states the lab's middleware would list at the tick (position
+//! and yaw as estimated, σ = σ_max · servo command, speed through the slip angle; at least
+//! 60 ms old, see `stack.rs`), and each plan is anchored at its state's time: point k of an
+//! agent's trajectory is at `create + k·dt` ([`anchor_s`], `docs/lab.md`), so the reference
+//! does not fall behind the car by speed × state age.
 
 use cpmx_follower::TrajectoryPoint;
-use cpmx_planner::{PlannedPoint, PlannedTrajectory, Planner, PlannerParams, SteeringAfterHc};
+use cpmx_planner::{PlannedTrajectory, Planner, PlannerParams, SteeringAfterHc};
 use cpmx_recording::Recording;
 use cpmx_spec::model::{Fidelity, OnCollision, Planner as PlannerSpec};
 use cpmx_vehicle::{BicycleState, VehicleParams};
 
 use crate::engine::{Engine, RunError, RunInputs};
-use crate::stack::{CONTROL_PERIOD_S, VehicleStack};
+use crate::stack::{CONTROL_PERIOD_S, StampedState, VehicleStack};
 
 /// The lab's control stack around simulated vehicles.
 #[derive(Debug, Clone, Copy, Default)]
@@ -55,7 +61,7 @@ impl Engine for TwinEngine {
             ref_paths: starts.iter().map(|s| s.ref_path).collect(),
             samples: Vec::with_capacity(spec.timing.steps as usize),
         };
-        let mut previous: Option<Vec<PlannedTrajectory>> = None;
+        let max_age_s = max_state_age_s(planner_spec.prediction_horizon, dt_s);
         for tick in 0..spec.timing.steps {
             let t_s = (f64::from(tick) * dt_s * 1e9).round() / 1e9;
 
@@ -65,19 +71,18 @@ impl Engine for TwinEngine {
                 .samples
                 .push(vehicles.iter().map(VehicleStack::true_sample).collect());
 
-            // Plan from what the vehicles report; every vehicle gets its trajectory.
-            let reported: Vec<BicycleState> = vehicles
+            // Plan from what the middleware lists; every vehicle gets its trajectory, anchored
+            // at its state's time and valid from the tick on.
+            let listed: Vec<StampedState> = vehicles.iter().map(|v| v.listed_state(t_s)).collect();
+            let states: Vec<BicycleState> = listed.iter().map(|s| s.state).collect();
+            let anchors: Vec<f64> = listed
                 .iter()
-                .enumerate()
-                .map(|(i, vehicle)| {
-                    planning_state(vehicle, previous.as_ref().and_then(|plans| plans[i].get(1)))
-                })
+                .map(|s| anchor_s(s.create_s, t_s, max_age_s))
                 .collect();
-            let trajectories = planner.plan(policy.as_mut(), &reported, &paths, t_s)?;
+            let trajectories = plan_anchored(&mut planner, policy.as_mut(), &states, &paths, &anchors)?;
             for (vehicle, trajectory) in vehicles.iter_mut().zip(&trajectories) {
                 vehicle.receive(trajectory_points(trajectory), t_s, t_s);
             }
-            previous = Some(trajectories);
 
             // The vehicles' 50 Hz loops until the next policy period.
             for sub in 0..substeps {
@@ -97,28 +102,48 @@ impl Engine for TwinEngine {
     }
 }
 
-/// The state the planner starts from: the vehicle's reported position and speed, with heading
-/// and steering continued from the previous plan (see [`continue_heading`]).
-fn planning_state(vehicle: &VehicleStack, planned_now: Option<&PlannedPoint>) -> BicycleState {
-    continue_heading(vehicle.reported_state(), planned_now)
+/// The time a plan from a state created at `create_s` starts at, planned at the tick
+/// `t_now_s`: the state's own time, so that the reference passes where the car was when the
+/// state was measured; a state older than `max_age_s` (a vehicle missing from the lists, whose
+/// last state is used) is taken as the tick's, so the trajectory keeps the lead time the
+/// vehicles need.
+pub fn anchor_s(create_s: f64, t_now_s: f64, max_age_s: f64) -> f64 {
+    if create_s.is_finite() && create_s <= t_now_s && t_now_s - create_s <= max_age_s + 1e-9 {
+        create_s
+    } else {
+        t_now_s
+    }
 }
 
-/// A measured state with heading and steering taken from the plan's point at this time. This is
-/// part of the control architecture (sim-mpc, twin and lab alike): a µCar's heading and
-/// steering are not the planner's bicycle states (it reports a 50 Hz servo command and an IPS
-/// heading with its own slip), and replanning from them feeds servo jitter and the slip
-/// mismatch back into every plan, so that the car turns the wrong way in tight curves.
-/// Position and speed still come from the measurement. For the kinematic plant the planned
-/// and the measured heading agree, so sim-mpc is unchanged by the rule.
-pub fn continue_heading(measured: BicycleState, planned_now: Option<&PlannedPoint>) -> BicycleState {
-    match planned_now {
-        Some(plan) => BicycleState {
-            yaw_rad: plan.yaw_rad,
-            steering_rad: plan.steering_rad,
-            ..measured
-        },
-        None => measured,
+/// The oldest state a plan of Hp steps of `dt_s` may start from and still cover the
+/// vehicles' reference window until the next tick's command takes over [s].
+pub fn max_state_age_s(prediction_horizon: u32, dt_s: f64) -> f64 {
+    (f64::from(prediction_horizon) * dt_s - dt_s - crate::lab::VEHICLE_LEAD_S).max(0.0)
+}
+
+/// Plans every agent from its state and anchors each agent's trajectory at its own time:
+/// point k is at `anchors[i] + k·dt`.
+pub fn plan_anchored(
+    planner: &mut Planner,
+    policy: &mut dyn cpmx_policy::Policy,
+    states: &[BicycleState],
+    paths: &cpmx_policy::AgentPaths,
+    anchors: &[f64],
+) -> Result<Vec<PlannedTrajectory>, cpmx_policy::PolicyError> {
+    let step_s = planner.params().step_s;
+    let mut trajectories = planner.plan(policy, states, paths, 0.0)?;
+    for (trajectory, anchor) in trajectories.iter_mut().zip(anchors) {
+        for (k, point) in trajectory.iter_mut().enumerate() {
+            point.t_s = anchored_time_s(*anchor, k, step_s);
+        }
     }
+    Ok(trajectories)
+}
+
+/// Time of point `k` of a trajectory anchored at `anchor_s` (one expression for the twin, the
+/// lab driver and the emulator, so that their times agree to the bit).
+pub fn anchored_time_s(anchor_s: f64, k: usize, step_s: f64) -> f64 {
+    anchor_s + k as f64 * step_s
 }
 
 /// Control periods per policy period, if `dt_s` is a whole multiple of the control period.

@@ -134,6 +134,11 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Follower<M, NX, NU> {
         &self.mpc
     }
 
+    /// The vehicle's battery voltage measurement [V], filtered by the MPC as on the car.
+    pub fn measure_battery_voltage(&mut self, voltage_v: f64) {
+        self.mpc.measure_battery_voltage(voltage_v);
+    }
+
     /// The command in use, if any.
     pub fn current_command(&self) -> Option<&TrajectoryCommand> {
         self.current.as_ref()

@@ -2,7 +2,8 @@
 //!
 //! A planner sends timed reference trajectories ([`TrajectoryCommand`]); every 20 ms the
 //! [`Follower`] picks the newest valid one, applies the lab's stop rules and asks the
-//! [`Mpc`] for the plant input. The MPC works over any [`Model`]; [`BicycleModel`] adapts
+//! [`Mpc`] for the plant input, found by the lab's 20 warm-started gradient steps
+//! ([`Solver::Gradient`], the default) or by an exact QP ([`Solver::Qp`], clarabel). The MPC works over any [`Model`]; [`BicycleModel`] adapts
 //! `cpmx_vehicle::KinematicBicycle`.
 //!
 //! This crate owns following a trajectory. It never steps the plant, estimates states,
@@ -17,6 +18,7 @@
 //! ```
 
 mod follower;
+mod gradient;
 mod model;
 mod mpc;
 mod trajectory;
@@ -25,9 +27,10 @@ pub use follower::{
     CommandError, Follower, FollowerConfig, MAX_PENDING_COMMANDS, Output, StateEstimate, Status, StopReason,
     TrajectoryCommand,
 };
+pub use gradient::{GRADIENT_ITERATIONS, LEARNING_RATE, MOMENTUM_RATE, RESET_VALUE, WarmStart};
 pub use model::{BicycleModel, InputLimits, LOW_SPEED_MPS, Model, unwrap_near};
 pub use mpc::{
     BICYCLE_MOVE_WEIGHTS, CONTROL_MOVES, LAB_MOVE_WEIGHTS, Mpc, MpcConfig, PREDICTION_STEPS, Rejection,
-    Solution,
+    Solution, Solver,
 };
 pub use trajectory::{Trajectory, TrajectoryError, TrajectoryPoint, TrajectorySample};

@@ -12,6 +12,7 @@
 //! (`throttle = clamp(−0.5·v)`, servo 0); the tests of `mpc.rs` contain one.
 
 use cpmx_vehicle::{BicycleState, Command, KinematicBicycle};
+use nalgebra::SMatrix;
 
 use crate::trajectory::TrajectorySample;
 
@@ -43,6 +44,81 @@ pub trait Model<const NX: usize, const NU: usize> {
 
     /// The input that brings the vehicle to a halt from `state`.
     fn stop_input(&self, state: &[f64; NX]) -> [f64; NU];
+
+    /// [`Model::step`] with its Jacobians `∂x⁺/∂x` and `∂x⁺/∂u`; by default central
+    /// differences (models override it with exact derivatives where speed matters).
+    fn step_jacobians(
+        &self,
+        state: &[f64; NX],
+        input: &[f64; NU],
+        dt_s: f64,
+    ) -> ([f64; NX], SMatrix<f64, NX, NX>, SMatrix<f64, NX, NU>) {
+        let (a, b) = jacobians(self, state, input, dt_s);
+        (self.step(state, input, dt_s), a, b)
+    }
+
+    /// `∂position/∂x`; by default central differences.
+    fn position_jacobian(&self, state: &[f64; NX]) -> SMatrix<f64, 2, NX> {
+        position_jacobian(self, state)
+    }
+
+    /// The measured battery voltage (low-pass filtered by the MPC) the model predicts with,
+    /// for models whose motor depends on it; others ignore it.
+    fn set_battery_voltage_v(&mut self, _voltage_v: f64) {}
+}
+
+/// Finite-difference step used for Jacobians (relative to the magnitude of the entry).
+const FD_STEP: f64 = 1e-6;
+
+/// `∂step/∂x` and `∂step/∂u` at `(x, u)` by central differences.
+pub(crate) fn jacobians<M: Model<NX, NU> + ?Sized, const NX: usize, const NU: usize>(
+    model: &M,
+    x: &[f64; NX],
+    u: &[f64; NU],
+    dt_s: f64,
+) -> (SMatrix<f64, NX, NX>, SMatrix<f64, NX, NU>) {
+    let mut a = SMatrix::<f64, NX, NX>::zeros();
+    let mut b = SMatrix::<f64, NX, NU>::zeros();
+    for col in 0..NX {
+        let h = FD_STEP * x[col].abs().max(1.0);
+        let (mut plus, mut minus) = (*x, *x);
+        plus[col] += h;
+        minus[col] -= h;
+        let (fp, fm) = (model.step(&plus, u, dt_s), model.step(&minus, u, dt_s));
+        for row in 0..NX {
+            a[(row, col)] = (fp[row] - fm[row]) / (2.0 * h);
+        }
+    }
+    for col in 0..NU {
+        let h = FD_STEP * u[col].abs().max(1.0);
+        let (mut plus, mut minus) = (*u, *u);
+        plus[col] += h;
+        minus[col] -= h;
+        let (fp, fm) = (model.step(x, &plus, dt_s), model.step(x, &minus, dt_s));
+        for row in 0..NX {
+            b[(row, col)] = (fp[row] - fm[row]) / (2.0 * h);
+        }
+    }
+    (a, b)
+}
+
+/// `∂position/∂x` by central differences.
+pub(crate) fn position_jacobian<M: Model<NX, NU> + ?Sized, const NX: usize, const NU: usize>(
+    model: &M,
+    x: &[f64; NX],
+) -> SMatrix<f64, 2, NX> {
+    let mut c = SMatrix::<f64, 2, NX>::zeros();
+    for col in 0..NX {
+        let h = FD_STEP * x[col].abs().max(1.0);
+        let (mut plus, mut minus) = (*x, *x);
+        plus[col] += h;
+        minus[col] -= h;
+        let (pp, pm) = (model.position_m(&plus), model.position_m(&minus));
+        for row in 0..2 {
+            c[(row, col)] = (pp[row] - pm[row]) / (2.0 * h);
+        }
+    }
+    c
 }
 
 /// Below this reference speed [m/s] a model's feed-forward keeps the car's own heading and

@@ -38,7 +38,8 @@ use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, NonnegativeCone
 use nalgebra::{SMatrix, SVector};
 use thiserror::Error;
 
-use crate::model::Model;
+use crate::gradient::{self, WarmStart};
+use crate::model::{Model, jacobians, position_jacobian};
 use crate::trajectory::{Trajectory, TrajectorySample};
 
 /// Prediction steps Hp (lab).
@@ -50,7 +51,7 @@ pub const CONTROL_MOVES: usize = 3;
 /// input's move weight (chosen here; the lab's MPC has no such term).
 pub const FEEDFORWARD_PULL: f64 = 0.01;
 /// Move held at each prediction step (lab's blocking `[1, 1, 2, 2, 3, 3]`, 0-based).
-const MOVE_OF_STEP: [usize; PREDICTION_STEPS] = [0, 0, 1, 1, 2, 2];
+pub(crate) const MOVE_OF_STEP: [usize; PREDICTION_STEPS] = [0, 0, 1, 1, 2, 2];
 
 /// Move weights of the lab's grey-box MPC: throttle 0.5, steering servo 0.01.
 pub const LAB_MOVE_WEIGHTS: [f64; 2] = [0.5, 0.01];
@@ -81,6 +82,25 @@ pub struct MpcConfig<const NU: usize> {
     pub max_curvature_per_m: f64,
     /// Speed above which curvature is checked [m/s] (lab: 0.1).
     pub curvature_check_speed_mps: f64,
+    /// How the moves are found (lab: [`Solver::Gradient`]).
+    pub solver: Solver,
+    /// Gradient steps per period with [`Solver::Gradient`] (lab: 20).
+    pub gradient_iterations: usize,
+    /// The battery voltage the filter starts from [V] (lab: 8).
+    pub initial_battery_voltage_v: f64,
+    /// Gain of the battery voltage's low-pass filter per period (lab: 0.1).
+    pub battery_filter_gain: f64,
+}
+
+/// The optimiser of the MPC.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Solver {
+    /// The lab's: 20 warm-started gradient steps with momentum on the nonlinear model
+    /// (`gradient.rs`).
+    #[default]
+    Gradient,
+    /// The exact optimum of the linearised problem (clarabel), with rate limits as constraints.
+    Qp,
 }
 
 impl<const NU: usize> MpcConfig<NU> {
@@ -96,6 +116,10 @@ impl<const NU: usize> MpcConfig<NU> {
             max_reference_accel_mps2: 20.0,
             max_curvature_per_m: 50.0,
             curvature_check_speed_mps: 0.1,
+            solver: Solver::Gradient,
+            gradient_iterations: gradient::GRADIENT_ITERATIONS,
+            initial_battery_voltage_v: 8.0,
+            battery_filter_gain: 0.1,
         }
     }
 }
@@ -171,6 +195,12 @@ pub struct Mpc<M, const NX: usize, const NU: usize> {
     history: VecDeque<[f64; NU]>,
     previous_input: [f64; NU],
     qp: QpCache,
+    /// The gradient solver's iterate and momentum.
+    warm: WarmStart<NU>,
+    /// The newest battery voltage measurement, if the vehicle measures one [V].
+    battery_measured_v: Option<f64>,
+    /// The low-pass filtered battery voltage the model predicts with [V].
+    battery_filtered_v: f64,
 }
 
 /// The clarabel solver of the previous step. Every step's QP has the same sparsity, so
@@ -205,7 +235,23 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
             config,
             previous_input: [0.0; NU],
             qp: QpCache::default(),
+            warm: WarmStart::reset(),
+            battery_measured_v: None,
+            battery_filtered_v: config.initial_battery_voltage_v,
         }
+    }
+
+    /// The vehicle's battery voltage measurement for the next solve [V] (the lab filters it,
+    /// `V ← V + 0.1·(V_meas − V)` from 8 V, and predicts with the filtered value).
+    pub fn measure_battery_voltage(&mut self, voltage_v: f64) {
+        if voltage_v.is_finite() {
+            self.battery_measured_v = Some(voltage_v);
+        }
+    }
+
+    /// The filtered battery voltage the model predicts with [V].
+    pub fn battery_voltage_v(&self) -> f64 {
+        self.battery_filtered_v
     }
 
     /// The model.
@@ -241,13 +287,52 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
         state: &[f64; NX],
         trajectory: &Trajectory,
     ) -> Result<Solution<NU>, Rejection> {
+        let result = self.try_solve(t_now_s, state, trajectory);
+        if result.is_err() {
+            // The lab resets its optimizer on every rejection.
+            self.warm = WarmStart::reset();
+        }
+        result
+    }
+
+    fn try_solve(
+        &mut self,
+        t_now_s: f64,
+        state: &[f64; NX],
+        trajectory: &Trajectory,
+    ) -> Result<Solution<NU>, Rejection> {
+        if let Some(measured) = self.battery_measured_v {
+            self.battery_filtered_v += self.config.battery_filter_gain * (measured - self.battery_filtered_v);
+            self.model.set_battery_voltage_v(self.battery_filtered_v);
+        }
         if !state.iter().all(|v| v.is_finite()) {
             return Err(Rejection::NonFiniteState);
         }
         let x0 = self.compensate_delay(state);
         let samples = self.reference_window(t_now_s, trajectory)?;
-        let moves = self.solve_qp(&x0, &samples)?;
-        let solution = self.evaluate(&x0, &samples, &moves);
+        let solution = match self.config.solver {
+            Solver::Qp => {
+                let moves = self.solve_qp(&x0, &samples)?;
+                self.evaluate(&x0, &samples, &moves)
+            }
+            Solver::Gradient => {
+                let reference_m = samples.map(|s| s.position_m);
+                let r = gradient::solve(
+                    &self.model,
+                    &self.config,
+                    &x0,
+                    &reference_m,
+                    &self.previous_input,
+                    &mut self.warm,
+                );
+                Solution {
+                    input: r.moves[0],
+                    objective: r.objective,
+                    predicted_m: r.predicted_m,
+                    reference_m,
+                }
+            }
+        };
         let acceptable = solution.objective < self.config.max_objective;
         if !acceptable {
             return Err(Rejection::LargeObjective {
@@ -543,58 +628,4 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
             reference_m: samples.map(|s| s.position_m),
         }
     }
-}
-
-/// Finite-difference step used for Jacobians (relative to the magnitude of the entry).
-const FD_STEP: f64 = 1e-6;
-
-/// `∂step/∂x` and `∂step/∂u` at `(x, u)` by central differences.
-fn jacobians<M: Model<NX, NU>, const NX: usize, const NU: usize>(
-    model: &M,
-    x: &[f64; NX],
-    u: &[f64; NU],
-    dt_s: f64,
-) -> (SMatrix<f64, NX, NX>, SMatrix<f64, NX, NU>) {
-    let mut a = SMatrix::<f64, NX, NX>::zeros();
-    let mut b = SMatrix::<f64, NX, NU>::zeros();
-    for col in 0..NX {
-        let h = FD_STEP * x[col].abs().max(1.0);
-        let (mut plus, mut minus) = (*x, *x);
-        plus[col] += h;
-        minus[col] -= h;
-        let (fp, fm) = (model.step(&plus, u, dt_s), model.step(&minus, u, dt_s));
-        for row in 0..NX {
-            a[(row, col)] = (fp[row] - fm[row]) / (2.0 * h);
-        }
-    }
-    for col in 0..NU {
-        let h = FD_STEP * u[col].abs().max(1.0);
-        let (mut plus, mut minus) = (*u, *u);
-        plus[col] += h;
-        minus[col] -= h;
-        let (fp, fm) = (model.step(x, &plus, dt_s), model.step(x, &minus, dt_s));
-        for row in 0..NX {
-            b[(row, col)] = (fp[row] - fm[row]) / (2.0 * h);
-        }
-    }
-    (a, b)
-}
-
-/// `∂position/∂x` by central differences.
-fn position_jacobian<M: Model<NX, NU>, const NX: usize, const NU: usize>(
-    model: &M,
-    x: &[f64; NX],
-) -> SMatrix<f64, 2, NX> {
-    let mut c = SMatrix::<f64, 2, NX>::zeros();
-    for col in 0..NX {
-        let h = FD_STEP * x[col].abs().max(1.0);
-        let (mut plus, mut minus) = (*x, *x);
-        plus[col] += h;
-        minus[col] -= h;
-        let (pp, pm) = (model.position_m(&plus), model.position_m(&minus));
-        for row in 0..2 {
-            c[(row, col)] = (pp[row] - pm[row]) / (2.0 * h);
-        }
-    }
-    c
 }

@@ -30,6 +30,29 @@ pub struct SimulatedFidelity {
     /// How commands reach the actuators. Default: `ideal`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub actuation: Option<ActuationLayer>,
+    /// The vehicles' MPC trajectory follower (`control: trajectory`). Default: the lab's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub follower: Option<FollowerSpec>,
+}
+
+/// The vehicle-side MPC trajectory follower.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FollowerSpec {
+    /// How the MPC finds its inputs. Default: `gradient`.
+    #[serde(default)]
+    pub solver: FollowerSolver,
+}
+
+/// The MPC's optimiser.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum FollowerSolver {
+    /// The lab's: 20 warm-started gradient steps with momentum on the nonlinear model.
+    #[default]
+    Gradient,
+    /// The exact optimum of the linearised problem (an interior-point QP, clarabel).
+    Qp,
 }
 
 /// How the policy's action reaches the vehicle.

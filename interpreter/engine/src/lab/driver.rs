@@ -3,18 +3,21 @@
 //! Start-up as the lab's `HLCCommunicator` (cpm-lab-interface.md §1.5): join the spec's
 //! domain, announce `ReadyStatus{source_id: "hlc_<id>"}` for every vehicle id, wait for the
 //! start `SystemTrigger`. Then every `VehicleStateList` is a tick: the listed states become
-//! the planner's bicycle states (`mapping`), the twin's planner rolls the run's policy out,
-//! and every vehicle gets one `VehicleCommandTrajectory`, valid from the tick on, whose points
-//! run Hp·dt past the tick (checked to cover the vehicles' lead time). Every tick's states are
-//! the run's recording, with times relative to the first tick. The run ends after
+//! the planner's bicycle states (`mapping`: position and yaw unchanged, σ = σ_max · servo),
+//! the twin's planner rolls the run's policy out, and every vehicle gets one
+//! `VehicleCommandTrajectory`, created and valid at the tick, whose points start at the
+//! state's `create_stamp` (the lab's states are at least 60 ms old; `twin::anchor_s`) and run
+//! Hp·dt from there (checked to cover the vehicles' lead time). Every tick's states are the
+//! run's recording, with times relative to the first tick. The run ends after
 //! `timing.steps` ticks, or earlier on a stop trigger or a `StopRequest`; a lab that falls
-//! silent for `timeout_s` ends it with an error that keeps what was recorded.
+//! silent for `timeout_s` ends it with an error that keeps what was recorded. A middleware
+//! whose period is not `timing.dt` is refused (`RunError::LabPeriod`).
 //!
 //! The announcement's `next_start_stamp` (arbitrary for the lab; cpm_lib sends 11111) carries
 //! the run's seed, so that `cpmx lab emulate` can place its vehicles as the run's initial
 //! configuration. The lab is one: runs of this engine take turns (a process-wide lock).
-//! Irregularities that do not end a run (late ticks, vehicles missing from a list, a
-//! middleware period other than `dt`) are summarised on stderr when the run ends.
+//! Irregularities that do not end a run (late ticks, vehicles missing from a list) are
+//! summarised on stderr when the run ends.
 
 use std::sync::{Mutex, PoisonError};
 use std::thread;
@@ -31,9 +34,10 @@ use cpmx_spec::model::{Fidelity, LabFidelity};
 use cpmx_vehicle::{BicycleState, VehicleParams};
 
 use super::mapping::{policy_state, recorded_sample};
-use super::{MIN_TRAJECTORY_POINTS, VEHICLE_LEAD_S, discovery_config, ns_from_s, s_since, timeout};
+use super::{MIN_TRAJECTORY_POINTS, VEHICLE_LEAD_S, discovery_config, ns_from_s, s_since, stamp_ns, timeout};
 use crate::engine::{Engine, RunError, RunInputs};
-use crate::twin::planner;
+use crate::stack::STATE_VALID_AFTER_S;
+use crate::twin::{anchor_s, max_state_age_s, plan_anchored, planner};
 
 /// How often the driver polls its readers while it waits.
 const POLL_INTERVAL: Duration = Duration::from_millis(1);
@@ -65,13 +69,14 @@ impl Engine for LabEngine {
             .ok_or_else(|| unsupported("the spec has no `planner`".into()))?;
         let dt_s = spec.timing.dt;
         let horizon_s = f64::from(planner_spec.prediction_horizon) * dt_s;
-        if horizon_s < dt_s + VEHICLE_LEAD_S
+        let needed_s = dt_s + VEHICLE_LEAD_S + STATE_VALID_AFTER_S;
+        if horizon_s < needed_s - 1e-9
             || (planner_spec.prediction_horizon as usize) < MIN_TRAJECTORY_POINTS - 1
         {
             return Err(unsupported(format!(
-                "the lab's vehicles follow a trajectory until {VEHICLE_LEAD_S} s after the next tick: \
-                 `planner.prediction_horizon` · dt must be at least {:.2} s (and Hp at least 2), it is {horizon_s:.2} s",
-                dt_s + VEHICLE_LEAD_S
+                "the lab's vehicles follow a trajectory until {VEHICLE_LEAD_S} s after the next tick, and \
+                 it starts at its state's time, at least {STATE_VALID_AFTER_S} s before the tick: \
+                 `planner.prediction_horizon` · dt must be at least {needed_s:.2} s (and Hp at least 2), it is {horizon_s:.2} s"
             )));
         }
         if lab.vehicle_ids.len() != inputs.starts.len() {
@@ -92,6 +97,8 @@ impl Engine for LabEngine {
             policy: inputs.policy()?,
             steps: spec.timing.steps as usize,
             dt_s,
+            max_age_s: max_state_age_s(planner_spec.prediction_horizon, dt_s),
+            created_ns: vec![None; inputs.starts.len()],
             last_states: inputs
                 .starts
                 .iter()
@@ -103,7 +110,6 @@ impl Engine for LabEngine {
                     steering_rad: 0.0,
                 })
                 .collect(),
-            previous: None,
             recording: Recording {
                 notes: Vec::new(),
                 times_s: Vec::with_capacity(spec.timing.steps as usize),
@@ -125,8 +131,6 @@ struct Notes {
     late_ticks: usize,
     /// Per agent: ticks whose list had no usable state of its vehicle.
     missing: Vec<usize>,
-    /// The middleware's period when it differs from `dt` [ms].
-    period_ms: Option<u64>,
     /// How the run ended before `timing.steps` ticks, if it did.
     stopped: Option<String>,
 }
@@ -136,7 +140,6 @@ impl Notes {
         Self {
             late_ticks: 0,
             missing: vec![0; agents],
-            period_ms: None,
             stopped: None,
         }
     }
@@ -153,11 +156,6 @@ impl Notes {
         for (id, count) in vehicle_ids.iter().zip(&self.missing).filter(|(_, c)| **c > 0) {
             parts.push(format!(
                 "vehicle {id} missing from {count} ticks (its last state was used)"
-            ));
-        }
-        if let Some(period_ms) = self.period_ms {
-            parts.push(format!(
-                "the middleware ticks every {period_ms} ms, not every `timing.dt`"
             ));
         }
         (!parts.is_empty()).then(|| parts.join("; "))
@@ -220,10 +218,12 @@ struct Drive<'a> {
     policy: Box<dyn cpmx_policy::Policy>,
     steps: usize,
     dt_s: f64,
+    /// The oldest state a plan may start from (`twin::max_state_age_s`) [s].
+    max_age_s: f64,
+    /// Per agent: the `create_stamp` of its last state (none before the first).
+    created_ns: Vec<Option<u64>>,
     /// Per agent: the state of the last list that had it (the start before the first).
     last_states: Vec<BicycleState>,
-    /// The trajectories sent at the previous tick (heading and steering continue from them).
-    previous: Option<Vec<cpmx_planner::PlannedTrajectory>>,
     recording: Recording,
     notes: Notes,
 }
@@ -289,10 +289,21 @@ impl Drive<'_> {
                     self.notes.late_ticks += 1;
                 }
             }
-            let origin_ns = *first_ns.get_or_insert(list.t_now);
-            if list.period_ms != ns_from_s(self.dt_s) / 1_000_000 {
-                self.notes.period_ms = Some(list.period_ms);
+            let dt_ms = ns_from_s(self.dt_s) / 1_000_000;
+            if list.period_ms != dt_ms {
+                let refused = RunError::LabPeriod {
+                    period_ms: list.period_ms,
+                    dt_ms,
+                };
+                if self.recording.times_s.is_empty() {
+                    return Err(refused);
+                }
+                return Err(RunError::Partial {
+                    reason: Box::new(refused),
+                    recording: Box::new(self.recording),
+                });
             }
+            let origin_ns = *first_ns.get_or_insert(list.t_now);
             let commands = self.tick(&list, origin_ns)?;
             session.send(&commands)?;
             previous = Some((list.t_now, commands));
@@ -316,9 +327,12 @@ impl Drive<'_> {
                 .iter()
                 .filter(|s| s.vehicle_id == *id && s.header.create_stamp.nanoseconds > 0)
                 .max_by_key(|s| s.header.create_stamp)
-                .and_then(|s| policy_state(s, &self.vehicle));
+                .and_then(|s| Some((s.header.create_stamp.nanoseconds, policy_state(s, &self.vehicle)?)));
             match newest {
-                Some(state) => self.last_states[agent] = state,
+                Some((created_ns, state)) => {
+                    self.last_states[agent] = state;
+                    self.created_ns[agent] = Some(created_ns);
+                }
                 None => self.notes.missing[agent] += 1,
             }
         }
@@ -331,17 +345,23 @@ impl Drive<'_> {
                 .collect(),
         );
 
-        // Plan from the lab's states; each trajectory is valid from the tick on.
-        let planning: Vec<BicycleState> = self
-            .last_states
+        // Plan from the lab's states, each trajectory anchored at its state's time; all are
+        // created and valid at the tick.
+        let anchors: Vec<f64> = self
+            .created_ns
             .iter()
-            .enumerate()
-            .map(|(i, s)| crate::twin::continue_heading(*s, self.previous.as_ref().and_then(|p| p[i].get(1))))
+            .map(|created| match created {
+                Some(ns) => anchor_s(s_since(origin_ns, *ns), t_s, self.max_age_s),
+                None => t_s,
+            })
             .collect();
-        let trajectories = self
-            .planner
-            .plan(self.policy.as_mut(), &planning, &self.paths, t_s)?;
-        self.previous = Some(trajectories.clone());
+        let trajectories = plan_anchored(
+            &mut self.planner,
+            self.policy.as_mut(),
+            &self.last_states,
+            &self.paths,
+            &anchors,
+        )?;
         let stamp = TimeStamp {
             nanoseconds: list.t_now,
         };
@@ -368,7 +388,7 @@ fn lab_points(trajectory: &PlannedTrajectory, origin_ns: u64) -> Vec<TrajectoryP
         .iter()
         .map(|p| TrajectoryPoint {
             t: TimeStamp {
-                nanoseconds: origin_ns.saturating_add(ns_from_s(p.t_s)),
+                nanoseconds: stamp_ns(origin_ns, p.t_s),
             },
             px: p.x_m,
             py: p.y_m,
@@ -442,11 +462,9 @@ mod tests {
         assert_eq!(notes.summary(&[3, 5]), None);
         notes.late_ticks = 2;
         notes.missing[1] = 4;
-        notes.period_ms = Some(400);
         let line = notes.summary(&[3, 5]).expect("something happened");
         assert!(line.contains("2 late ticks"), "{line}");
         assert!(line.contains("vehicle 5 missing from 4 ticks"), "{line}");
-        assert!(line.contains("400 ms"), "{line}");
     }
 
     #[test]

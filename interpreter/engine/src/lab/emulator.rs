@@ -13,9 +13,11 @@
 //! Time is simulated and lock-step, as the lab's `--simulated_time` mode: the clock advances
 //! by `timing.dt` only when every vehicle's trajectory for the tick arrived, so a run is as
 //! fast as the driver and does not depend on the machine's load. Stamps are nanoseconds from
-//! the wall-clock time at the run's start. The states are reported as the vehicles estimate
-//! them at the tick (the real middleware's are ≥ 60 ms old), so a run matches the twin
-//! engine's run of the same fidelity step for step.
+//! the wall-clock time at the run's start. Each list holds, per vehicle, the newest state
+//! valid at the tick, stamped as the lab's vehicles stamp it (`create` = the start of the
+//! 20 ms step that produced it, `valid_after = create + 60 ms`; `VehicleStack::listed_state`),
+//! as the twin engine's planner sees it, so a run matches the twin engine's run of the same
+//! fidelity step for step.
 //!
 //! Which run: the driver puts its run seed into the announcements' `next_start_stamp`; the
 //! emulator looks the seed up in the spec's matrix (runs that differ only in fidelity share
@@ -40,11 +42,11 @@ use cpmx_spec::model::{Control, Fidelity, LabFidelity, OnCollision, SimulatedFid
 use cpmx_spec::{CheckedSpec, RunPlan};
 
 use super::mapping::lab_state;
-use super::{discovery_config, hlc_vehicle_id, ns_from_s, s_since, timeout};
+use super::{discovery_config, hlc_vehicle_id, ns_from_s, s_since, stamp_ns, timeout};
 use crate::experiment::Experiment;
-use crate::stack::{CONTROL_PERIOD_S, VehicleStack};
+use crate::stack::{CONTROL_PERIOD_S, StampedState, VehicleStack};
 use crate::starts::InitialState;
-use crate::twin::control_periods;
+use crate::twin::{anchored_time_s, control_periods};
 
 /// How often the emulator polls its readers.
 const POLL_INTERVAL: Duration = Duration::from_millis(1);
@@ -307,13 +309,22 @@ impl<'a> Emulator<'a> {
             // Report the vehicles' states and wait for their trajectories.
             let t_s = (f64::from(tick) * dt_s * 1e9).round() / 1e9;
             let t_now = origin_ns + ns_from_s(t_s);
+            let listed: Vec<StampedState> = vehicles.iter().map(|v| v.listed_state(t_s)).collect();
             let list = VehicleStateList {
                 t_now,
                 period_ms,
-                state_list: vehicles
+                state_list: listed
                     .iter()
                     .zip(ids)
-                    .map(|(v, id)| lab_state(*id, &v.reported_state(), t_now, &vehicle))
+                    .map(|(s, id)| {
+                        lab_state(
+                            *id,
+                            &s.state,
+                            stamp_ns(origin_ns, s.create_s),
+                            stamp_ns(origin_ns, s.valid_after_s()),
+                            &vehicle,
+                        )
+                    })
                     .collect(),
                 vehicle_observation_list: Vec::new(),
                 active_vehicle_ids: active_vehicle_ids.clone(),
@@ -330,12 +341,12 @@ impl<'a> Emulator<'a> {
             ticks += 1;
 
             // The trajectories take effect and the vehicles run until the next tick.
-            for (v, command) in vehicles.iter_mut().zip(commands) {
+            for ((v, command), state) in vehicles.iter_mut().zip(commands).zip(&listed) {
                 let points = command
                     .trajectory_points
                     .iter()
                     .map(|p| TrajectoryPoint {
-                        t_s: on_tick_grid(s_since(origin_ns, p.t.nanoseconds), t_s, dt_s),
+                        t_s: on_grid(s_since(origin_ns, p.t.nanoseconds), &[state.create_s, t_s], dt_s),
                         x_m: p.px,
                         y_m: p.py,
                         vx_mps: p.vx,
@@ -408,16 +419,20 @@ fn exchange(
 }
 
 /// A point's time `point_s`, read from whole nanoseconds, as the planner computed it when it
-/// lies on the grid `tick_s + j·dt` (within a nanosecond): the twin engine's follower gets
-/// the planner's own times, and so do the emulator's vehicles.
-fn on_tick_grid(point_s: f64, tick_s: f64, dt_s: f64) -> f64 {
-    let j = ((point_s - tick_s) / dt_s).round();
-    let grid_s = tick_s + j * dt_s;
-    if (grid_s - point_s).abs() < 1e-9 {
-        grid_s
-    } else {
-        point_s
+/// lies on one of the grids `anchor + j·dt` (within a nanosecond; the anchors: the listed
+/// state's time, the tick): the twin engine's follower gets the planner's own times
+/// (`twin::anchored_time_s`), and so do the emulator's vehicles.
+fn on_grid(point_s: f64, anchors_s: &[f64], dt_s: f64) -> f64 {
+    for &anchor in anchors_s {
+        let j = ((point_s - anchor) / dt_s).round();
+        if j >= 0.0 {
+            let grid_s = anchored_time_s(anchor, j as usize, dt_s);
+            if (grid_s - point_s).abs() < 1e-9 {
+                return grid_s;
+            }
+        }
     }
+    point_s
 }
 
 /// Nanoseconds since the Unix epoch (the lab's time base), 1 s if the clock is before it.
@@ -438,7 +453,11 @@ mod tests {
         let (tick_s, dt_s) = (0.3, 0.1);
         let planned_s = tick_s + 7.0 * dt_s;
         let from_ns = s_since(5, 5 + ns_from_s(planned_s));
-        assert_eq!(on_tick_grid(from_ns, tick_s, dt_s), planned_s);
-        assert_eq!(on_tick_grid(1.05, tick_s, dt_s), 1.05);
+        assert_eq!(on_grid(from_ns, &[tick_s], dt_s), planned_s);
+        assert_eq!(on_grid(1.05, &[tick_s], dt_s), 1.05);
+        let anchor_s = tick_s - 0.06;
+        let planned_s = anchored_time_s(anchor_s, 3, dt_s);
+        let from_ns = s_since(5, 5 + ns_from_s(planned_s));
+        assert_eq!(on_grid(from_ns, &[anchor_s, tick_s], dt_s), planned_s);
     }
 }

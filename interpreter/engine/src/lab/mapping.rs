@@ -45,24 +45,27 @@ pub fn recorded_sample(state: &BicycleState, vehicle: &VehicleParams) -> AgentSa
     }
 }
 
-/// The lab's `VehicleState` of a simulated vehicle that reports `reported` at `stamp_ns`
-/// (created and valid at that time): pose, odometer speed and the steering servo
-/// σ / σ_max; sensor fields the planner does not read stay zero.
+/// The lab's `VehicleState` of a simulated vehicle that reported `reported`, stamped
+/// `create_ns` and valid from `valid_after_ns` (the lab's vehicles: create + 60 ms): pose,
+/// odometer speed and the steering servo σ / σ_max; sensor fields the planner does not read
+/// stay zero.
 pub fn lab_state(
     vehicle_id: u8,
     reported: &BicycleState,
-    stamp_ns: u64,
+    create_ns: u64,
+    valid_after_ns: u64,
     vehicle: &VehicleParams,
 ) -> VehicleState {
     let servo = servo_of(reported.steering_rad, vehicle.max_steering_rad);
-    let stamp = TimeStamp {
-        nanoseconds: stamp_ns,
-    };
     VehicleState {
         vehicle_id,
         header: Header {
-            create_stamp: stamp,
-            valid_after_stamp: stamp,
+            create_stamp: TimeStamp {
+                nanoseconds: create_ns,
+            },
+            valid_after_stamp: TimeStamp {
+                nanoseconds: valid_after_ns,
+            },
         },
         pose: Pose2D {
             x: reported.x_m,
@@ -145,8 +148,9 @@ mod tests {
             speed_mps: 0.45,
             steering_rad: -0.2,
         };
-        let lab = lab_state(4, &reported, 123, &vehicle);
+        let lab = lab_state(4, &reported, 123, 60_000_123, &vehicle);
         assert_eq!(lab.header.create_stamp.nanoseconds, 123);
+        assert_eq!(lab.header.valid_after_stamp.nanoseconds, 60_000_123);
         let back = policy_state(&lab, &vehicle).expect("finite");
         assert_eq!(back.steering_rad, reported.steering_rad);
         let mut exact = 0;
@@ -156,7 +160,7 @@ mod tests {
                 steering_rad,
                 ..reported
             };
-            let lab = lab_state(4, &report, 123, &vehicle);
+            let lab = lab_state(4, &report, 123, 60_000_123, &vehicle);
             let back = policy_state(&lab, &vehicle).expect("finite");
             assert!((back.steering_rad - steering_rad).abs() <= 2.0 * f64::EPSILON * steering_rad.abs());
             exact += usize::from(back.steering_rad == steering_rad);

@@ -1,0 +1,228 @@
+//! The CPM Lab's own MPC solver (`MpcController.cxx:207-250`, `MpcController.m:25-71`, the
+//! CasADi-generated `casadi_mpc_fn.c`): 20 steps of gradient descent with momentum on the
+//! nonlinear prediction, learning rate 0.4, momentum 0.6, the inputs clipped to their bounds at
+//! the start of every step, warm-started (unshifted) from the previous control period and reset
+//! to 1e-12 after any rejection.
+//!
+//! One step, with `u` the clipped iterate and `M` the momentum:
+//! `J, g = objective(u), ∇J(u)`; `M ← 0.6·M − g`; `u_next ← u + 0.4·M`. The objective the lab
+//! checks against 1.5 is the 20th step's `J` (at its `u`, before the update); the input applied
+//! is the first move of the last `u_next`, clipped.
+//!
+//! The gradient is exact (reverse mode through the rollout, with the model's step Jacobians),
+//! as CasADi's symbolic gradient is. This module owns the iteration and the gradient; the
+//! reference window, the rejection rules and the history are `mpc.rs`'s.
+
+use nalgebra::SVector;
+
+use crate::model::Model;
+use crate::mpc::{CONTROL_MOVES, MOVE_OF_STEP, MpcConfig, PREDICTION_STEPS};
+
+/// Gradient steps per control period (lab: 20).
+pub const GRADIENT_ITERATIONS: usize = 20;
+/// Learning rate (lab: 0.4).
+pub const LEARNING_RATE: f64 = 0.4;
+/// Momentum rate (lab: 0.6).
+pub const MOMENTUM_RATE: f64 = 0.6;
+/// What the lab's `reset_optimizer` writes into every variable (CasADi's gradient is wrong at
+/// exactly zero).
+pub const RESET_VALUE: f64 = 1e-12;
+
+/// The solver's memory between control periods: the next iterate and the momentum.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WarmStart<const NU: usize> {
+    /// The iterate the next period starts from (not yet clipped).
+    pub u_next: [[f64; NU]; CONTROL_MOVES],
+    /// The momentum.
+    pub momentum: [[f64; NU]; CONTROL_MOVES],
+}
+
+impl<const NU: usize> WarmStart<NU> {
+    /// The state after the lab's `reset_optimizer`.
+    pub fn reset() -> Self {
+        Self {
+            u_next: [[RESET_VALUE; NU]; CONTROL_MOVES],
+            momentum: [[RESET_VALUE; NU]; CONTROL_MOVES],
+        }
+    }
+}
+
+/// The result of one control period's iterations.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GradientResult<const NU: usize> {
+    /// The moves of the last iterate `u_next`, clipped.
+    pub moves: [[f64; NU]; CONTROL_MOVES],
+    /// The objective at the last step's `u` (what the lab checks).
+    pub objective: f64,
+    /// Predicted positions at the last step's `u`.
+    pub predicted_m: [[f64; 2]; PREDICTION_STEPS],
+}
+
+/// Runs the lab's iterations from `warm` (updated in place) for the delay-compensated state
+/// `x0` and the reference positions `reference_m`.
+pub fn solve<M: Model<NX, NU>, const NX: usize, const NU: usize>(
+    model: &M,
+    config: &MpcConfig<NU>,
+    x0: &[f64; NX],
+    reference_m: &[[f64; 2]; PREDICTION_STEPS],
+    previous_input: &[f64; NU],
+    warm: &mut WarmStart<NU>,
+) -> GradientResult<NU> {
+    let limits = model.input_limits();
+    let clip = |moves: &[[f64; NU]; CONTROL_MOVES]| {
+        moves.map(|m| {
+            let mut c = m;
+            for i in 0..NU {
+                c[i] = m[i].clamp(limits.lower[i], limits.upper[i]);
+            }
+            c
+        })
+    };
+    let mut objective = f64::INFINITY;
+    let mut predicted_m = [[0.0; 2]; PREDICTION_STEPS];
+    for _ in 0..config.gradient_iterations {
+        let u = clip(&warm.u_next);
+        let (j, gradient, predicted) =
+            objective_and_gradient(model, config, x0, reference_m, previous_input, &u);
+        objective = j;
+        predicted_m = predicted;
+        for m in 0..CONTROL_MOVES {
+            for i in 0..NU {
+                warm.momentum[m][i] = MOMENTUM_RATE * warm.momentum[m][i] - gradient[m][i];
+                warm.u_next[m][i] = u[m][i] + LEARNING_RATE * warm.momentum[m][i];
+            }
+        }
+    }
+    GradientResult {
+        moves: clip(&warm.u_next),
+        objective,
+        predicted_m,
+    }
+}
+
+/// The lab's objective `Σ wₖ²·|p(xₖ) − rₖ|² + Σᵢ Rᵢ·Σⱼ (uⱼ,ᵢ − uⱼ₋₁,ᵢ)²` (u₋₁ = the previous
+/// input), its gradient with respect to the moves, and the predicted positions.
+pub fn objective_and_gradient<M: Model<NX, NU>, const NX: usize, const NU: usize>(
+    model: &M,
+    config: &MpcConfig<NU>,
+    x0: &[f64; NX],
+    reference_m: &[[f64; 2]; PREDICTION_STEPS],
+    previous_input: &[f64; NU],
+    moves: &[[f64; NU]; CONTROL_MOVES],
+) -> (f64, [[f64; NU]; CONTROL_MOVES], [[f64; 2]; PREDICTION_STEPS]) {
+    // Forward: states, Jacobians, position errors.
+    let mut x = *x0;
+    let mut jacobians = [(
+        nalgebra::SMatrix::<f64, NX, NX>::zeros(),
+        nalgebra::SMatrix::<f64, NX, NU>::zeros(),
+    ); PREDICTION_STEPS];
+    let mut position_grad = [SVector::<f64, NX>::zeros(); PREDICTION_STEPS];
+    let mut predicted_m = [[0.0; 2]; PREDICTION_STEPS];
+    let mut objective = 0.0;
+    for k in 0..PREDICTION_STEPS {
+        let (next, a, b) = model.step_jacobians(&x, &moves[MOVE_OF_STEP[k]], config.mpc_step_s);
+        jacobians[k] = (a, b);
+        x = next;
+        let p = model.position_m(&x);
+        let w2 = config.position_weights[k] * config.position_weights[k];
+        let e = [p[0] - reference_m[k][0], p[1] - reference_m[k][1]];
+        objective += w2 * (e[0] * e[0] + e[1] * e[1]);
+        let c = model.position_jacobian(&x);
+        position_grad[k] = c.transpose() * SVector::<f64, 2>::new(2.0 * w2 * e[0], 2.0 * w2 * e[1]);
+        predicted_m[k] = p;
+    }
+
+    // Backward: λₖ = ∂J/∂xₖ₊₁ through the later steps.
+    let mut gradient = [[0.0; NU]; CONTROL_MOVES];
+    let mut lambda = SVector::<f64, NX>::zeros();
+    for k in (0..PREDICTION_STEPS).rev() {
+        lambda += position_grad[k];
+        let (a, b) = &jacobians[k];
+        let g = b.transpose() * lambda;
+        for i in 0..NU {
+            gradient[MOVE_OF_STEP[k]][i] += g[i];
+        }
+        lambda = a.transpose() * lambda;
+    }
+
+    // Move penalties.
+    let mut before = *previous_input;
+    for (j, m) in moves.iter().enumerate() {
+        for i in 0..NU {
+            let d = m[i] - before[i];
+            objective += config.move_weights[i] * d * d;
+            gradient[j][i] += 2.0 * config.move_weights[i] * d;
+            if j > 0 {
+                gradient[j - 1][i] -= 2.0 * config.move_weights[i] * d;
+            }
+        }
+        before = *m;
+    }
+    (objective, gradient, predicted_m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::BicycleModel;
+    use cpmx_vehicle::{KinematicBicycle, VehicleParams};
+
+    fn setup() -> (BicycleModel, MpcConfig<2>, [f64; 5], [[f64; 2]; PREDICTION_STEPS]) {
+        let model = BicycleModel {
+            bicycle: KinematicBicycle::new(VehicleParams::MU_CAR),
+        };
+        let config = MpcConfig::lab(crate::mpc::BICYCLE_MOVE_WEIGHTS);
+        let x0 = [0.0, 0.0, 0.1, 0.4, 0.05];
+        let reference = std::array::from_fn(|k| {
+            let t = 0.05 * (k + 1) as f64;
+            [0.5 * t, 0.2 * t * t]
+        });
+        (model, config, x0, reference)
+    }
+
+    #[test]
+    fn the_gradient_matches_central_differences() {
+        let (model, config, x0, reference) = setup();
+        let moves = [[0.45, 0.1], [0.5, 0.2], [0.55, -0.1]];
+        let previous = [0.4, 0.0];
+        let (_, gradient, _) = objective_and_gradient(&model, &config, &x0, &reference, &previous, &moves);
+        for j in 0..CONTROL_MOVES {
+            for i in 0..2 {
+                let h = 1e-6;
+                let (mut plus, mut minus) = (moves, moves);
+                plus[j][i] += h;
+                minus[j][i] -= h;
+                let f = |m: &[[f64; 2]; CONTROL_MOVES]| {
+                    objective_and_gradient(&model, &config, &x0, &reference, &previous, m).0
+                };
+                let numeric = (f(&plus) - f(&minus)) / (2.0 * h);
+                assert!(
+                    (gradient[j][i] - numeric).abs() < 1e-6 * numeric.abs().max(1.0),
+                    "move {j} input {i}: {} vs {numeric}",
+                    gradient[j][i]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn iterations_lower_the_objective_and_warm_start_carries_on() {
+        let (model, config, x0, reference) = setup();
+        let previous = [0.4, 0.0];
+        let mut warm = WarmStart::reset();
+        let first = solve(&model, &config, &x0, &reference, &previous, &mut warm);
+        let start = objective_and_gradient(
+            &model,
+            &config,
+            &x0,
+            &reference,
+            &previous,
+            &WarmStart::<2>::reset().u_next,
+        )
+        .0;
+        assert!(first.objective < start, "{} vs {start}", first.objective);
+        assert_ne!(warm, WarmStart::reset());
+        let second = solve(&model, &config, &x0, &reference, &previous, &mut warm);
+        assert!(second.objective <= first.objective + 1e-12);
+    }
+}
