@@ -13,6 +13,7 @@
 
 use std::hint::black_box;
 
+use cpmx_learn::gemm::{Mat, gemm};
 use cpmx_learn::mlp::{Mlp, Tape};
 use cpmx_learn::optim::{AdamConfig, AdamState, clip_grad_norm};
 use cpmx_learn::ppo::{LossConfig, LossInput, ppo_loss};
@@ -171,6 +172,81 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("update");
     group.throughput(Throughput::Elements(step.flops()));
     group.bench_function("minibatch_step_flop", |b| b.iter(|| step.run()));
+    group.finish();
+    // The parts, to see where the time goes.
+    let mut group = c.benchmark_group("parts");
+    let (m, n, k) = (2048, 256, 256);
+    let a: Vec<f32> = (0..m * k).map(|i| (i as f32 * 0.37).sin()).collect();
+    let b: Vec<f32> = (0..k * n).map(|i| (i as f32 * 0.11).cos()).collect();
+    let mut out = vec![0.0f32; m * n];
+    group.throughput(Throughput::Elements((2 * m * n * k) as u64));
+    group.bench_function("gemm_2048x256x256_flop", |bch| {
+        bch.iter(|| {
+            gemm(
+                m,
+                n,
+                k,
+                Mat::rows(&a, k),
+                Mat::transposed(&b, k),
+                &mut out,
+                n,
+                true,
+            )
+        })
+    });
+    group.bench_function("gemm_dw_256x256x2048_flop", |bch| {
+        bch.iter(|| {
+            gemm(
+                n,
+                k,
+                m,
+                Mat::transposed(&a, k),
+                Mat::rows(&a, k),
+                &mut out,
+                k,
+                false,
+            )
+        })
+    });
+    let entries = SAMPLES * AGENTS;
+    group.throughput(Throughput::Elements(2 * step.actor.forward_macs(entries)));
+    group.bench_function("actor_forward_flop", |bch| {
+        bch.iter(|| step.actor.forward(&step.obs, entries, &mut step.ta))
+    });
+    let mut v: Vec<f32> = (0..entries * 768)
+        .map(|i| (i as f32 * 0.01).sin() * 3.0)
+        .collect();
+    group.throughput(Throughput::Elements(v.len() as u64));
+    group.bench_function("tanh_values", |bch| {
+        bch.iter(|| cpmx_learn::mlp::tanh(black_box(&mut v)))
+    });
+    group.throughput(Throughput::Elements(entries as u64));
+    step.run();
+    group.bench_function("ppo_loss_entries", |bch| {
+        bch.iter(|| {
+            let config = LossConfig {
+                clip_epsilon: 0.2,
+                entropy_coef: 5e-4,
+                critic_coef: 1.0,
+                high: HIGH,
+            };
+            let input = LossInput {
+                action: &step.action,
+                log_prob_old: &step.log_prob,
+                advantage: &step.advantage,
+                value_target: &step.target,
+                entropy_eps: &step.eps,
+            };
+            ppo_loss(
+                &config,
+                step.ta.output(),
+                step.tc.output(),
+                &input,
+                &mut step.d_raw,
+                &mut step.d_value,
+            )
+        })
+    });
     group.finish();
     let mut group = c.benchmark_group("peak");
     group.throughput(Throughput::Elements(PEAK_FLOP));

@@ -176,7 +176,8 @@ fn pack_a(a: &Mat<'_>, i0: usize, rows: usize, pc: usize, kc: usize, out: &mut [
     }
 }
 
-/// All tiles of one row block: `c_block` starts at the block's first row.
+/// All tiles of one row block: `c_block` starts at the block's first row. Full tiles are
+/// updated in place; edge tiles go through a zero-padded copy.
 #[allow(clippy::too_many_arguments)]
 fn block_product(
     packed_a: &[f32],
@@ -195,34 +196,44 @@ fn block_product(
         for (ip, a_panel) in packed_a.chunks_exact(MR * kc).enumerate() {
             let i0 = ip * MR;
             let valid = MR.min(rows - i0);
-            for (r, t) in tile.iter_mut().enumerate().take(valid) {
-                t[..cols].copy_from_slice(&c_block[(i0 + r) * ldc + j0..][..cols]);
-            }
-            micro_kernel(kc, a_panel, b_panel, &mut tile, fma);
-            for (r, t) in tile.iter().enumerate().take(valid) {
-                c_block[(i0 + r) * ldc + j0..][..cols].copy_from_slice(&t[..cols]);
+            if valid == MR && cols == NR {
+                let c = &mut c_block[i0 * ldc + j0..(i0 + MR - 1) * ldc + j0 + NR];
+                micro_kernel(kc, a_panel, b_panel, c, ldc, fma);
+            } else {
+                for (r, t) in tile.iter_mut().enumerate().take(valid) {
+                    t[..cols].copy_from_slice(&c_block[(i0 + r) * ldc + j0..][..cols]);
+                }
+                micro_kernel(kc, a_panel, b_panel, tile.as_flattened_mut(), NR, fma);
+                for (r, t) in tile.iter().enumerate().take(valid) {
+                    c_block[(i0 + r) * ldc + j0..][..cols].copy_from_slice(&t[..cols]);
+                }
             }
         }
     }
 }
 
-/// `tile += A_panel B_panel` over `kc` terms.
+/// `C_tile += A_panel B_panel` over `kc` terms; `c` holds the `MR x NR` tile with row
+/// stride `ldc` (`c[r * ldc + j]`).
 #[inline]
-fn micro_kernel(kc: usize, a: &[f32], b: &[f32], tile: &mut [[f32; NR]; MR], fma: bool) {
-    assert!(a.len() >= kc * MR && b.len() >= kc * NR);
+fn micro_kernel(kc: usize, a: &[f32], b: &[f32], c: &mut [f32], ldc: usize, fma: bool) {
+    assert!(a.len() >= kc * MR && b.len() >= kc * NR && c.len() > (MR - 1) * ldc + NR - 1);
     #[cfg(target_arch = "x86_64")]
     if fma {
-        // SAFETY: the CPU has AVX2 and FMA (checked by `has_fma`) and the panels hold `kc`
-        // rows (asserted above).
-        unsafe { micro_kernel_avx2(kc, a.as_ptr(), b.as_ptr(), tile) };
+        // SAFETY: the CPU has AVX2 and FMA (checked by `has_fma`); the panels hold `kc` rows
+        // and `c` the tile (asserted above).
+        unsafe { micro_kernel_avx2(kc, a.as_ptr(), b.as_ptr(), c.as_mut_ptr(), ldc) };
         return;
     }
     let _ = fma;
-    micro_kernel_portable(kc, a, b, tile);
+    micro_kernel_portable(kc, a, b, c, ldc);
 }
 
 /// The reference micro-kernel: the same fused operations in the same order as the AVX2 one.
-pub(crate) fn micro_kernel_portable(kc: usize, a: &[f32], b: &[f32], tile: &mut [[f32; NR]; MR]) {
+pub(crate) fn micro_kernel_portable(kc: usize, a: &[f32], b: &[f32], c: &mut [f32], ldc: usize) {
+    let mut tile = [[0.0f32; NR]; MR];
+    for (r, t) in tile.iter_mut().enumerate() {
+        t.copy_from_slice(&c[r * ldc..r * ldc + NR]);
+    }
     for kk in 0..kc {
         let b_row = &b[kk * NR..kk * NR + NR];
         for (r, t) in tile.iter_mut().enumerate() {
@@ -232,21 +243,24 @@ pub(crate) fn micro_kernel_portable(kc: usize, a: &[f32], b: &[f32], tile: &mut 
             }
         }
     }
+    for (r, t) in tile.iter().enumerate() {
+        c[r * ldc..r * ldc + NR].copy_from_slice(t);
+    }
 }
 
 /// # Safety
-/// The CPU must support AVX2 and FMA; `a` and `b` must be valid for `kc * MR` and `kc * NR`
-/// values.
+/// The CPU must support AVX2 and FMA; `a`, `b` must be valid for `kc * MR` and `kc * NR`
+/// values and `c` for the tile `c[r * ldc + j]`, `r < MR`, `j < NR`.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn micro_kernel_avx2(kc: usize, a: *const f32, b: *const f32, tile: &mut [[f32; NR]; MR]) {
+unsafe fn micro_kernel_avx2(kc: usize, a: *const f32, b: *const f32, c: *mut f32, ldc: usize) {
     use std::arch::x86_64::*;
     let mut acc = [[_mm256_setzero_ps(); 2]; MR];
     for (r, acc_r) in acc.iter_mut().enumerate() {
-        // SAFETY: each tile row holds 16 values.
+        // SAFETY: within the tile (caller's guarantee).
         unsafe {
-            acc_r[0] = _mm256_loadu_ps(tile[r].as_ptr());
-            acc_r[1] = _mm256_loadu_ps(tile[r].as_ptr().add(8));
+            acc_r[0] = _mm256_loadu_ps(c.add(r * ldc));
+            acc_r[1] = _mm256_loadu_ps(c.add(r * ldc + 8));
         }
     }
     for kk in 0..kc {
@@ -263,10 +277,10 @@ unsafe fn micro_kernel_avx2(kc: usize, a: *const f32, b: *const f32, tile: &mut 
         }
     }
     for (r, acc_r) in acc.iter().enumerate() {
-        // SAFETY: each tile row holds 16 values.
+        // SAFETY: within the tile (caller's guarantee).
         unsafe {
-            _mm256_storeu_ps(tile[r].as_mut_ptr(), acc_r[0]);
-            _mm256_storeu_ps(tile[r].as_mut_ptr().add(8), acc_r[1]);
+            _mm256_storeu_ps(c.add(r * ldc), acc_r[0]);
+            _mm256_storeu_ps(c.add(r * ldc + 8), acc_r[1]);
         }
     }
 }
@@ -331,9 +345,9 @@ mod tests {
         let start: [[f32; NR]; MR] =
             std::array::from_fn(|r| std::array::from_fn(|c| (r * NR + c) as f32 * 0.01));
         let mut portable = start;
-        micro_kernel_portable(kc, &a, &b, &mut portable);
+        micro_kernel_portable(kc, &a, &b, portable.as_flattened_mut(), NR);
         let mut chosen = start;
-        micro_kernel(kc, &a, &b, &mut chosen, has_fma());
+        micro_kernel(kc, &a, &b, chosen.as_flattened_mut(), NR, has_fma());
         assert_eq!(
             portable.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>(),
             chosen.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>()
