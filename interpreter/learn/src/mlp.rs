@@ -278,14 +278,26 @@ pub fn tanh(v: &mut [f32]) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         let (head, tail) = v.as_chunks_mut::<8>();
-        for chunk in head {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            unsafe { tanh8_avx2(chunk) };
-        }
+        // SAFETY: the CPU supports AVX2 (checked just above).
+        unsafe { tanh_chunks_avx2(head) };
         cpmx_policy::tanh_in_place(tail);
         return;
     }
     cpmx_policy::tanh_in_place(v);
+}
+
+/// [`tanh8_avx2`] over chunks, inlined into one loop so that out-of-order execution
+/// overlaps the (long) dependency chains of consecutive chunks.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn tanh_chunks_avx2(chunks: &mut [[f32; 8]]) {
+    for chunk in chunks {
+        // SAFETY: AVX2 is enabled in this function.
+        unsafe { tanh8_avx2(chunk) };
+    }
 }
 
 /// Eight lanes of `cpmx-policy`'s Cephes tanh (see `kernel.rs` there for the algorithm).
@@ -294,44 +306,59 @@ pub fn tanh(v: &mut [f32]) {
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
+#[inline]
 unsafe fn tanh8_avx2(v: &mut [f32; 8]) {
     use std::arch::x86_64::*;
-    let splat = |c: f32| _mm256_set1_ps(c);
-    let (mul, add, sub) = (_mm256_mul_ps, _mm256_add_ps, _mm256_sub_ps);
+    // (Plain calls: a closure or function pointer would not inherit the target feature.)
     // SAFETY: `v` holds 8 values.
     let x = unsafe { _mm256_loadu_ps(v.as_ptr()) };
-    let sign = splat(-0.0);
+    let sign = _mm256_set1_ps(-0.0);
     let ax = _mm256_andnot_ps(sign, x);
     // Small arguments: x + x^3 P(x^2).
-    let z = mul(x, x);
-    let mut p = add(mul(splat(-5.704_988_7e-3), z), splat(2.063_909e-2));
-    p = sub(mul(p, z), splat(5.373_971_6e-2));
-    p = add(mul(p, z), splat(1.333_144_2e-1));
-    p = sub(mul(p, z), splat(3.333_328e-1));
-    let small = add(mul(mul(p, z), x), x);
-    // Large arguments: 1 - 2 / (exp(2 min(|x|, 10)) + 1) with the sign of x.
-    let y = mul(splat(2.0), _mm256_min_ps(ax, splat(10.0)));
-    let shifter = splat(12_582_912.0);
-    let shifted = add(mul(y, splat(std::f32::consts::LOG2_E)), shifter);
-    let nf = sub(shifted, shifter);
-    let r = sub(
-        sub(y, mul(nf, splat(0.693_359_4))),
-        mul(nf, splat(-2.121_944_4e-4)),
+    let z = _mm256_mul_ps(x, x);
+    let mut p = _mm256_add_ps(
+        _mm256_mul_ps(_mm256_set1_ps(-5.704_988_7e-3), z),
+        _mm256_set1_ps(2.063_909e-2),
     );
-    let mut q = add(mul(splat(1.987_569_1e-4), r), splat(1.398_199_9e-3));
-    q = add(mul(q, r), splat(8.333_452e-3));
-    q = add(mul(q, r), splat(4.166_579_6e-2));
-    q = add(mul(q, r), splat(1.666_666_5e-1));
-    q = add(mul(q, r), splat(0.5));
-    let q = add(add(mul(mul(q, r), r), r), splat(1.0));
+    p = _mm256_sub_ps(_mm256_mul_ps(p, z), _mm256_set1_ps(5.373_971_6e-2));
+    p = _mm256_add_ps(_mm256_mul_ps(p, z), _mm256_set1_ps(1.333_144_2e-1));
+    p = _mm256_sub_ps(_mm256_mul_ps(p, z), _mm256_set1_ps(3.333_328e-1));
+    let small = _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(p, z), x), x);
+    // Large arguments: 1 - 2 / (exp(2 min(|x|, 10)) + 1) with the sign of x.
+    let y = _mm256_mul_ps(_mm256_set1_ps(2.0), _mm256_min_ps(ax, _mm256_set1_ps(10.0)));
+    let shifter = _mm256_set1_ps(12_582_912.0);
+    let shifted = _mm256_add_ps(
+        _mm256_mul_ps(y, _mm256_set1_ps(std::f32::consts::LOG2_E)),
+        shifter,
+    );
+    let nf = _mm256_sub_ps(shifted, shifter);
+    let r = _mm256_sub_ps(
+        _mm256_sub_ps(y, _mm256_mul_ps(nf, _mm256_set1_ps(0.693_359_4))),
+        _mm256_mul_ps(nf, _mm256_set1_ps(-2.121_944_4e-4)),
+    );
+    let mut q = _mm256_add_ps(
+        _mm256_mul_ps(_mm256_set1_ps(1.987_569_1e-4), r),
+        _mm256_set1_ps(1.398_199_9e-3),
+    );
+    q = _mm256_add_ps(_mm256_mul_ps(q, r), _mm256_set1_ps(8.333_452e-3));
+    q = _mm256_add_ps(_mm256_mul_ps(q, r), _mm256_set1_ps(4.166_579_6e-2));
+    q = _mm256_add_ps(_mm256_mul_ps(q, r), _mm256_set1_ps(1.666_666_5e-1));
+    q = _mm256_add_ps(_mm256_mul_ps(q, r), _mm256_set1_ps(0.5));
+    let q = _mm256_add_ps(
+        _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(q, r), r), r),
+        _mm256_set1_ps(1.0),
+    );
     let pow2 = _mm256_castsi256_ps(_mm256_slli_epi32::<23>(_mm256_add_epi32(
         _mm256_castps_si256(shifted),
         _mm256_set1_epi32(127),
     )));
-    let e = mul(q, pow2);
-    let large_abs = sub(splat(1.0), _mm256_div_ps(splat(2.0), add(e, splat(1.0))));
+    let e = _mm256_mul_ps(q, pow2);
+    let large_abs = _mm256_sub_ps(
+        _mm256_set1_ps(1.0),
+        _mm256_div_ps(_mm256_set1_ps(2.0), _mm256_add_ps(e, _mm256_set1_ps(1.0))),
+    );
     let large = _mm256_or_ps(_mm256_andnot_ps(sign, large_abs), _mm256_and_ps(sign, x));
-    let use_large = _mm256_cmp_ps::<_CMP_GE_OQ>(ax, splat(0.625));
+    let use_large = _mm256_cmp_ps::<_CMP_GE_OQ>(ax, _mm256_set1_ps(0.625));
     // SAFETY: `v` holds 8 values.
     unsafe { _mm256_storeu_ps(v.as_mut_ptr(), _mm256_blendv_ps(small, large, use_large)) };
 }

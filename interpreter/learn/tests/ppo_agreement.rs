@@ -336,3 +336,37 @@ fn network_gradients_match_central_differences() {
     }
     eprintln!("worst relative gradient error {worst:e}");
 }
+
+/// The trainer's MLP (FMA products) and the inference actor (`cpmx-policy`'s kernels) read
+/// the same file and agree on SigmaRL's 36 actor test vectors; `to_actor` hands the weights
+/// over unchanged.
+#[test]
+fn training_and_inference_networks_agree() {
+    let bytes = std::fs::read(format!("{REFERENCE}/policy/actor.safetensors")).unwrap();
+    let mlp = Mlp::from_safetensors(&bytes, "actor").unwrap();
+    let actor = cpmx_policy::MlpActor::from_bytes_inferred(&bytes, "actor").unwrap();
+    assert_eq!(mlp.to_actor().unwrap(), actor);
+    let text = std::fs::read_to_string(format!("{REFERENCE}/policy/actor_layout.json")).unwrap();
+    let layout: Value = serde_json::from_str(&text).unwrap();
+    let vectors = layout["test_vectors"].as_array().unwrap();
+    let obs: Vec<f32> = vectors.iter().flat_map(|v| f32s(&v["obs"])).collect();
+    let mut tape = Tape::default();
+    mlp.forward(&obs, vectors.len(), &mut tape);
+    let mut ws = actor.workspace(vectors.len());
+    let mut raw = vec![0.0f32; vectors.len() * 4];
+    actor.forward(&obs, &mut ws, &mut raw).unwrap();
+    let want: Vec<f64> = vectors.iter().flat_map(|v| flat(&v["raw_output"])).collect();
+    // One running FMA sum per output (training) against blocked sums (inference) and torch:
+    // within 1e-6 relative (outputs reach 3.5).
+    for ((&train, &infer), &torch) in tape.output().iter().zip(&raw).zip(&want) {
+        let scale = torch.abs().max(1.0);
+        assert!(
+            (f64::from(train) - torch).abs() < 1e-6 * scale,
+            "{train} vs torch {torch}"
+        );
+        assert!(
+            f64::from(train - infer).abs() < 1e-6 * scale,
+            "{train} vs inference {infer}"
+        );
+    }
+}
