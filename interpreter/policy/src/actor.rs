@@ -24,6 +24,51 @@ pub struct MlpLayout {
 }
 
 impl MlpLayout {
+    /// The layout stored in a safetensors file under `prefix`: layers `{prefix}.0`,
+    /// `{prefix}.1`, ... as long as both tensors exist, sizes from the weight shapes (each
+    /// layer's input must be the previous layer's output; tanh after every layer but the last).
+    pub fn from_safetensors(bytes: &[u8], prefix: &str) -> Result<Self, ActorError> {
+        let tensors = SafeTensors::deserialize(bytes).map_err(|e| ActorError::Format(e.to_string()))?;
+        let mut sizes: Vec<usize> = Vec::new();
+        for i in 0.. {
+            let name = format!("{prefix}.{i}.weight");
+            let Ok(view) = tensors.tensor(&name) else { break };
+            let shape = view.shape();
+            let expected_in = sizes.last().copied();
+            match (shape, expected_in) {
+                ([outputs, inputs], Some(expected)) if *inputs == expected => sizes.push(*outputs),
+                ([outputs, inputs], None) => sizes.extend([*inputs, *outputs]),
+                (found, _) => {
+                    return Err(ActorError::Shape {
+                        name,
+                        expected: vec![0, expected_in.unwrap_or(0)],
+                        found: found.to_vec(),
+                    });
+                }
+            }
+        }
+        if sizes.len() < 2 {
+            return Err(ActorError::MissingTensor {
+                name: format!("{prefix}.0.weight"),
+                expected: vec![],
+            });
+        }
+        Ok(MlpLayout {
+            input_size: sizes[0],
+            hidden_sizes: sizes[1..sizes.len() - 1].to_vec(),
+            output_size: sizes[sizes.len() - 1],
+            prefix: prefix.to_owned(),
+        })
+    }
+
+    /// All layer widths, input first.
+    pub fn sizes(&self) -> Vec<usize> {
+        let mut sizes = vec![self.input_size];
+        sizes.extend(&self.hidden_sizes);
+        sizes.push(self.output_size);
+        sizes
+    }
+
     /// SigmaRL's actor: 32 -> 256 -> 256 -> 256 -> 4 with tanh, tensors `actor.{0..3}.*`.
     pub fn sigmarl() -> Self {
         MlpLayout {
@@ -108,12 +153,8 @@ impl MlpActor {
     /// Load an actor with `layout` from the bytes of a safetensors file.
     pub fn from_bytes(bytes: &[u8], layout: &MlpLayout) -> Result<Self, ActorError> {
         let tensors = SafeTensors::deserialize(bytes).map_err(|e| ActorError::Format(e.to_string()))?;
-        let mut sizes = vec![layout.input_size];
-        sizes.extend(&layout.hidden_sizes);
-        sizes.push(layout.output_size);
-        let n_layers = sizes.len() - 1;
-
-        let mut layers = Vec::with_capacity(n_layers);
+        let sizes = layout.sizes();
+        let mut weights = Vec::with_capacity(sizes.len() - 1);
         for (i, pair) in sizes.windows(2).enumerate() {
             let (inputs, outputs) = (pair[0], pair[1]);
             let weight = read_f32(
@@ -122,8 +163,59 @@ impl MlpActor {
                 &[outputs, inputs],
             )?;
             let bias = read_f32(&tensors, &format!("{}.{i}.bias", layout.prefix), &[outputs])?;
-            layers.push(Dense::new(&weight, &bias, inputs, outputs, i + 1 < n_layers));
+            weights.push((weight, bias));
         }
+        let layers: Vec<(&[f32], &[f32])> = weights.iter().map(|(w, b)| (&w[..], &b[..])).collect();
+        Self::from_layers(&sizes, &layers)
+    }
+
+    /// Load an actor whose layout is read from the file itself (see
+    /// [`MlpLayout::from_safetensors`]).
+    pub fn load_inferred(path: &Path, prefix: &str) -> Result<Self, ActorError> {
+        let bytes = std::fs::read(path).map_err(|source| ActorError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        Self::from_bytes_inferred(&bytes, prefix)
+    }
+
+    /// [`MlpActor::load_inferred`] from the bytes of a safetensors file.
+    pub fn from_bytes_inferred(bytes: &[u8], prefix: &str) -> Result<Self, ActorError> {
+        let layout = MlpLayout::from_safetensors(bytes, prefix)?;
+        Self::from_bytes(bytes, &layout)
+    }
+
+    /// An actor from in-memory tensors: `sizes` are the layer widths (input first) and
+    /// `layers[i]` is torch's `(weight [out][in] row-major, bias [out])` of layer `i`; tanh
+    /// follows every layer but the last. (A trainer hands its current weights over this way.)
+    pub fn from_layers(sizes: &[usize], layers: &[(&[f32], &[f32])]) -> Result<Self, ActorError> {
+        if sizes.len() < 2 || layers.len() != sizes.len() - 1 {
+            return Err(ActorError::Buffer {
+                what: "layer list",
+                found: layers.len(),
+                expected: sizes.len().saturating_sub(1),
+            });
+        }
+        let n_layers = layers.len();
+        let mut dense = Vec::with_capacity(n_layers);
+        for (i, (pair, (weight, bias))) in sizes.windows(2).zip(layers).enumerate() {
+            let (inputs, outputs) = (pair[0], pair[1]);
+            if weight.len() != inputs * outputs || bias.len() != outputs {
+                return Err(ActorError::Buffer {
+                    what: "layer tensors",
+                    found: weight.len() + bias.len(),
+                    expected: inputs * outputs + outputs,
+                });
+            }
+            dense.push(Dense::new(weight, bias, inputs, outputs, i + 1 < n_layers));
+        }
+        let layers = dense;
+        let layout = MlpLayout {
+            input_size: sizes[0],
+            hidden_sizes: sizes[1..sizes.len() - 1].to_vec(),
+            output_size: sizes[sizes.len() - 1],
+            prefix: String::new(),
+        };
         let width = layers
             .iter()
             .map(Dense::out_padded)

@@ -331,8 +331,11 @@ impl Vector for Portable {
 /// Element-wise float32 tanh, within 2.5e-7 of the exact value (Cephes `tanhf`: an odd
 /// polynomial below 0.625, `1 - 2 / (exp(2|x|) + 1)` above; NaN stays NaN). Branch-free, so it
 /// runs on 8 lanes at once; only basic IEEE operations, so every path gives the same bits.
+///
+/// Public (re-exported as `cpmx_policy::tanh_in_place`) so the trainer's MLP uses the same
+/// activation; inlined into the caller, it vectorises for the caller's target features.
 #[inline(always)]
-pub(crate) fn tanh_in_place(v: &mut [f32]) {
+pub fn tanh_in_place(v: &mut [f32]) {
     for x in v.iter_mut() {
         *x = tanh_f32(*x);
     }

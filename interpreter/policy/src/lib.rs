@@ -38,6 +38,7 @@ pub mod policy;
 pub use action::{ActionHead, ActionMode, ActionOutput};
 pub use actor::{ActorError, ActorWorkspace, MlpActor, MlpLayout};
 pub use geometry::{AgentPaths, PreparedPath, Segments};
+pub use kernel::tanh_in_place;
 pub use lane_follow::{LaneFollow, LaneFollowParams};
 pub use observation::{AgentState, BoundaryCorners, ObservationError, ObservationInput, SigmarlObservation};
 pub use policy::{MlpPolicy, Policy, PolicyError, check_input_size};

@@ -146,3 +146,26 @@ fn a_float64_tensor_is_a_dtype_error() {
         other => panic!("{other:?}"),
     }
 }
+
+#[test]
+fn the_layout_is_read_from_the_weights() {
+    let bytes = std::fs::read(weights()).unwrap();
+    assert_eq!(
+        MlpLayout::from_safetensors(&bytes, "actor").unwrap(),
+        MlpLayout::sigmarl()
+    );
+    // The reference critic: 128 -> 256 x 3 -> 1.
+    let critic = std::fs::read(format!("{REFERENCE}/training/critic.safetensors")).unwrap();
+    let layout = MlpLayout::from_safetensors(&critic, "critic").unwrap();
+    assert_eq!(layout.sizes(), [128, 256, 256, 256, 1]);
+    assert!(matches!(
+        MlpLayout::from_safetensors(&bytes, "critic"),
+        Err(ActorError::MissingTensor { .. })
+    ));
+    // Loading with the inferred layout gives the same network.
+    let inferred = MlpActor::load_inferred(&weights(), "actor").unwrap();
+    assert_eq!(
+        inferred,
+        MlpActor::load(&weights(), &MlpLayout::sigmarl()).unwrap()
+    );
+}

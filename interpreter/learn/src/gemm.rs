@@ -1,0 +1,373 @@
+//! The f32 matrix product of training: `C (+)= op(A) op(B)` over strided operands, packed
+//! BLIS-style into panels and multiplied by a 6 x 16 register-blocked micro-kernel with fused
+//! multiply-adds.
+//!
+//! Every element of C is one running sum over `k` in increasing order, one fused
+//! multiply-add per term, starting from C's previous value (or 0). The AVX2+FMA kernel
+//! (chosen at run time) and the portable kernel (`f32::mul_add`, the same correctly rounded
+//! operation) therefore give the same bits, and so does any split of the rows between rayon
+//! threads: results never depend on the path or the thread count.
+
+use std::cell::RefCell;
+
+use rayon::prelude::*;
+
+/// Rows of the micro-kernel's tile.
+pub const MR: usize = 6;
+/// Columns of the micro-kernel's tile (two 256-bit vectors; the width of `cpmx-policy`'s
+/// weight panels, so a forward pass packs W^T exactly as the inference actor stores it).
+pub const NR: usize = 16;
+/// Depth of one packed block (a 6 x 256 A micro-panel and a 256 x 16 B micro-panel fit L1).
+const KC: usize = 256;
+/// Largest row block packed at once (fits L2 together with the packed B block).
+const MC_MAX: usize = 120;
+
+/// A read-only matrix view: element `(i, j)` is `data[i * rs + j * cs]`.
+#[derive(Debug, Clone, Copy)]
+pub struct Mat<'a> {
+    /// The elements.
+    pub data: &'a [f32],
+    /// Row stride.
+    pub rs: usize,
+    /// Column stride.
+    pub cs: usize,
+}
+
+impl<'a> Mat<'a> {
+    /// A row-major matrix with `cols` columns.
+    pub fn rows(data: &'a [f32], cols: usize) -> Self {
+        Mat {
+            data,
+            rs: cols,
+            cs: 1,
+        }
+    }
+    /// The transpose of a row-major matrix with `cols` columns.
+    pub fn transposed(data: &'a [f32], cols: usize) -> Self {
+        Mat {
+            data,
+            rs: 1,
+            cs: cols,
+        }
+    }
+    #[inline(always)]
+    fn at(&self, i: usize, j: usize) -> f32 {
+        self.data[i * self.rs + j * self.cs]
+    }
+}
+
+thread_local! {
+    /// Per-thread packing buffer for blocks of A.
+    static PACK_A: RefCell<Vec<f32>> = const { RefCell::new(Vec::new()) };
+}
+
+/// `C = op(A) op(B) + (accumulate ? C : 0)` with `A` `m x k`, `B` `k x n`, and `C` row-major
+/// `m x n` with row stride `ldc`. Row blocks run on rayon's current pool; results do not
+/// depend on it (see the module documentation).
+#[allow(clippy::too_many_arguments)]
+pub fn gemm(
+    m: usize,
+    n: usize,
+    k: usize,
+    a: Mat<'_>,
+    b: Mat<'_>,
+    c: &mut [f32],
+    ldc: usize,
+    accumulate: bool,
+) {
+    if m == 0 || n == 0 {
+        return;
+    }
+    assert!(c.len() >= (m - 1) * ldc + n, "C too small");
+    if !accumulate {
+        for row in c.chunks_mut(ldc).take(m) {
+            row[..n].fill(0.0);
+        }
+    }
+    if k == 0 {
+        return;
+    }
+    let fma = has_fma();
+    let n_panels = n.div_ceil(NR);
+    let mut packed_b = vec![0.0f32; n_panels * NR * KC.min(k)];
+    // Row blocks: at least two per thread when there are enough rows.
+    let threads = rayon::current_num_threads();
+    let blocks = m.div_ceil(MC_MAX).max((2 * threads).min(m.div_ceil(4 * MR)));
+    let mc = m.div_ceil(blocks).div_ceil(MR) * MR;
+    for pc in (0..k).step_by(KC) {
+        let kc = KC.min(k - pc);
+        pack_b(&b, pc, kc, n, &mut packed_b[..n_panels * NR * kc]);
+        let packed_b = &packed_b[..n_panels * NR * kc];
+        let c_rows = &mut c[..(m - 1) * ldc + n];
+        let work = |(block, c_block): (usize, &mut [f32])| {
+            let i0 = block * mc;
+            let rows = mc.min(m - i0);
+            PACK_A.with_borrow_mut(|packed_a| {
+                packed_a.resize(rows.div_ceil(MR) * MR * kc, 0.0);
+                pack_a(&a, i0, rows, pc, kc, packed_a);
+                block_product(packed_a, packed_b, kc, rows, n, c_block, ldc, fma);
+            });
+        };
+        if threads > 1 && blocks > 1 {
+            c_rows.par_chunks_mut(mc * ldc).enumerate().for_each(work);
+        } else {
+            c_rows.chunks_mut(mc * ldc).enumerate().for_each(work);
+        }
+    }
+}
+
+/// Whether the AVX2+FMA kernel runs on this CPU.
+pub fn has_fma() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Pack rows `pc..pc + kc` of B into micro-panels of [`NR`] columns, `k`-major, zero-padded.
+fn pack_b(b: &Mat<'_>, pc: usize, kc: usize, n: usize, out: &mut [f32]) {
+    for (p, panel) in out.chunks_exact_mut(NR * kc).enumerate() {
+        let j0 = p * NR;
+        let cols = NR.min(n - j0);
+        for (kk, row) in panel.chunks_exact_mut(NR).enumerate() {
+            if b.cs == 1 {
+                let start = (pc + kk) * b.rs + j0;
+                row[..cols].copy_from_slice(&b.data[start..start + cols]);
+            } else {
+                for (jj, v) in row[..cols].iter_mut().enumerate() {
+                    *v = b.at(pc + kk, j0 + jj);
+                }
+            }
+            row[cols..].fill(0.0);
+        }
+    }
+}
+
+/// Pack rows `i0..i0 + rows`, columns `pc..pc + kc` of A into micro-panels of [`MR`] rows,
+/// `k`-major, zero-padded.
+fn pack_a(a: &Mat<'_>, i0: usize, rows: usize, pc: usize, kc: usize, out: &mut [f32]) {
+    for (p, panel) in out.chunks_exact_mut(MR * kc).enumerate() {
+        let r0 = i0 + p * MR;
+        let valid = MR.min(i0 + rows - r0);
+        if a.rs == 1 {
+            for (kk, col) in panel.chunks_exact_mut(MR).enumerate() {
+                let start = (pc + kk) * a.cs + r0;
+                col[..valid].copy_from_slice(&a.data[start..start + valid]);
+                col[valid..].fill(0.0);
+            }
+        } else {
+            for r in 0..MR {
+                if r < valid {
+                    let row = &a.data[(r0 + r) * a.rs..];
+                    for kk in 0..kc {
+                        panel[kk * MR + r] = row[(pc + kk) * a.cs];
+                    }
+                } else {
+                    for kk in 0..kc {
+                        panel[kk * MR + r] = 0.0;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// All tiles of one row block: `c_block` starts at the block's first row. Full tiles are
+/// updated in place; edge tiles go through a zero-padded copy.
+#[allow(clippy::too_many_arguments)]
+fn block_product(
+    packed_a: &[f32],
+    packed_b: &[f32],
+    kc: usize,
+    rows: usize,
+    n: usize,
+    c_block: &mut [f32],
+    ldc: usize,
+    fma: bool,
+) {
+    let mut tile = [[0.0f32; NR]; MR];
+    for (jp, b_panel) in packed_b.chunks_exact(NR * kc).enumerate() {
+        let j0 = jp * NR;
+        let cols = NR.min(n - j0);
+        for (ip, a_panel) in packed_a.chunks_exact(MR * kc).enumerate() {
+            let i0 = ip * MR;
+            let valid = MR.min(rows - i0);
+            if valid == MR && cols == NR {
+                let c = &mut c_block[i0 * ldc + j0..(i0 + MR - 1) * ldc + j0 + NR];
+                micro_kernel(kc, a_panel, b_panel, c, ldc, fma);
+            } else {
+                for (r, t) in tile.iter_mut().enumerate().take(valid) {
+                    t[..cols].copy_from_slice(&c_block[(i0 + r) * ldc + j0..][..cols]);
+                }
+                micro_kernel(kc, a_panel, b_panel, tile.as_flattened_mut(), NR, fma);
+                for (r, t) in tile.iter().enumerate().take(valid) {
+                    c_block[(i0 + r) * ldc + j0..][..cols].copy_from_slice(&t[..cols]);
+                }
+            }
+        }
+    }
+}
+
+/// `C_tile += A_panel B_panel` over `kc` terms; `c` holds the `MR x NR` tile with row
+/// stride `ldc` (`c[r * ldc + j]`).
+#[inline]
+fn micro_kernel(kc: usize, a: &[f32], b: &[f32], c: &mut [f32], ldc: usize, fma: bool) {
+    assert!(a.len() >= kc * MR && b.len() >= kc * NR && c.len() > (MR - 1) * ldc + NR - 1);
+    #[cfg(target_arch = "x86_64")]
+    if fma {
+        // SAFETY: the CPU has AVX2 and FMA (checked by `has_fma`); the panels hold `kc` rows
+        // and `c` the tile (asserted above).
+        unsafe { micro_kernel_avx2(kc, a.as_ptr(), b.as_ptr(), c.as_mut_ptr(), ldc) };
+        return;
+    }
+    let _ = fma;
+    micro_kernel_portable(kc, a, b, c, ldc);
+}
+
+/// The reference micro-kernel: the same fused operations in the same order as the AVX2 one.
+pub(crate) fn micro_kernel_portable(kc: usize, a: &[f32], b: &[f32], c: &mut [f32], ldc: usize) {
+    let mut tile = [[0.0f32; NR]; MR];
+    for (r, t) in tile.iter_mut().enumerate() {
+        t.copy_from_slice(&c[r * ldc..r * ldc + NR]);
+    }
+    for kk in 0..kc {
+        let b_row = &b[kk * NR..kk * NR + NR];
+        for (r, t) in tile.iter_mut().enumerate() {
+            let a_rk = a[kk * MR + r];
+            for (t_rc, &b_kc) in t.iter_mut().zip(b_row) {
+                *t_rc = a_rk.mul_add(b_kc, *t_rc);
+            }
+        }
+    }
+    for (r, t) in tile.iter().enumerate() {
+        c[r * ldc..r * ldc + NR].copy_from_slice(t);
+    }
+}
+
+/// # Safety
+/// The CPU must support AVX2 and FMA; `a`, `b` must be valid for `kc * MR` and `kc * NR`
+/// values and `c` for the tile `c[r * ldc + j]`, `r < MR`, `j < NR`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn micro_kernel_avx2(kc: usize, a: *const f32, b: *const f32, c: *mut f32, ldc: usize) {
+    use std::arch::x86_64::*;
+    let mut acc = [[_mm256_setzero_ps(); 2]; MR];
+    for (r, acc_r) in acc.iter_mut().enumerate() {
+        // SAFETY: within the tile (caller's guarantee).
+        unsafe {
+            acc_r[0] = _mm256_loadu_ps(c.add(r * ldc));
+            acc_r[1] = _mm256_loadu_ps(c.add(r * ldc + 8));
+        }
+    }
+    for kk in 0..kc {
+        // SAFETY: `kk < kc`, within the panels (caller's guarantee).
+        unsafe {
+            let b0 = _mm256_loadu_ps(b.add(kk * NR));
+            let b1 = _mm256_loadu_ps(b.add(kk * NR + 8));
+            let a_k = a.add(kk * MR);
+            for (r, acc_r) in acc.iter_mut().enumerate() {
+                let a_rk = _mm256_broadcast_ss(&*a_k.add(r));
+                acc_r[0] = _mm256_fmadd_ps(a_rk, b0, acc_r[0]);
+                acc_r[1] = _mm256_fmadd_ps(a_rk, b1, acc_r[1]);
+            }
+        }
+    }
+    for (r, acc_r) in acc.iter().enumerate() {
+        // SAFETY: within the tile (caller's guarantee).
+        unsafe {
+            _mm256_storeu_ps(c.add(r * ldc), acc_r[0]);
+            _mm256_storeu_ps(c.add(r * ldc + 8), acc_r[1]);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn naive(m: usize, n: usize, k: usize, a: &Mat<'_>, b: &Mat<'_>) -> Vec<f64> {
+        let mut c = vec![0.0; m * n];
+        for i in 0..m {
+            for j in 0..n {
+                c[i * n + j] = (0..k)
+                    .map(|kk| f64::from(a.at(i, kk)) * f64::from(b.at(kk, j)))
+                    .sum();
+            }
+        }
+        c
+    }
+
+    fn data(len: usize, seed: f32) -> Vec<f32> {
+        (0..len).map(|i| ((i as f32 + seed) * 0.7312).sin()).collect()
+    }
+
+    #[test]
+    fn every_layout_and_edge_size_matches_a_naive_product() {
+        for &(m, n, k) in &[(1, 1, 1), (7, 17, 3), (13, 33, 300), (130, 20, 257), (6, 16, 256)] {
+            let a_rm = data(m * k, 1.0);
+            let b_rm = data(k * n, 2.0);
+            let a_t: Vec<f32> = (0..k * m).map(|x| a_rm[(x % m) * k + x / m]).collect();
+            let b_t: Vec<f32> = (0..n * k).map(|x| b_rm[(x % k) * n + x / k]).collect();
+            let want = naive(m, n, k, &Mat::rows(&a_rm, k), &Mat::rows(&b_rm, n));
+            for (a, b) in [
+                (Mat::rows(&a_rm, k), Mat::rows(&b_rm, n)),
+                (Mat::transposed(&a_t, m), Mat::transposed(&b_t, k)),
+            ] {
+                let ldc = n + 3;
+                let mut c = vec![1.0f32; m * ldc];
+                gemm(m, n, k, a, b, &mut c, ldc, true);
+                for i in 0..m {
+                    for j in 0..n {
+                        let got = f64::from(c[i * ldc + j]);
+                        assert!(
+                            (got - 1.0 - want[i * n + j]).abs() < 1e-4,
+                            "{m}x{n}x{k} ({i},{j})"
+                        );
+                    }
+                    assert_eq!(
+                        c[i * ldc + n..i * ldc + ldc.min(n + 3)],
+                        [1.0, 1.0, 1.0][..ldc - n]
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_simd_kernel_gives_the_portable_kernels_bits() {
+        let kc = 77;
+        let a = data(kc * MR, 3.0);
+        let b = data(kc * NR, 4.0);
+        let start: [[f32; NR]; MR] =
+            std::array::from_fn(|r| std::array::from_fn(|c| (r * NR + c) as f32 * 0.01));
+        let mut portable = start;
+        micro_kernel_portable(kc, &a, &b, portable.as_flattened_mut(), NR);
+        let mut chosen = start;
+        micro_kernel(kc, &a, &b, chosen.as_flattened_mut(), NR, has_fma());
+        assert_eq!(
+            portable.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            chosen.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>()
+        );
+    }
+
+    #[test]
+    fn thread_count_does_not_change_bits() {
+        let (m, n, k) = (500, 40, 300);
+        let a = data(m * k, 5.0);
+        let b = data(k * n, 6.0);
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut c = vec![0.0f32; m * n];
+            pool.install(|| gemm(m, n, k, Mat::rows(&a, k), Mat::rows(&b, n), &mut c, n, false));
+            c.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+        };
+        assert_eq!(run(1), run(3));
+    }
+}
