@@ -22,8 +22,14 @@ use crate::starts::{InitialState, initial_states};
 pub enum PrepareError {
     #[error("cannot load the map: {0}")]
     Map(#[from] cpmx_world::MapError),
+    /// A map file that does not load; the error's location is a line of that file.
+    #[error("cannot load the map {}: {source}", path.display())]
+    MapFile {
+        path: std::path::PathBuf,
+        source: cpmx_world::MapError,
+    },
     #[error("reference path {id}: {source}")]
-    RefPath { id: u32, source: cpmx_world::PathError },
+    RefPath { id: u64, source: cpmx_world::PathError },
     #[error("policy `{policy}`: {source}")]
     Actor {
         policy: String,
@@ -91,19 +97,24 @@ impl Experiment {
 
 /// The spec's map: built-in or from its file, restricted to a region, with the spec's own paths.
 pub fn load_map(spec: &Spec, map_file: Option<&Path>) -> Result<Map, PrepareError> {
-    match &spec.map {
+    load_map_spec(&spec.map, map_file)
+}
+
+/// A spec's `map:` value as a map (`map_file`: where the data path found its file).
+pub fn load_map_spec(map: &MapSpec, map_file: Option<&Path>) -> Result<Map, PrepareError> {
+    match map {
         MapSpec::Builtin(name) => Ok(Map::builtin(name.trim_start_matches(cpmx_spec::STDLIB_PREFIX))?),
         MapSpec::File(file) => {
             let path = map_file.unwrap_or(Path::new(&file.file));
-            let mut map = match file.format {
-                None => Map::load(path)?,
-                Some(cpmx_spec::model::MapFormat::Commonroad) => {
-                    Map::load_with_format(path, cpmx_world::MapFormat::CommonRoad)?
-                }
-                Some(cpmx_spec::model::MapFormat::Lanelet2) => {
-                    Map::load_with_format(path, cpmx_world::MapFormat::Lanelet2Osm)?
-                }
+            let format = match file.format {
+                None => cpmx_world::MapFormat::Auto,
+                Some(cpmx_spec::model::MapFormat::Commonroad) => cpmx_world::MapFormat::CommonRoad,
+                Some(cpmx_spec::model::MapFormat::Lanelet2) => cpmx_world::MapFormat::Lanelet2Osm,
             };
+            let mut map = Map::load_with_format(path, format).map_err(|source| PrepareError::MapFile {
+                path: path.to_owned(),
+                source,
+            })?;
             if let Some(region) = &file.region {
                 map = map.with_region(region)?;
             }

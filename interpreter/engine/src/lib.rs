@@ -18,7 +18,9 @@ mod twin;
 
 pub use checks::BuildChecks;
 pub use engine::{Engine, RunError, RunInputs, engine_for};
-pub use experiment::{Experiment, PrepareError, PreparedPolicy, load_map, metrics_config, vehicle_params};
+pub use experiment::{
+    Experiment, PrepareError, PreparedPolicy, load_map, load_map_spec, metrics_config, vehicle_params,
+};
 pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, simulate};
 pub use sim::SimEngine;
 pub use stack::{CONTROL_PERIOD_S, VehicleStack};
