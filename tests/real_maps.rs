@@ -153,3 +153,49 @@ fn walk(dir: &Path) -> Vec<PathBuf> {
     }
     out
 }
+
+/// A spec path with a 64-bit id over negative lanelet ids (the reverses of two-way lanelets
+/// 45482 and 45480) runs, and the id reaches the recording's `ref_path` column.
+#[test]
+fn sixty_four_bit_path_ids_over_negative_lanelet_ids_reach_the_recording() {
+    let dir = temp("ids");
+    std::fs::copy(example_map(), dir.join("karlsruhe.osm")).unwrap();
+    let spec = "cpmx: 1
+name: ids
+map:
+  file: karlsruhe.osm
+  ref_paths: [{id: 8589934592, lanelets: [-45483, -45481]}]
+timing: {dt: 0.1, steps: 20}
+agents: 1
+policies:
+  - {name: baseline, builtin: lane-follow}
+initial_configurations:
+  - name: reverse
+    agents: [{ref_path: 8589934592, arc_length: 2.0}]
+repetitions: 1
+seed: 1
+fidelities:
+  sim: {control: direct, dynamics: kinematic}
+";
+    std::fs::write(dir.join("spec.yaml"), spec).unwrap();
+    let out = cpmx(&dir, &["run", "spec.yaml", "--out", "out"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let trajectory = walk(&dir.join("out"))
+        .into_iter()
+        .find(|p| p.ends_with("trajectory.csv"))
+        .expect("a trajectory");
+    let recording = cpmx_recording::Recording::read_csv(std::fs::File::open(trajectory).unwrap()).unwrap();
+    assert_eq!(recording.ref_paths, vec![8_589_934_592]);
+
+    // An unknown lanelet in a spec path is named with its 64-bit id.
+    std::fs::write(
+        dir.join("bad.yaml"),
+        spec.replace("-45481", "-9000000000000000001"),
+    )
+    .unwrap();
+    let out = cpmx(&dir, &["validate", "bad.yaml"]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("-9000000000000000001"), "{stderr}");
+    std::fs::remove_dir_all(&dir).ok();
+}
