@@ -6,7 +6,9 @@ use std::collections::HashSet;
 use std::path::PathBuf;
 
 use crate::diagnostic::{ByteSpan, Problem};
-use crate::model::{Control, Fidelity, InitialConfiguration, MapSpec, SimulatedFidelity, Spec};
+use crate::model::{
+    ActionMode, Control, Fidelity, InitialConfiguration, MapSpec, OutputHead, SimulatedFidelity, Spec,
+};
 use crate::paths::{DataPath, NotFound};
 use crate::yaml::{NodeSpans, SpannedDocument, escape_pointer};
 
@@ -19,6 +21,8 @@ pub struct Resources {
     pub weights: Vec<Option<PathBuf>>,
     /// The folder of each `from_runs` entry, by initial-configuration index.
     pub from_runs: Vec<Option<PathBuf>>,
+    /// The spec's folder (where policy processes run).
+    pub spec_dir: PathBuf,
 }
 
 /// Where checks report problems, with access to the spans of the spec's nodes.
@@ -280,68 +284,121 @@ fn check_names(spec: &Spec, ctx: &mut CheckContext<'_>) {
 fn check_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
     for (i, p) in spec.policies.iter().enumerate() {
         let base = format!("/policies/{i}");
-        match (&p.mlp, &p.builtin) {
-            (Some(_), Some(_)) => {
+        let kinds: Vec<&str> = [
+            ("mlp", p.mlp.is_some()),
+            ("process", p.process.is_some()),
+            ("builtin", p.builtin.is_some()),
+        ]
+        .into_iter()
+        .filter_map(|(k, present)| present.then_some(k))
+        .collect();
+        let unused = |ctx: &mut CheckContext<'_>, key: &str, present: bool, why: String, label: &str| {
+            if present {
+                let spans = ctx.spans(&format!("{base}/{key}"));
+                ctx.push(
+                    Problem::error(
+                        "cpmx::check::policy-kind",
+                        why,
+                        spans.key.unwrap_or(spans.value),
+                        label,
+                    )
+                    .with_help(format!("remove `{key}`")),
+                );
+            }
+        };
+        match kinds[..] {
+            [] => {
+                let span = ctx.span(&format!("{base}/name"));
+                ctx.push(
+                    Problem::error(
+                        "cpmx::check::policy-kind",
+                        format!("policy `{}` names neither `mlp`, `process` nor `builtin`", p.name),
+                        span,
+                        "what drives this policy?",
+                    )
+                    .with_help(
+                        "add `mlp: {weights: FILE}`, `process: {command: [PROGRAM, ARGS...]}` or `builtin: lane-follow`",
+                    ),
+                );
+            }
+            [first, second, ..] => {
                 let span = ctx
-                    .spans(&format!("{base}/builtin"))
+                    .spans(&format!("{base}/{second}"))
                     .key
                     .unwrap_or(ctx.span(&base));
                 ctx.push(
                     Problem::error(
                         "cpmx::check::policy-kind",
-                        format!("policy `{}` has both `mlp` and `builtin`", p.name),
+                        format!("policy `{}` has both `{first}` and `{second}`", p.name),
                         span,
                         "second kind of policy",
                     )
-                    .with_help("a policy is either a trained network (`mlp`) or a built-in baseline; split it in two"),
+                    .with_help(
+                        "a policy is a trained network (`mlp`), a policy process (`process`) or a built-in baseline (`builtin`); split it in two",
+                    ),
                 );
             }
-            (None, None) => {
-                let span = ctx.span(&format!("{base}/name"));
-                ctx.push(
-                    Problem::error(
-                        "cpmx::check::policy-kind",
-                        format!("policy `{}` names neither `mlp` nor `builtin`", p.name),
-                        span,
-                        "what drives this policy?",
-                    )
-                    .with_help("add `mlp: {weights: FILE}` or `builtin: lane-follow`"),
-                );
-            }
-            (None, Some(_)) => {
-                for key in ["observation", "action"] {
-                    let present = match key {
-                        "observation" => p.observation.is_some(),
-                        _ => p.action.is_some(),
+            ["builtin"] => {
+                for (key, present) in [
+                    ("observation", p.observation.is_some()),
+                    ("action", p.action.is_some()),
+                ] {
+                    let why = if key == "observation" {
+                        format!(
+                            "`{key}` belongs to `mlp` and `process` policies, and `{}` is built in",
+                            p.name
+                        )
+                    } else {
+                        format!("`{key}` belongs to `mlp` policies, and `{}` is built in", p.name)
                     };
-                    if present {
-                        let spans = ctx.spans(&format!("{base}/{key}"));
-                        ctx.push(
-                            Problem::error(
-                                "cpmx::check::policy-kind",
-                                format!("`{key}` belongs to `mlp` policies, and `{}` is built in", p.name),
-                                spans.key.unwrap_or(spans.value),
-                                "not used by a built-in policy",
-                            )
-                            .with_help(format!("remove `{key}`")),
-                        );
-                    }
+                    unused(ctx, key, present, why, "not used by a built-in policy");
                 }
             }
-            (Some(_), None) => {
-                if p.lane_follow.is_some() {
-                    let spans = ctx.spans(&format!("{base}/lane_follow"));
+            [kind] => {
+                let what = if kind == "mlp" {
+                    "a network"
+                } else {
+                    "a policy process"
+                };
+                unused(
+                    ctx,
+                    "lane_follow",
+                    p.lane_follow.is_some(),
+                    format!(
+                        "`lane_follow` configures the built-in baseline, and `{}` is {what}",
+                        p.name
+                    ),
+                    &format!("not used by an {kind} policy"),
+                );
+                if kind == "process" {
+                    unused(
+                        ctx,
+                        "action",
+                        p.action.is_some(),
+                        format!(
+                            "`action` chooses from a network's distribution, and `{}` is a policy process",
+                            p.name
+                        ),
+                        "not used by a process policy",
+                    );
+                }
+                let deterministic = p
+                    .mlp
+                    .as_ref()
+                    .is_some_and(|m| m.output != OutputHead::SigmarlTanhNormal);
+                if deterministic && p.action == Some(ActionMode::Sample) {
+                    let span = ctx.span(&format!("{base}/action"));
                     ctx.push(
                         Problem::error(
                             "cpmx::check::policy-kind",
                             format!(
-                                "`lane_follow` configures the built-in baseline, and `{}` is a network",
+                                "policy `{}` samples, but its output head is deterministic",
                                 p.name
                             ),
-                            spans.key.unwrap_or(spans.value),
-                            "not used by an mlp policy",
+                            span,
+                            "nothing to sample",
                         )
-                        .with_help("remove `lane_follow`"),
+                        .with_help("`action: sample` needs `output: sigmarl-tanh-normal`; remove `action`"),
                     );
                 }
             }
@@ -625,7 +682,14 @@ pub enum CheckScope {
 }
 
 fn find_files(spec: &Spec, data: &DataPath, scope: CheckScope, ctx: &mut CheckContext<'_>) -> Resources {
-    let mut resources = Resources::default();
+    let mut resources = Resources {
+        spec_dir: data
+            .folders
+            .first()
+            .cloned()
+            .unwrap_or_else(|| PathBuf::from(".")),
+        ..Resources::default()
+    };
     if let MapSpec::File(map) = &spec.map {
         match data.find_pinned(&map.file, map.sha256.as_deref()) {
             Ok(path) => resources.map_file = Some(path),

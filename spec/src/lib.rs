@@ -160,3 +160,18 @@ pub fn check_scoped(
         warnings: attach(warnings),
     })
 }
+
+/// Keys a map-only spec may have.
+const MAP_ONLY_KEYS: [&str; 4] = ["cpmx", "name", "description", "map"];
+
+/// The map of a map-only spec (a spec with nothing but `cpmx`, `name`, `description` and
+/// `map`, which `cpmx validate` answers with what the map holds), or `None` for any other
+/// text, which [`check`] then judges.
+pub fn map_only(source: &SpecSource) -> Option<model::MapSpec> {
+    let doc = yaml::parse(&source.text).ok()?;
+    let object = doc.value.as_object()?;
+    if !object.contains_key("map") || object.keys().any(|k| !MAP_ONLY_KEYS.contains(&k.as_str())) {
+        return None;
+    }
+    serde_json::from_value(object.get("map")?.clone()).ok()
+}

@@ -3,7 +3,7 @@
 //! overlap, regions, weights whose tensors do not fit the observation).
 
 use cpmx_metrics::collision::{PlacedBox, mtv_distance_m};
-use cpmx_policy::{MlpActor, MlpLayout};
+use cpmx_policy::ActorError;
 use cpmx_spec::model::{
     ActuationLayer, Control, DynamicsLayer, Fidelity, InitialConfiguration, MapSpec, SensingLayer,
     SimulatedFidelity,
@@ -12,7 +12,7 @@ use cpmx_spec::{CheckContext, InterpreterChecks, Problem, Resources, Spec};
 use cpmx_vehicle::footprint_corners;
 use cpmx_world::Map;
 
-use crate::experiment::{PrepareError, load_map, observation, vehicle_params};
+use crate::experiment::{PrepareError, load_map, load_network, observation, vehicle_params};
 use crate::starts::explicit_start;
 
 /// The checks of this build of cpmx.
@@ -26,6 +26,7 @@ impl InterpreterChecks for BuildChecks {
 
     fn check(&self, spec: &Spec, resources: &Resources, ctx: &mut CheckContext<'_>) {
         check_weights(spec, resources, ctx);
+        check_processes(spec, resources, ctx);
         let map = match load_map(spec, resources.map_file.as_deref()) {
             Ok(map) => map,
             Err(e) => {
@@ -95,30 +96,93 @@ pub(crate) fn unsupported_reason(fidelity: &Fidelity) -> Option<String> {
     }
 }
 
-/// Every network loads with the shapes its observation needs.
+/// Every network loads, its layers chain, its first layer takes the observation's values and
+/// its last gives what the output head reads; a failure names the tensor and both shapes, with
+/// a help line for that case.
 fn check_weights(spec: &Spec, resources: &Resources, ctx: &mut CheckContext<'_>) {
     for (i, (policy, weights)) in spec.policies.iter().zip(&resources.weights).enumerate() {
-        let (Some(path), Some(design)) = (weights, &policy.observation) else {
+        let (Some(path), Some(design), Some(mlp)) = (weights, &policy.observation, &policy.mlp) else {
             continue;
         };
-        let layout = MlpLayout {
-            input_size: observation(design).size(),
-            ..MlpLayout::sigmarl()
+        let obs = observation(design);
+        let Err(e) = load_network(mlp, &obs, path) else {
+            continue;
         };
-        if let Err(e) = MlpActor::load(path, &layout) {
-            let span = ctx.span(&format!("/policies/{i}/mlp/weights"));
+        let (pointer, help) = match &e {
+            ActorError::InputSize { observation, .. } => (
+                format!("/policies/{i}/observation"),
+                format!(
+                    "the observation design here gives {observation} values; set `observation:` to the design this network was trained with"
+                ),
+            ),
+            ActorError::OutputSize { expected, .. } => (
+                format!("/policies/{i}/mlp/weights"),
+                format!(
+                    "declare the head the network was trained with: `output: sigmarl-tanh-normal` reads 4 outputs, \
+                     `deterministic-tanh` and `deterministic-clip` read 2 (this one reads {expected})"
+                ),
+            ),
+            ActorError::Chain { .. } | ActorError::Rank { .. } => (
+                format!("/policies/{i}/mlp/weights"),
+                "each `PREFIX.N.weight` must be [outputs, inputs] with inputs equal to the previous layer's outputs; export the actor's state_dict again".to_owned(),
+            ),
+            ActorError::NoLayers { .. } | ActorError::AmbiguousPrefix { .. } | ActorError::MissingTensor { .. } => (
+                format!("/policies/{i}/mlp/weights"),
+                "name the layers `PREFIX.N.weight` and `PREFIX.N.bias` (the state_dict of a torch nn.Sequential), one network per file".to_owned(),
+            ),
+            ActorError::Dtype { .. } => (
+                format!("/policies/{i}/mlp/weights"),
+                "store the tensors as float32".to_owned(),
+            ),
+            _ => (
+                format!("/policies/{i}/mlp/weights"),
+                "is this a safetensors file? (`safetensors.torch.save_file(actor.state_dict(), ...)` writes one)".to_owned(),
+            ),
+        };
+        let span = ctx.span(&pointer);
+        ctx.push(
+            Problem::error(
+                "cpmx::policy::weights",
+                format!("policy `{}`: {e}", policy.name),
+                span,
+                "this network",
+            )
+            .with_help(help),
+        );
+    }
+}
+
+/// Every policy process's program can be found: a path (with a `/`) relative to the spec's
+/// folder, or a name on `PATH`.
+fn check_processes(spec: &Spec, resources: &Resources, ctx: &mut CheckContext<'_>) {
+    for (i, policy) in spec.policies.iter().enumerate() {
+        let Some(program) = policy.process.as_ref().and_then(|p| p.command.first()) else {
+            continue;
+        };
+        let path = std::path::Path::new(program);
+        let found = if program.contains('/') {
+            resources.spec_dir.join(path).is_file()
+        } else {
+            std::env::var_os("PATH")
+                .is_some_and(|dirs| std::env::split_paths(&dirs).any(|d| d.join(path).is_file()))
+        };
+        if !found {
+            let span = ctx.span(&format!("/policies/{i}/process/command/0"));
             ctx.push(
                 Problem::error(
-                    "cpmx::policy::weights",
-                    format!("policy `{}`: {e}", policy.name),
+                    "cpmx::policy::process",
+                    format!("policy `{}`: program `{program}` not found", policy.name),
                     span,
-                    "these weights",
+                    "this program",
                 )
-                .with_help(format!(
-                    "the observation `{}` has {} values; the network's first layer must take that many inputs",
-                    policy.name,
-                    layout.input_size
-                )),
+                .with_help(if program.contains('/') {
+                    format!(
+                        "paths are relative to the spec's folder {}",
+                        resources.spec_dir.display()
+                    )
+                } else {
+                    "install it, or give its path".to_owned()
+                }),
             );
         }
     }

@@ -1,7 +1,9 @@
 //! The one interface every engine implements: given a run, produce its `Recording`.
 //! Engines know nothing of each other, of metrics or of files.
 
-use cpmx_policy::{AgentPaths, LaneFollow, LaneFollowParams, MlpPolicy, Policy, PolicyError};
+use cpmx_policy::{
+    AgentPaths, LaneFollow, LaneFollowParams, MlpPolicy, Policy, PolicyError, ProcessConfig, ProcessPolicy,
+};
 use cpmx_recording::Recording;
 use cpmx_spec::RunPlan;
 use cpmx_spec::matrix::stream_key;
@@ -81,6 +83,7 @@ impl RunInputs<'_> {
             PreparedPolicy::Mlp {
                 actor,
                 observation,
+                output,
                 sample,
             } => {
                 let rng = ChaCha20Rng::from_seed(stream_key(self.plan.seed, "policy"));
@@ -89,8 +92,27 @@ impl RunInputs<'_> {
                 } else {
                     cpmx_policy::ActionMode::Mean
                 };
-                Box::new(MlpPolicy::new(actor.as_ref().clone(), *observation, mode, rng)?)
+                Box::new(MlpPolicy::with_output(
+                    actor.as_ref().clone(),
+                    *observation,
+                    *output,
+                    mode,
+                    rng,
+                )?)
             }
+            PreparedPolicy::Process {
+                spec,
+                observation,
+                dir,
+            } => Box::new(ProcessPolicy::start(ProcessConfig {
+                command: spec.command.clone(),
+                dir: dir.clone(),
+                timeout_s: spec.timeout_s,
+                observation: *observation,
+                seed: self.plan.seed,
+                dt_s: self.experiment.spec.timing.dt,
+                name: self.plan.policy.clone(),
+            })?),
             PreparedPolicy::LaneFollow(p) => Box::new(LaneFollow::new(LaneFollowParams {
                 target_speed_mps: p.target_speed,
                 time_gap_s: p.time_gap_s,

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use cpmx_metrics::{
     CollisionGeometry as MetricGeometry, CraAConfig, CraLConfig, EventCount, Hysteresis, MetricsConfig,
 };
-use cpmx_policy::{BoundaryCorners, MlpActor, MlpLayout, SigmarlObservation};
+use cpmx_policy::{Activation, BoundaryCorners, MlpActor, OutputHead, SigmarlObservation};
 use cpmx_spec::model::{
     CollisionCount, CollisionGeometry, MapSpec, MetricsSpec, ObservationSpec, PolicySpec, VehicleSpec,
 };
@@ -22,8 +22,14 @@ use crate::starts::{InitialState, initial_states};
 pub enum PrepareError {
     #[error("cannot load the map: {0}")]
     Map(#[from] cpmx_world::MapError),
+    /// A map file that does not load; the error's location is a line of that file.
+    #[error("cannot load the map {}: {source}", path.display())]
+    MapFile {
+        path: std::path::PathBuf,
+        source: cpmx_world::MapError,
+    },
     #[error("reference path {id}: {source}")]
-    RefPath { id: u32, source: cpmx_world::PathError },
+    RefPath { id: u64, source: cpmx_world::PathError },
     #[error("policy `{policy}`: {source}")]
     Actor {
         policy: String,
@@ -39,7 +45,14 @@ pub enum PreparedPolicy {
     Mlp {
         actor: Arc<MlpActor>,
         observation: SigmarlObservation,
+        output: OutputHead,
         sample: bool,
+    },
+    /// A policy process, started once per run in `dir` (the spec's folder).
+    Process {
+        spec: cpmx_spec::model::ProcessSpec,
+        observation: Option<SigmarlObservation>,
+        dir: std::path::PathBuf,
     },
     LaneFollow(cpmx_spec::model::LaneFollowParams),
 }
@@ -102,7 +115,11 @@ impl Experiment {
         let vehicle = vehicle_params(&spec.vehicle);
         let mut policies = Vec::new();
         for (policy, weights) in spec.policies.iter().zip(&checked.resources.weights) {
-            policies.push((policy.name.clone(), prepare_policy(policy, weights.as_deref())?));
+            let mut prepared = prepare_policy(policy, weights.as_deref())?;
+            if let PreparedPolicy::Process { dir, .. } = &mut prepared {
+                dir.clone_from(&checked.resources.spec_dir);
+            }
+            policies.push((policy.name.clone(), prepared));
         }
         let starts = initial_states(spec, &checked.configurations, &checked.resources, &map, &vehicle)?;
         Ok(Experiment {
@@ -129,19 +146,24 @@ impl Experiment {
 
 /// The spec's map: built-in or from its file, restricted to a region, with the spec's own paths.
 pub fn load_map(spec: &Spec, map_file: Option<&Path>) -> Result<Map, PrepareError> {
-    match &spec.map {
+    load_map_spec(&spec.map, map_file)
+}
+
+/// A spec's `map:` value as a map (`map_file`: where the data path found its file).
+pub fn load_map_spec(map: &MapSpec, map_file: Option<&Path>) -> Result<Map, PrepareError> {
+    match map {
         MapSpec::Builtin(name) => Ok(Map::builtin(name.trim_start_matches(cpmx_spec::STDLIB_PREFIX))?),
         MapSpec::File(file) => {
             let path = map_file.unwrap_or(Path::new(&file.file));
-            let mut map = match file.format {
-                None => Map::load(path)?,
-                Some(cpmx_spec::model::MapFormat::Commonroad) => {
-                    Map::load_with_format(path, cpmx_world::MapFormat::CommonRoad)?
-                }
-                Some(cpmx_spec::model::MapFormat::Lanelet2) => {
-                    Map::load_with_format(path, cpmx_world::MapFormat::Lanelet2Osm)?
-                }
+            let format = match file.format {
+                None => cpmx_world::MapFormat::Auto,
+                Some(cpmx_spec::model::MapFormat::Commonroad) => cpmx_world::MapFormat::CommonRoad,
+                Some(cpmx_spec::model::MapFormat::Lanelet2) => cpmx_world::MapFormat::Lanelet2Osm,
             };
+            let mut map = Map::load_with_format(path, format).map_err(|source| PrepareError::MapFile {
+                path: path.to_owned(),
+                source,
+            })?;
             if let Some(region) = &file.region {
                 map = map.with_region(region)?;
             }
@@ -191,24 +213,58 @@ pub fn observation(o: &ObservationSpec) -> SigmarlObservation {
     }
 }
 
+/// The spec's activation and output head as the policy crate's.
+pub fn network_options(mlp: &cpmx_spec::model::MlpSpec) -> (Activation, OutputHead) {
+    use cpmx_spec::model::{MlpActivation, OutputHead as Head};
+    let activation = match mlp.activation {
+        MlpActivation::Tanh => Activation::Tanh,
+        MlpActivation::Relu => Activation::Relu,
+        MlpActivation::Elu => Activation::Elu,
+    };
+    let output = match mlp.output {
+        Head::SigmarlTanhNormal => OutputHead::SigmarlTanhNormal,
+        Head::DeterministicTanh => OutputHead::DeterministicTanh,
+        Head::DeterministicClip => OutputHead::DeterministicClip,
+    };
+    (activation, output)
+}
+
+/// Loads a policy's network (once per experiment): layer sizes from the file, checked against
+/// the observation and the output head.
+pub fn load_network(
+    mlp: &cpmx_spec::model::MlpSpec,
+    observation: &SigmarlObservation,
+    weights: &Path,
+) -> Result<(MlpActor, OutputHead), cpmx_policy::ActorError> {
+    let (activation, output) = network_options(mlp);
+    let actor = MlpActor::load_any(weights, activation)?;
+    actor.check_fits(Some(observation.size()), output)?;
+    Ok((actor, output))
+}
+
 /// Loads a policy's network (once per experiment).
 pub fn prepare_policy(policy: &PolicySpec, weights: Option<&Path>) -> Result<PreparedPolicy, PrepareError> {
+    if let Some(process) = &policy.process {
+        return Ok(PreparedPolicy::Process {
+            spec: process.clone(),
+            observation: policy.observation.as_ref().map(observation),
+            dir: std::path::PathBuf::from("."),
+        });
+    }
     match (&policy.mlp, weights) {
         (Some(mlp), found) => {
             let observation = observation(policy.observation.as_ref().expect("defaulted to stdlib:sigmarl"));
-            let layout = MlpLayout {
-                input_size: observation.size(),
-                ..MlpLayout::sigmarl()
-            };
             let path = found.unwrap_or(Path::new(&mlp.weights));
-            let actor = MlpActor::load(path, &layout).map_err(|source| PrepareError::Actor {
-                policy: policy.name.clone(),
-                source,
-            })?;
+            let (actor, output) =
+                load_network(mlp, &observation, path).map_err(|source| PrepareError::Actor {
+                    policy: policy.name.clone(),
+                    source,
+                })?;
             let sample = policy.action == Some(cpmx_spec::model::ActionMode::Sample);
             Ok(PreparedPolicy::Mlp {
                 actor: Arc::new(actor),
                 observation,
+                output,
                 sample,
             })
         }

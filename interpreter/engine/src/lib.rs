@@ -19,7 +19,8 @@ mod twin;
 pub use checks::BuildChecks;
 pub use engine::{Engine, RunError, RunInputs, engine_for};
 pub use experiment::{
-    Experiment, PrepareError, PreparedPolicy, Scoring, load_map, metrics_config, vehicle_params,
+    Experiment, PrepareError, PreparedPolicy, Scoring, load_map, load_map_spec, metrics_config,
+    vehicle_params,
 };
 pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, measure_recording, simulate};
 pub use sim::SimEngine;

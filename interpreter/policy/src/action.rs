@@ -71,6 +71,76 @@ impl ActionHead {
     }
 }
 
+/// How a network's raw outputs become an action (`mlp: {output: ...}`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum OutputHead {
+    /// SigmaRL's: 4 raw outputs `[loc_v, loc_δ, pre_scale_v, pre_scale_δ]`, a TanhNormal in
+    /// the action box (mean or sampled, see [`ActionMode`]).
+    #[default]
+    SigmarlTanhNormal,
+    /// 2 raw outputs `[v, δ]`, action `high * tanh(raw)` (a deterministic policy squashed into
+    /// the box, as TD3/DDPG actors end).
+    DeterministicTanh,
+    /// 2 raw outputs `[v m/s, δ rad]` taken as the action, clipped to the box.
+    DeterministicClip,
+}
+
+impl OutputHead {
+    /// Raw outputs the network must produce.
+    pub fn raw_size(self) -> usize {
+        match self {
+            OutputHead::SigmarlTanhNormal => 4,
+            OutputHead::DeterministicTanh | OutputHead::DeterministicClip => 2,
+        }
+    }
+
+    /// The name a spec uses (`output: ...`).
+    pub fn name(self) -> &'static str {
+        match self {
+            OutputHead::SigmarlTanhNormal => "sigmarl-tanh-normal",
+            OutputHead::DeterministicTanh => "deterministic-tanh",
+            OutputHead::DeterministicClip => "deterministic-clip",
+        }
+    }
+
+    /// What the raw outputs are, for diagnostics.
+    pub fn describe(self) -> &'static str {
+        match self {
+            OutputHead::SigmarlTanhNormal => "2 locations and 2 pre-scales of a TanhNormal",
+            OutputHead::DeterministicTanh => "speed and steering before tanh",
+            OutputHead::DeterministicClip => "speed [m/s] and steering [rad]",
+        }
+    }
+
+    /// Map one agent's raw outputs (`raw_size()` values) to an action in `box_`'s range.
+    /// Only the TanhNormal draws from `rng`, and only in [`ActionMode::Sample`].
+    pub fn map(
+        self,
+        box_: &ActionHead,
+        raw: &[f32],
+        mode: ActionMode,
+        rng: &mut ChaCha20Rng,
+    ) -> ActionOutput {
+        match (self, raw) {
+            (OutputHead::SigmarlTanhNormal, &[a, b, c, d]) => box_.map(&[a, b, c, d], mode, rng),
+            (OutputHead::DeterministicTanh, &[v, d]) => ActionOutput {
+                loc: [v, d],
+                scale: [0.0; 2],
+                action: [box_.high[0] * v.tanh(), box_.high[1] * d.tanh()],
+            },
+            (OutputHead::DeterministicClip, &[v, d]) => ActionOutput {
+                loc: [v, d],
+                scale: [0.0; 2],
+                action: [
+                    v.clamp(-box_.high[0], box_.high[0]),
+                    d.clamp(-box_.high[1], box_.high[1]),
+                ],
+            },
+            _ => ActionOutput::default(),
+        }
+    }
+}
+
 /// `max(softplus(raw + bias) + 0.01, 1e-4)` with torch's softplus (linear above 20).
 fn scale_of(raw: f32) -> f32 {
     let x = raw + SCALE_BIAS;
@@ -93,6 +163,17 @@ mod tests {
         let out = ActionHead::default().map(&[0.0; 4], ActionMode::Mean, &mut rng);
         assert!((out.scale[0] - 1.0).abs() < 1e-6);
         assert_eq!(out.action, [0.0, 0.0]);
+    }
+
+    #[test]
+    fn deterministic_heads() {
+        let mut rng = ChaCha20Rng::seed_from_u64(0);
+        let b = ActionHead::default();
+        let t = OutputHead::DeterministicTanh.map(&b, &[0.5, -100.0], ActionMode::Mean, &mut rng);
+        assert_eq!(t.action, [0.5f32.tanh(), -b.high[1]]);
+        let c = OutputHead::DeterministicClip.map(&b, &[0.3, -100.0], ActionMode::Sample, &mut rng);
+        assert_eq!(c.action, [0.3, -b.high[1]]);
+        assert_eq!(OutputHead::SigmarlTanhNormal.raw_size(), 4);
     }
 
     #[test]

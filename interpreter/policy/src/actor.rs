@@ -1,5 +1,8 @@
-//! SigmaRL's actor network loaded from safetensors: a tanh MLP (`y = x W^T + b`, float32)
-//! evaluated for all agents at once, in groups of 4, with preallocated buffers.
+//! MLP actor networks loaded from safetensors (`y = x W^T + b`, float32, an activation after
+//! every layer but the last) evaluated for all agents at once, in groups of 4, with
+//! preallocated buffers: SigmaRL's exact 32 -> 256 -> 256 -> 256 -> 4 tanh layout
+//! ([`MlpLayout`]), or any MLP whose layer sizes are read from the file
+//! ([`MlpActor::from_bytes_any`]).
 //!
 //! This module owns loading, shape checks and the batched forward pass to the raw outputs;
 //! turning raw outputs into actions is `action`'s job.
@@ -8,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 use safetensors::{Dtype, SafeTensors};
 
+pub use crate::kernel::Activation;
 use crate::kernel::{Dense, GROUP};
 
 /// The layer sizes and tensor names of an MLP actor.
@@ -21,6 +25,8 @@ pub struct MlpLayout {
     pub output_size: usize,
     /// Tensor name prefix: layer `i` is `{prefix}.{i}.weight` `[out, in]` and `{prefix}.{i}.bias`.
     pub prefix: String,
+    /// The activation after every hidden layer.
+    pub activation: Activation,
 }
 
 impl MlpLayout {
@@ -58,6 +64,7 @@ impl MlpLayout {
             hidden_sizes: sizes[1..sizes.len() - 1].to_vec(),
             output_size: sizes[sizes.len() - 1],
             prefix: prefix.to_owned(),
+            activation: Activation::Tanh,
         })
     }
 
@@ -76,6 +83,7 @@ impl MlpLayout {
             hidden_sizes: vec![256, 256, 256],
             output_size: 4,
             prefix: "actor".to_owned(),
+            activation: Activation::Tanh,
         }
     }
 }
@@ -103,6 +111,50 @@ pub enum ActorError {
         expected: Vec<usize>,
         found: Vec<usize>,
     },
+    /// A weight tensor is not a matrix.
+    #[error("tensor `{name}` has shape {found:?}, expected a matrix [outputs, inputs]")]
+    Rank { name: String, found: Vec<usize> },
+    /// A layer's inputs are not the previous layer's outputs.
+    #[error(
+        "tensor `{name}` has shape {found:?}, expected {expected:?}: its inputs must equal the {} outputs of `{previous}`",
+        expected[1]
+    )]
+    Chain {
+        name: String,
+        expected: Vec<usize>,
+        found: Vec<usize>,
+        previous: String,
+    },
+    /// The file holds no MLP layers (`PREFIX.N.weight` with `PREFIX.N.bias`).
+    #[error(
+        "no MLP layers found: expected tensors `PREFIX.0.weight`, `PREFIX.0.bias`, `PREFIX.1.weight`, ...; the file has {found:?}"
+    )]
+    NoLayers { found: Vec<String> },
+    /// Several tensor prefixes hold layers and none is `actor`.
+    #[error("tensors of several networks ({prefixes:?}) and none is called `actor`")]
+    AmbiguousPrefix { prefixes: Vec<String> },
+    /// The first layer does not take the observation's values.
+    #[error(
+        "tensor `{name}` has shape {found:?}, expected [{}, {observation}]: the first layer takes the observation's {observation} values",
+        found[0]
+    )]
+    InputSize {
+        name: String,
+        found: Vec<usize>,
+        observation: usize,
+    },
+    /// The last layer does not give the outputs the output head reads.
+    #[error(
+        "tensor `{name}` has shape {found:?}, expected [{expected}, {}]: the output head `{head}` reads {expected} outputs ({what})",
+        found[1]
+    )]
+    OutputSize {
+        name: String,
+        found: Vec<usize>,
+        expected: usize,
+        head: &'static str,
+        what: &'static str,
+    },
     /// A tensor is not float32.
     #[error("tensor `{name}` has dtype {found}, expected F32")]
     Dtype { name: String, found: String },
@@ -119,6 +171,8 @@ pub enum ActorError {
 #[derive(Debug, Clone, PartialEq)]
 pub struct MlpActor {
     layers: Vec<Dense>,
+    /// The weight tensor of each layer and its shape `[outputs, inputs]`.
+    weights: Vec<(String, [usize; 2])>,
     input_size: usize,
     output_size: usize,
     /// Widest activation row (input or padded layer output).
@@ -153,8 +207,12 @@ impl MlpActor {
     /// Load an actor with `layout` from the bytes of a safetensors file.
     pub fn from_bytes(bytes: &[u8], layout: &MlpLayout) -> Result<Self, ActorError> {
         let tensors = SafeTensors::deserialize(bytes).map_err(|e| ActorError::Format(e.to_string()))?;
-        let sizes = layout.sizes();
-        let mut weights = Vec::with_capacity(sizes.len() - 1);
+        let mut sizes = vec![layout.input_size];
+        sizes.extend(&layout.hidden_sizes);
+        sizes.push(layout.output_size);
+        let n_layers = sizes.len() - 1;
+
+        let mut layers = Vec::with_capacity(n_layers);
         for (i, pair) in sizes.windows(2).enumerate() {
             let (inputs, outputs) = (pair[0], pair[1]);
             let weight = read_f32(
@@ -163,10 +221,97 @@ impl MlpActor {
                 &[outputs, inputs],
             )?;
             let bias = read_f32(&tensors, &format!("{}.{i}.bias", layout.prefix), &[outputs])?;
-            weights.push((weight, bias));
+            let activation = if i + 1 < n_layers {
+                layout.activation
+            } else {
+                Activation::Identity
+            };
+            layers.push(Dense::new(&weight, &bias, inputs, outputs, activation));
         }
-        let layers: Vec<(&[f32], &[f32])> = weights.iter().map(|(w, b)| (&w[..], &b[..])).collect();
-        Self::from_layers(&sizes, &layers)
+        let weights = sizes
+            .windows(2)
+            .enumerate()
+            .map(|(i, pair)| (format!("{}.{i}.weight", layout.prefix), [pair[1], pair[0]]))
+            .collect();
+        Ok(Self::assemble(layers, weights))
+    }
+
+    /// Load an MLP of any layer sizes from a safetensors file: layers `PREFIX.N.weight`
+    /// `[outputs, inputs]` and `PREFIX.N.bias` `[outputs]` in ascending `N` (gaps allowed, as
+    /// torch's `nn.Sequential` numbers linear layers between activations), with `PREFIX` the
+    /// only prefix that has such tensors (or `actor` among several). Each layer's inputs must
+    /// equal the previous layer's outputs; `activation` follows every layer but the last.
+    pub fn load_any(path: &Path, activation: Activation) -> Result<Self, ActorError> {
+        let bytes = std::fs::read(path).map_err(|source| ActorError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        Self::from_bytes_any(&bytes, activation)
+    }
+
+    /// [`MlpActor::load_any`] from the bytes of a safetensors file.
+    pub fn from_bytes_any(bytes: &[u8], activation: Activation) -> Result<Self, ActorError> {
+        let tensors = SafeTensors::deserialize(bytes).map_err(|e| ActorError::Format(e.to_string()))?;
+        let mut names: Vec<String> = tensors.names().into_iter().map(str::to_owned).collect();
+        names.sort();
+        // Layers by prefix: `PREFIX.N.weight` with its bias.
+        let mut by_prefix: std::collections::BTreeMap<String, Vec<u64>> = Default::default();
+        for name in &names {
+            let Some(stem) = name.strip_suffix(".weight") else {
+                continue;
+            };
+            let Some((prefix, index)) = stem.rsplit_once('.') else {
+                continue;
+            };
+            if let Ok(n) = index.parse::<u64>() {
+                by_prefix.entry(prefix.to_owned()).or_default().push(n);
+            }
+        }
+        let prefix = match by_prefix.len() {
+            0 => return Err(ActorError::NoLayers { found: names }),
+            1 => by_prefix.keys().next().cloned().unwrap_or_default(),
+            _ if by_prefix.contains_key("actor") => "actor".to_owned(),
+            _ => {
+                return Err(ActorError::AmbiguousPrefix {
+                    prefixes: by_prefix.into_keys().collect(),
+                });
+            }
+        };
+        let mut indices = by_prefix.remove(&prefix).unwrap_or_default();
+        indices.sort_unstable();
+
+        let mut layers = Vec::with_capacity(indices.len());
+        let mut weights: Vec<(String, [usize; 2])> = Vec::with_capacity(indices.len());
+        for (i, n) in indices.iter().enumerate() {
+            let name = format!("{prefix}.{n}.weight");
+            let view = tensors
+                .tensor(&name)
+                .map_err(|e| ActorError::Format(e.to_string()))?;
+            let shape = view.shape().to_vec();
+            let [outputs, inputs] = shape[..] else {
+                return Err(ActorError::Rank { name, found: shape });
+            };
+            if let Some((previous, [prev_out, _])) = weights.last()
+                && *prev_out != inputs
+            {
+                return Err(ActorError::Chain {
+                    name,
+                    expected: vec![outputs, *prev_out],
+                    found: shape,
+                    previous: previous.clone(),
+                });
+            }
+            let weight = read_f32(&tensors, &name, &[outputs, inputs])?;
+            let bias = read_f32(&tensors, &format!("{prefix}.{n}.bias"), &[outputs])?;
+            let act = if i + 1 < indices.len() {
+                activation
+            } else {
+                Activation::Identity
+            };
+            layers.push(Dense::new(&weight, &bias, inputs, outputs, act));
+            weights.push((name, [outputs, inputs]));
+        }
+        Ok(Self::assemble(layers, weights))
     }
 
     /// Load an actor whose layout is read from the file itself (see
@@ -198,6 +343,7 @@ impl MlpActor {
         }
         let n_layers = layers.len();
         let mut dense = Vec::with_capacity(n_layers);
+        let mut weights = Vec::with_capacity(n_layers);
         for (i, (pair, (weight, bias))) in sizes.windows(2).zip(layers).enumerate() {
             let (inputs, outputs) = (pair[0], pair[1]);
             if weight.len() != inputs * outputs || bias.len() != outputs {
@@ -207,27 +353,64 @@ impl MlpActor {
                     expected: inputs * outputs + outputs,
                 });
             }
-            dense.push(Dense::new(weight, bias, inputs, outputs, i + 1 < n_layers));
+            let activation = if i + 1 < n_layers {
+                Activation::Tanh
+            } else {
+                Activation::Identity
+            };
+            dense.push(Dense::new(weight, bias, inputs, outputs, activation));
+            weights.push((format!("layer.{i}.weight"), [outputs, inputs]));
         }
-        let layers = dense;
-        let layout = MlpLayout {
-            input_size: sizes[0],
-            hidden_sizes: sizes[1..sizes.len() - 1].to_vec(),
-            output_size: sizes[sizes.len() - 1],
-            prefix: String::new(),
-        };
+        Ok(Self::assemble(dense, weights))
+    }
+
+    fn assemble(layers: Vec<Dense>, weights: Vec<(String, [usize; 2])>) -> Self {
+        let input_size = weights.first().map_or(0, |(_, s)| s[1]);
+        let output_size = weights.last().map_or(0, |(_, s)| s[0]);
         let width = layers
             .iter()
             .map(Dense::out_padded)
-            .chain([layout.input_size])
+            .chain([input_size])
             .max()
             .unwrap_or(0);
-        Ok(MlpActor {
+        MlpActor {
             layers,
-            input_size: layout.input_size,
-            output_size: layout.output_size,
+            weights,
+            input_size,
+            output_size,
             width,
-        })
+        }
+    }
+
+    /// Checks that the first layer takes `observation` values (when the policy has an
+    /// observation) and the last gives what `head` reads, naming the tensor and shapes.
+    pub fn check_fits(&self, observation: Option<usize>, head: crate::OutputHead) -> Result<(), ActorError> {
+        if let (Some(observation), Some((name, [o, i]))) = (observation, self.weights.first())
+            && *i != observation
+        {
+            return Err(ActorError::InputSize {
+                name: name.clone(),
+                found: vec![*o, *i],
+                observation,
+            });
+        }
+        if let Some((name, [o, i])) = self.weights.last()
+            && *o != head.raw_size()
+        {
+            return Err(ActorError::OutputSize {
+                name: name.clone(),
+                found: vec![*o, *i],
+                expected: head.raw_size(),
+                head: head.name(),
+                what: head.describe(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The weight tensor of each layer with its shape `[outputs, inputs]`, first layer first.
+    pub fn weight_tensors(&self) -> &[(String, [usize; 2])] {
+        &self.weights
     }
 
     /// Observation size the network expects (compare with the observation design's size).

@@ -1,5 +1,6 @@
 //! The numeric kernels of the MLP: a dense layer over a group of up to [`GROUP`] agents that
-//! streams weight panels packed once at load, and a vectorisable tanh. Shapes are checked by
+//! streams weight panels packed once at load, and its activations (a vectorisable tanh, relu,
+//! elu). Shapes are checked by
 //! the caller (`actor`); this module only computes.
 //!
 //! Activations of a group of `R` agents are stored feature-major (`x[k * R + r]`), so every
@@ -34,13 +35,33 @@ pub(crate) struct Dense {
     packed: Vec<WeightRow>,
     /// `out_padded` biases, zero in the padding.
     bias: Vec<f32>,
-    /// Whether tanh follows.
-    tanh: bool,
+    /// The activation that follows.
+    activation: Activation,
+}
+
+/// The element-wise function after a dense layer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Activation {
+    /// None (the output layer).
+    #[default]
+    Identity,
+    /// `tanh` (SigmaRL's hidden layers), within 2.5e-7 of the exact value.
+    Tanh,
+    /// `max(x, 0)`.
+    Relu,
+    /// `x` for `x > 0`, else `exp(x) - 1` (alpha 1, torch's default).
+    Elu,
 }
 
 impl Dense {
     /// Pack a layer from torch's `weight` (`[outputs][inputs]`, row-major) and `bias`.
-    pub(crate) fn new(weight: &[f32], bias: &[f32], inputs: usize, outputs: usize, tanh: bool) -> Self {
+    pub(crate) fn new(
+        weight: &[f32],
+        bias: &[f32],
+        inputs: usize,
+        outputs: usize,
+        activation: Activation,
+    ) -> Self {
         let out_padded = pad(outputs, PANEL);
         let mut packed = vec![WeightRow([0.0; PANEL]); inputs * out_padded / PANEL];
         for (j, row) in weight.chunks_exact(inputs).take(outputs).enumerate() {
@@ -56,7 +77,7 @@ impl Dense {
             out_padded,
             packed,
             bias: padded_bias,
-            tanh,
+            activation,
         }
     }
 
@@ -127,8 +148,15 @@ impl Dense {
                 }
             }
         }
-        if self.tanh {
-            tanh_in_place(y);
+        match self.activation {
+            Activation::Identity => {}
+            Activation::Tanh => tanh_in_place(y),
+            Activation::Relu => y.iter_mut().for_each(|v| *v = if *v > 0.0 { *v } else { 0.0 }),
+            Activation::Elu => y.iter_mut().for_each(|v| {
+                if *v <= 0.0 {
+                    *v = v.exp_m1();
+                }
+            }),
         }
     }
 }
@@ -404,7 +432,7 @@ mod tests {
         let (inputs, outputs) = (37, 21);
         let w: Vec<f32> = (0..inputs * outputs).map(|i| (i as f32 * 0.37).sin()).collect(); // [out][in]
         let b: Vec<f32> = (0..outputs).map(|j| j as f32 * 0.1).collect();
-        let layer = Dense::new(&w, &b, inputs, outputs, false);
+        let layer = Dense::new(&w, &b, inputs, outputs, Activation::Identity);
         let x: Vec<f32> = (0..GROUP * inputs).map(|i| (i as f32).cos()).collect(); // agent-major
         let want = |r: usize, j: usize| {
             (0..inputs)
@@ -448,7 +476,7 @@ mod tests {
             .map(|i| (i as f32 * 0.61).sin() * 0.3)
             .collect();
         let b: Vec<f32> = (0..outputs).map(|j| (j as f32).cos()).collect();
-        let layer = Dense::new(&w, &b, inputs, outputs, true);
+        let layer = Dense::new(&w, &b, inputs, outputs, Activation::Tanh);
         let x: Vec<f32> = (0..inputs * 3).map(|i| (i as f32 * 0.23).sin() * 2.0).collect();
         let run = |f: &dyn Fn(&[f32], &mut [f32])| {
             let mut y = vec![0.0f32; layer.out_padded() * 3];

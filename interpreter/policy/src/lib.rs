@@ -1,5 +1,6 @@
-//! Policies for cpmx: SigmaRL's observation design, the SigmaRL MLP actor loaded from
-//! safetensors, and built-in baselines.
+//! Policies for cpmx: SigmaRL's observation design, MLP actors of any layer sizes loaded from
+//! safetensors (SigmaRL's among them) with their output heads, policy processes in any
+//! language (`process`), and built-in baselines.
 //!
 //! This crate owns deciding commands from states. It never steps vehicles, reads specs or
 //! computes metrics; its only randomness is the `ChaCha20Rng` a caller hands to [`MlpPolicy`].
@@ -34,11 +35,13 @@ mod kernel;
 pub mod lane_follow;
 pub mod observation;
 pub mod policy;
+pub mod process;
 
-pub use action::{ActionHead, ActionMode, ActionOutput};
-pub use actor::{ActorError, ActorWorkspace, MlpActor, MlpLayout};
+pub use action::{ActionHead, ActionMode, ActionOutput, OutputHead};
+pub use actor::{Activation, ActorError, ActorWorkspace, MlpActor, MlpLayout};
 pub use geometry::{AgentPaths, PreparedPath, Segments};
 pub use kernel::tanh_in_place;
 pub use lane_follow::{LaneFollow, LaneFollowParams};
 pub use observation::{AgentState, BoundaryCorners, ObservationError, ObservationInput, SigmarlObservation};
 pub use policy::{MlpPolicy, Policy, PolicyError, check_input_size};
+pub use process::{PROTOCOL_VERSION, ProcessConfig, ProcessPolicy};

@@ -10,7 +10,7 @@ use cpmx_vehicle::{Command, Footprint, footprint_corners};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha20Rng;
 
-use crate::action::{ActionHead, ActionMode, ActionOutput};
+use crate::action::{ActionHead, ActionMode, ActionOutput, OutputHead};
 use crate::actor::{ActorError, ActorWorkspace, MlpActor, MlpLayout};
 use crate::observation::{ObservationError, ObservationInput, SigmarlObservation};
 
@@ -26,9 +26,16 @@ pub enum PolicyError {
     /// The observation design and the network disagree on the input size.
     #[error("the observation has {observation} values but the network expects {network} inputs")]
     InputSize { observation: usize, network: usize },
-    /// The network does not produce SigmaRL's 4 raw outputs (2 locations, 2 pre-scales).
-    #[error("the network has {found} outputs, expected 4 (2 locations + 2 pre-scales)")]
-    OutputSize { found: usize },
+    /// The network does not produce the raw outputs its output head reads.
+    #[error("the network has {found} outputs, the output head reads {expected} ({what})")]
+    OutputSize {
+        found: usize,
+        expected: usize,
+        what: &'static str,
+    },
+    /// A policy process failed (crashed, hung, or answered out of protocol).
+    #[error("the policy process {0}")]
+    Process(String),
     /// The command buffer does not hold one command per agent.
     #[error("{found} command slots for {agents} agents")]
     CommandCount { found: usize, agents: usize },
@@ -66,6 +73,7 @@ pub struct MlpPolicy {
     observation: SigmarlObservation,
     actor: MlpActor,
     head: ActionHead,
+    output: OutputHead,
     mode: ActionMode,
     rng: ChaCha20Rng,
     workspace: ActorWorkspace,
@@ -78,18 +86,32 @@ pub struct MlpPolicy {
 }
 
 impl MlpPolicy {
-    /// Combine a loaded actor with an observation design; fails if their sizes differ.
-    /// `rng` is the run's policy-sampling stream (only drawn from in [`ActionMode::Sample`]).
+    /// Combine a loaded actor with an observation design and SigmaRL's output head; fails if
+    /// their sizes differ. `rng` is the run's policy-sampling stream (only drawn from in
+    /// [`ActionMode::Sample`]).
     pub fn new(
         actor: MlpActor,
         observation: SigmarlObservation,
         mode: ActionMode,
         rng: ChaCha20Rng,
     ) -> Result<Self, PolicyError> {
+        Self::with_output(actor, observation, OutputHead::default(), mode, rng)
+    }
+
+    /// [`MlpPolicy::new`] with another output head.
+    pub fn with_output(
+        actor: MlpActor,
+        observation: SigmarlObservation,
+        output: OutputHead,
+        mode: ActionMode,
+        rng: ChaCha20Rng,
+    ) -> Result<Self, PolicyError> {
         check_input_size(&observation, &actor)?;
-        if actor.output_size() != 4 {
+        if actor.output_size() != output.raw_size() {
             return Err(PolicyError::OutputSize {
                 found: actor.output_size(),
+                expected: output.raw_size(),
+                what: output.describe(),
             });
         }
         Ok(MlpPolicy {
@@ -97,6 +119,7 @@ impl MlpPolicy {
             observation,
             actor,
             head: ActionHead::default(),
+            output,
             mode,
             rng,
             observations: Vec::new(),
@@ -191,16 +214,11 @@ impl Policy for MlpPolicy {
             .forward(&self.observations, &mut self.workspace, &mut self.raw)?;
         for ((raw, output), command) in self
             .raw
-            .chunks_exact(4)
+            .chunks_exact(self.output.raw_size())
             .zip(&mut self.outputs)
             .zip(out.iter_mut())
         {
-            let raw: &[f32; 4] = raw.try_into().map_err(|_| ActorError::Buffer {
-                what: "raw output row",
-                found: raw.len(),
-                expected: 4,
-            })?;
-            *output = self.head.map(raw, self.mode, &mut self.rng);
+            *output = self.output.map(&self.head, raw, self.mode, &mut self.rng);
             *command = Command {
                 speed_mps: f64::from(output.action[0]),
                 steering_rad: f64::from(output.action[1]),

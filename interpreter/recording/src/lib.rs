@@ -235,7 +235,7 @@ mod tests {
         let recording = Recording {
             notes: Vec::new(),
             times_s: vec![0.0, 0.1],
-            ref_paths: vec![6, 2],
+            ref_paths: vec![6, 1 << 40],
             samples: vec![
                 vec![sample(1.0 / 3.0), sample(2.0)],
                 vec![sample(0.1 + 0.2), sample(2.5)],

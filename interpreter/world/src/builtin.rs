@@ -275,7 +275,7 @@ fn intersection() -> Result<Map, MapError> {
             ));
         }
         incomings.push(Incoming {
-            id: entry as u32 + 1,
+            id: entry as i64 + 1,
             incoming_lanelets: vec![entry as LaneletId + 1],
             successors_right: vec![ids[0]],
             successors_straight: vec![ids[1]],
@@ -315,6 +315,7 @@ fn intersection() -> Result<Map, MapError> {
         lanelets,
         intersections,
         paths: Some(paths),
+        notes: Vec::new(),
     })
 }
 

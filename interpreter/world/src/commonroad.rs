@@ -1,6 +1,13 @@
 //! CommonRoad XML (2020a) loader: lanelets (boundaries, markings, topology, types) and
 //! intersections. It validates what the path builder relies on and reports every problem as a
 //! [`MapError`] with its place in the file; it never panics on any input.
+//!
+//! What the benchmark's scenario files hold besides the road (obstacles, planning problems,
+//! traffic signs and lights, stop lines, location and tags) is not used; it is counted in the
+//! map's notes. Lanelets no vehicle may drive are dropped after the references are checked,
+//! with every reference to them: lanelets whose `userOneWay`/`userBidirectional` name no
+//! vehicle class, and, without users, lanelets typed `sidewalk`, `crosswalk`, `bicycleLane`
+//! or `busStop`. `userBidirectional` lanelets are driven in their own direction only.
 
 use std::collections::HashSet;
 
@@ -10,6 +17,7 @@ use crate::error::{LineIndex, MapError, SourceLocation};
 use crate::lanelet::{Adjacent, DrivingDirection, Incoming, Intersection, Lanelet, LaneletId};
 use crate::numerics::Numerics;
 use crate::polyline::{Point, Polyline};
+pub(crate) use crate::xml::{loc, xml_error};
 
 /// What a CommonRoad file holds, before reference paths are built.
 #[derive(Debug, Clone, PartialEq)]
@@ -20,7 +28,31 @@ pub struct CommonRoadMap {
     pub lanelets: Vec<Lanelet>,
     /// Intersection elements in file order.
     pub intersections: Vec<Intersection>,
+    /// What was read but not used (one line each), for `cpmx validate`.
+    pub notes: Vec<String>,
 }
+
+/// CommonRoad road users that are vehicles.
+const VEHICLE_USERS: [&str; 7] = [
+    "vehicle",
+    "car",
+    "truck",
+    "bus",
+    "motorcycle",
+    "priorityVehicle",
+    "taxi",
+];
+/// Lanelet types no vehicle drives on (when the lanelet names no users).
+const NON_VEHICLE_TYPES: [&str; 4] = ["sidewalk", "crosswalk", "bicycleLane", "busStop"];
+/// Top-level elements that are read over, by the name the notes use.
+const IGNORED: [(&str, &str); 6] = [
+    ("staticObstacle", "static obstacles"),
+    ("dynamicObstacle", "dynamic obstacles"),
+    ("environmentObstacle", "environment obstacles"),
+    ("planningProblem", "planning problems"),
+    ("trafficSign", "traffic signs"),
+    ("trafficLight", "traffic lights"),
+];
 
 /// Parses CommonRoad XML text. Coordinates are rounded with `numerics` (SigmaRL: `Float32`).
 pub fn parse(text: &str, numerics: Numerics) -> Result<CommonRoadMap, MapError> {
@@ -49,11 +81,23 @@ pub(crate) fn read_document(
     let mut lanelets = Vec::new();
     let mut intersections = Vec::new();
     let mut refs: Vec<(SourceLocation, LaneletId, &'static str)> = Vec::new();
+    let mut ignored = [0usize; IGNORED.len()];
+    let mut not_for_vehicles = Vec::new();
     for child in root.children().filter(Node::is_element) {
         match child.tag_name().name() {
-            "lanelet" => lanelets.push(parse_lanelet(text, child, numerics, &mut refs)?),
+            "lanelet" => {
+                let (lanelet, vehicles) = parse_lanelet(text, child, numerics, &mut refs)?;
+                if !vehicles {
+                    not_for_vehicles.push(lanelet.id);
+                }
+                lanelets.push(lanelet);
+            }
             "intersection" => intersections.push(parse_intersection(text, child, &mut refs)?),
-            _ => {}
+            name => {
+                if let Some(i) = IGNORED.iter().position(|(n, _)| *n == name) {
+                    ignored[i] += 1;
+                }
+            }
         }
     }
 
@@ -73,11 +117,54 @@ pub(crate) fn read_document(
             message: format!("{what} refers to unknown lanelet {id}"),
         });
     }
+
+    // Drop what vehicles do not drive, with every reference to it.
+    let mut notes: Vec<String> = IGNORED
+        .iter()
+        .zip(ignored)
+        .filter(|(_, n)| *n > 0)
+        .map(|((_, what), n)| format!("{n} {what} ignored"))
+        .collect();
+    if !not_for_vehicles.is_empty() {
+        notes.push(format!(
+            "{} lanelets not for vehicles skipped (sidewalks, crosswalks, bicycle lanes): {}",
+            not_for_vehicles.len(),
+            list_ids(&not_for_vehicles)
+        ));
+        let dropped: HashSet<LaneletId> = not_for_vehicles.into_iter().collect();
+        lanelets.retain(|l| !dropped.contains(&l.id));
+        for l in &mut lanelets {
+            l.predecessors.retain(|id| !dropped.contains(id));
+            l.successors.retain(|id| !dropped.contains(id));
+            l.adjacent_left = l.adjacent_left.filter(|a| !dropped.contains(&a.id));
+            l.adjacent_right = l.adjacent_right.filter(|a| !dropped.contains(&a.id));
+        }
+        for inc in intersections.iter_mut().flat_map(|i| &mut i.incomings) {
+            for list in [
+                &mut inc.incoming_lanelets,
+                &mut inc.successors_right,
+                &mut inc.successors_straight,
+                &mut inc.successors_left,
+            ] {
+                list.retain(|id| !dropped.contains(id));
+            }
+        }
+    }
     Ok(CommonRoadMap {
         benchmark_id: root.attribute("benchmarkID").map(str::to_owned),
         lanelets,
         intersections,
+        notes,
     })
+}
+
+/// Up to ten ids, then how many more.
+pub(crate) fn list_ids(ids: &[LaneletId]) -> String {
+    let mut s: Vec<String> = ids.iter().take(10).map(ToString::to_string).collect();
+    if ids.len() > 10 {
+        s.push(format!("and {} more", ids.len() - 10));
+    }
+    s.join(", ")
 }
 
 /// A boundary as read: points, line marking, and where it is.
@@ -88,8 +175,9 @@ fn parse_lanelet(
     node: Node,
     numerics: Numerics,
     refs: &mut Vec<(SourceLocation, LaneletId, &'static str)>,
-) -> Result<Lanelet, MapError> {
+) -> Result<(Lanelet, bool), MapError> {
     let location = loc(text, node);
+    let mut users: Vec<String> = Vec::new();
     let id = id_attribute(text, node, "id")?;
     let mut bounds: [Option<ParsedBound>; 2] = [None, None];
     let mut lanelet = Lanelet {
@@ -155,6 +243,11 @@ fn parse_lanelet(
                     lanelet.lanelet_types.push(t.to_owned());
                 }
             }
+            "userOneWay" | "userBidirectional" => {
+                if let Some(t) = child.text().map(str::trim).filter(|t| !t.is_empty()) {
+                    users.push(t.to_owned());
+                }
+            }
             _ => {}
         }
     }
@@ -194,7 +287,15 @@ fn parse_lanelet(
     lanelet.right_boundary = Polyline::new(right);
     lanelet.left_line_marking = left_marking;
     lanelet.right_line_marking = right_marking;
-    Ok(lanelet)
+    let vehicles = if users.is_empty() {
+        !lanelet
+            .lanelet_types
+            .iter()
+            .any(|t| NON_VEHICLE_TYPES.contains(&t.as_str()))
+    } else {
+        users.iter().any(|u| VEHICLE_USERS.contains(&u.as_str()))
+    };
+    Ok((lanelet, vehicles))
 }
 
 fn parse_bound(
@@ -271,29 +372,15 @@ fn parse_intersection(
     Ok(intersection)
 }
 
-/// Reads a non-negative integer attribute.
-fn id_attribute(text: &LineIndex, node: Node, name: &str) -> Result<u32, MapError> {
+/// Reads a 64-bit integer id attribute.
+fn id_attribute(text: &LineIndex, node: Node, name: &str) -> Result<i64, MapError> {
     let raw = node.attribute(name);
-    raw.and_then(|v| v.trim().parse::<u32>().ok())
+    raw.and_then(|v| v.trim().parse::<i64>().ok())
         .ok_or_else(|| MapError::Malformed {
             location: loc(text, node),
             message: format!(
-                "<{}> needs a non-negative integer `{name}` attribute, found {raw:?}",
+                "<{}> needs a 64-bit integer `{name}` attribute, found {raw:?}",
                 node.tag_name().name()
             ),
         })
-}
-
-/// The location of a node's start tag.
-pub(crate) fn loc(index: &LineIndex, node: Node) -> SourceLocation {
-    index.locate(node.range().start)
-}
-
-/// Converts a roxmltree parse error.
-pub(crate) fn xml_error(text: &str, e: &roxmltree::Error) -> MapError {
-    let pos = e.pos();
-    MapError::NotXml {
-        location: SourceLocation::from_line_column(text, pos.row, pos.col),
-        message: e.to_string(),
-    }
 }

@@ -4,8 +4,17 @@
 use crate::error::SourceLocation;
 use crate::polyline::Polyline;
 
-/// A lanelet id as written in the map file.
-pub type LaneletId = u32;
+/// A lanelet id as written in the map file: 64-bit and possibly negative, as OSM ids are
+/// (JOSM writes negative ids for elements not yet uploaded). The reverse direction of a
+/// lanelet2 lanelet tagged `one_way=no` has the id [`reversed_id`] gives (`-id - 1`).
+pub type LaneletId = i64;
+
+/// The id of the reverse direction of two-way lanelet `id`: `-id - 1` (bitwise not), so that
+/// the reverse of `42440` is `-42441` and of `-7` is `6`; every 64-bit id has one, and taking
+/// it twice gives `id` back. A file whose ids collide with a reverse is refused with the place.
+pub fn reversed_id(id: LaneletId) -> LaneletId {
+    !id
+}
 
 /// Driving direction of an adjacent lanelet relative to this one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -58,7 +67,7 @@ pub struct Lanelet {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Incoming {
     /// The incoming element's id.
-    pub id: u32,
+    pub id: i64,
     /// The lanelets that enter the intersection.
     pub incoming_lanelets: Vec<LaneletId>,
     /// Lanelets that turn right.
@@ -85,7 +94,7 @@ impl Incoming {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Intersection {
     /// Its id.
-    pub id: u32,
+    pub id: i64,
     /// Its approaches.
     pub incomings: Vec<Incoming>,
 }

@@ -24,10 +24,11 @@ mod numerics;
 pub mod osm;
 mod paths;
 pub mod polyline;
+mod xml;
 
 pub use error::{LineIndex, MapError, PathError, SourceLocation};
 pub use geometry::{Polygon, band_polygon, point_in_polygon, segments_cross};
-pub use lanelet::{Adjacent, DrivingDirection, Incoming, Intersection, Lanelet, LaneletId};
+pub use lanelet::{Adjacent, DrivingDirection, Incoming, Intersection, Lanelet, LaneletId, reversed_id};
 pub use map::{Bounds, Map, MapFormat, MapKind, PathSet};
 pub use nearest::{PathIndex, SegmentGrid};
 pub use numerics::Numerics;
@@ -40,7 +41,7 @@ pub struct ReferencePath {
     /// The id a spec uses: SigmaRL's 0-based index (`predefined_ref_path_idx`, `ref_path_ids`).
     pub id: usize,
     /// The lanelets it runs through, in order.
-    pub lanelet_ids: Vec<u32>,
+    pub lanelet_ids: Vec<LaneletId>,
     /// Whether it is a closed loop (its last centre-line point repeats the first).
     pub is_loop: bool,
     /// Point-wise mean of the own-lane boundaries.

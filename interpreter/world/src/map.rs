@@ -105,6 +105,8 @@ pub struct Map {
     paths: BTreeMap<usize, ReferencePath>,
     /// Nearest-segment grids, built on first use.
     indexes: BTreeMap<usize, OnceLock<PathIndex>>,
+    /// What the loader read but did not use.
+    notes: Vec<String>,
 }
 
 /// The parts a loader or built-in map hands over.
@@ -117,6 +119,8 @@ pub(crate) struct MapParts {
     pub regions: BTreeMap<String, Vec<LaneletId>>,
     /// Paths given directly (built-in maps); `None` numbers them from the lanelets.
     pub paths: Option<Vec<ReferencePath>>,
+    /// What the loader read but did not use.
+    pub notes: Vec<String>,
 }
 
 impl Map {
@@ -163,15 +167,16 @@ impl Map {
         // Read the lanelets.
         let parts = match format {
             MapFormat::Lanelet2Osm => {
-                let lanelets = osm::read_document(&doc, &index)?;
+                let osm = osm::read_document(&doc, &index)?;
                 MapParts {
                     kind: MapKind::Generic,
                     numerics: Numerics::Float64,
                     benchmark_id: None,
-                    lanelets,
+                    lanelets: osm.lanelets,
                     intersections: Vec::new(),
                     regions: BTreeMap::new(),
                     paths: None,
+                    notes: osm.notes,
                 }
             }
             _ => {
@@ -190,6 +195,7 @@ impl Map {
                     lanelets: cr.lanelets,
                     intersections: cr.intersections,
                     paths: None,
+                    notes: cr.notes,
                 }
             }
         };
@@ -225,6 +231,7 @@ impl Map {
             fixed_paths: parts.paths,
             paths: BTreeMap::new(),
             indexes: BTreeMap::new(),
+            notes: parts.notes,
         };
         map.set_paths(map.number_paths(PathSet::Entire)?);
         Ok(map)
@@ -320,6 +327,12 @@ impl Map {
             map.bounds = b;
         }
         Ok(map)
+    }
+
+    /// What the loader read but did not use (regulatory elements, areas, lanelets not for
+    /// cars, obstacles, ...), one line each.
+    pub fn notes(&self) -> &[String] {
+        &self.notes
     }
 
     /// What kind of map this is.

@@ -3,38 +3,65 @@
 //! geometry's shared nodes. Errors carry their place in the file; it never panics.
 //!
 //! Choices, since the format leaves them open:
-//! - **Coordinates.** A node's `local_x`/`local_y` tags (metres) are used when the file has
-//!   them (then every node must have them). Otherwise `lat`/`lon` are projected
-//!   equirectangularly around the south-west corner of all nodes:
-//!   `x = R (lon - lon_min) cos(lat_mid)`, `y = R (lat - lat_min)` (angles in radians,
-//!   `R = 6 378 137 m`, `lat_mid` the middle latitude), which is exact to well below a
-//!   millimetre over a lab-sized map.
+//! - **Ids.** Node, way and relation ids are 64-bit and may be negative (JOSM numbers elements
+//!   it has not uploaded with negative ids). Each kind's ids must be unique in the file. A
+//!   lanelet's id is its relation's id; the reverse direction of a two-way lanelet has the id
+//!   [`crate::reversed_id`] gives, `-id - 1` (`42440` -> `-42441`).
+//! - **Coordinates.** A node's `local_x`/`local_y` tags (metres, as Autoware's maps and
+//!   lanelet2's local projector write them) are used when the file has them (then every node
+//!   must have them). Otherwise `lat`/`lon` (WGS84 degrees) are projected equirectangularly
+//!   around the south-west corner of all nodes: `x = R (lon - lon_min) cos(lat_mid)`,
+//!   `y = R (lat - lat_min)` (angles in radians, `R = 6 378 137 m`, `lat_mid` the middle
+//!   latitude). Over a map a kilometre across this differs from lanelet2's UTM projection by a
+//!   rigid offset plus less than 0.1 % in lengths; x points east, y north.
+//! - **Who drives.** Only lanelets a car may use are read, as lanelet2's traffic rules infer it
+//!   for `vehicle:car`: with any `participant:*` tag, only those with `participant:vehicle=yes`
+//!   or `participant:vehicle:car=yes`; otherwise by `subtype`: `road` (the default),
+//!   `highway`, `play_street`, `exit`. Crosswalks, walkways, stairs and bicycle, bus and
+//!   emergency lanes are skipped, with a note.
 //! - **Direction.** The left way gives the driving direction; the right way is reversed when
-//!   its end points match the left way's better reversed.
+//!   its end points match the left way's better reversed. Lanelets tagged `one_way=no`
+//!   (or `one_way:vehicle=no`, `one_way:vehicle:car=no`) are also read backwards, as a second
+//!   lanelet with the reversed id whose left boundary is the right one run backwards.
 //! - **Point counts.** When the two boundaries have different numbers of nodes, both are
 //!   resampled, evenly by arc length, to the larger count (end points kept), so that the
 //!   centre line is their point-wise mean as everywhere else.
 //! - **Topology.** Lanelet B succeeds A when A's left and right ways end at the nodes where B's
 //!   left and right ways start. A and B are adjacent when they share a boundary way: A's left
 //!   way is B's right way (same direction) or B's left way run backwards (opposite direction).
-//! - **Ids and attributes.** The lanelet id is the relation id (a non-negative integer below
-//!   2^32); line markings are the ways' `subtype` tags for `line_thin`/`line_thick` ways, else
-//!   their `type`; the lanelet type is the relation's `subtype`.
+//! - **Not read.** Regulatory elements (traffic lights, signs, right of way, speed limits) and
+//!   a lanelet's `regulatory_element` members, areas (`type=multipolygon` or `area`) and any
+//!   other relation are skipped, each kind counted in the map's notes.
+//! - **Attributes.** Line markings are the ways' `subtype` tags for `line_thin`/`line_thick`
+//!   ways, else their `type`; the lanelet type is the relation's `subtype`.
 
 use std::collections::HashMap;
 
 use roxmltree::{Document, Node};
 
-use crate::commonroad::loc;
+use crate::commonroad::{list_ids, loc};
 use crate::error::{LineIndex, MapError, SourceLocation};
-use crate::lanelet::{Adjacent, DrivingDirection, Lanelet, LaneletId};
+use crate::lanelet::{Adjacent, DrivingDirection, Lanelet, LaneletId, reversed_id};
 use crate::polyline::{Point, Polyline, dist};
 
 /// Earth radius of the equirectangular projection [m] (WGS84 equatorial radius).
 pub const EARTH_RADIUS_M: f64 = 6_378_137.0;
 
-/// Parses lanelet2 OSM text into lanelets (in relation order).
-pub fn parse(text: &str) -> Result<Vec<Lanelet>, MapError> {
+/// Subtypes a car drives on when no `participant:*` tag says otherwise.
+const CAR_SUBTYPES: [&str; 4] = ["road", "highway", "play_street", "exit"];
+
+/// What a lanelet2 file holds, before reference paths are built.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Lanelet2Map {
+    /// The lanelets a car drives, in relation order (a two-way lanelet's reverse right after
+    /// it).
+    pub lanelets: Vec<Lanelet>,
+    /// What was read but not used (one line each), for `cpmx validate`.
+    pub notes: Vec<String>,
+}
+
+/// Parses lanelet2 OSM text.
+pub fn parse(text: &str) -> Result<Lanelet2Map, MapError> {
     let doc = Document::parse(text).map_err(|e| crate::commonroad::xml_error(text, &e))?;
     read_document(&doc, &LineIndex::new(text))
 }
@@ -51,7 +78,7 @@ struct Bound {
 }
 
 /// Reads a parsed OSM document.
-pub(crate) fn read_document(doc: &Document, text: &LineIndex) -> Result<Vec<Lanelet>, MapError> {
+pub(crate) fn read_document(doc: &Document, text: &LineIndex) -> Result<Lanelet2Map, MapError> {
     let root = doc.root_element();
     if root.tag_name().name() != "osm" {
         return Err(MapError::UnknownFormat {
@@ -68,7 +95,7 @@ pub(crate) fn read_document(doc: &Document, text: &LineIndex) -> Result<Vec<Lane
     let nodes = read_nodes(text, elements("node"))?;
 
     // Read the ways.
-    let mut ways = HashMap::new();
+    let mut ways: HashMap<i64, Way> = HashMap::new();
     for w in elements("way") {
         let id = int_attribute(text, w, "id")?;
         let mut refs = Vec::new();
@@ -87,26 +114,56 @@ pub(crate) fn read_document(doc: &Document, text: &LineIndex) -> Result<Vec<Lane
             Some("line_thin" | "line_thick") => tag(w, "subtype").or(kind),
             _ => kind,
         };
+        let location = loc(text, w);
+        if let Some(first) = ways.get(&id) {
+            return Err(duplicate("way", id, location, first.location));
+        }
         ways.insert(
             id,
             Way {
                 nodes: refs,
                 marking: marking.map(str::to_owned),
-                location: loc(text, w),
+                location,
             },
         );
     }
 
-    // Read the lanelet relations.
+    // Read the lanelet relations; count what is skipped.
     let mut lanelets = Vec::new();
     let mut bounds: Vec<[Bound; 2]> = Vec::new();
-    for rel in elements("relation").filter(|r| tag(*r, "type") == Some("lanelet")) {
+    let mut relations: HashMap<i64, SourceLocation> = HashMap::new();
+    let mut skipped: Vec<LaneletId> = Vec::new();
+    let mut two_way_count = 0usize;
+    let (mut regulatory, mut regulatory_members, mut areas, mut other) = (0usize, 0usize, 0usize, 0usize);
+    for rel in elements("relation") {
         let location = loc(text, rel);
-        let raw = int_attribute(text, rel, "id")?;
-        let id = LaneletId::try_from(raw).map_err(|_| MapError::Malformed {
-            location,
-            message: format!("lanelet id {raw} must be a non-negative integer below 2^32"),
-        })?;
+        let id = int_attribute(text, rel, "id")?;
+        if let Some(first) = relations.insert(id, location) {
+            return Err(duplicate("relation", id, location, first));
+        }
+        match tag(rel, "type") {
+            Some("lanelet") => {}
+            Some("regulatory_element") => {
+                regulatory += 1;
+                continue;
+            }
+            Some("multipolygon" | "area") => {
+                areas += 1;
+                continue;
+            }
+            _ => {
+                other += 1;
+                continue;
+            }
+        }
+        if !for_cars(rel) {
+            skipped.push(id);
+            continue;
+        }
+        regulatory_members += rel
+            .children()
+            .filter(|m| m.has_tag_name("member") && m.attribute("role") == Some("regulatory_element"))
+            .count();
         let member = |role: &str| -> Result<(i64, &Way), MapError> {
             let m = rel
                 .children()
@@ -131,7 +188,6 @@ pub(crate) fn read_document(doc: &Document, text: &LineIndex) -> Result<Vec<Lane
         };
         let (left_id, left) = member("left")?;
         let (right_id, right) = member("right")?;
-        let mut right_nodes = right.nodes.clone();
         let point = |n: &i64| nodes.get(n).copied().unwrap_or_default();
         let ends = |a: &[i64], b: &[i64]| match (a.first(), a.last(), b.first(), b.last()) {
             (Some(a0), Some(a1), Some(b0), Some(b1)) => {
@@ -139,51 +195,145 @@ pub(crate) fn read_document(doc: &Document, text: &LineIndex) -> Result<Vec<Lane
             }
             _ => 0.0,
         };
+        let mut right_nodes = right.nodes.clone();
         let reversed: Vec<i64> = right_nodes.iter().rev().copied().collect();
         if ends(&left.nodes, &reversed) < ends(&left.nodes, &right_nodes) {
             right_nodes = reversed;
         }
-        let (l, r) = equal_counts(
-            left.nodes.iter().map(point).collect(),
-            right_nodes.iter().map(point).collect(),
-        );
-        let center = l
-            .iter()
-            .zip(&r)
-            .map(|(a, b)| [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0]);
-        lanelets.push(Lanelet {
+        let kind: Vec<String> = tag(rel, "subtype").map(str::to_owned).into_iter().collect();
+        let mut push =
+            |id: LaneletId,
+             (left_id, left_nodes, left_marking): (i64, Vec<i64>, &Option<String>),
+             (right_id, right_nodes, right_marking): (i64, Vec<i64>, &Option<String>)| {
+                let (l, r) = equal_counts(
+                    left_nodes.iter().map(point).collect(),
+                    right_nodes.iter().map(point).collect(),
+                );
+                let center = l
+                    .iter()
+                    .zip(&r)
+                    .map(|(a, b)| [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0]);
+                lanelets.push(Lanelet {
+                    id,
+                    center_line: Polyline::new(center.collect()),
+                    left_boundary: Polyline::new(l),
+                    right_boundary: Polyline::new(r),
+                    left_line_marking: left_marking.clone(),
+                    right_line_marking: right_marking.clone(),
+                    predecessors: Vec::new(),
+                    successors: Vec::new(),
+                    adjacent_left: None,
+                    adjacent_right: None,
+                    lanelet_types: kind.clone(),
+                    location,
+                });
+                bounds.push([
+                    Bound {
+                        nodes: left_nodes,
+                        way: left_id,
+                    },
+                    Bound {
+                        nodes: right_nodes,
+                        way: right_id,
+                    },
+                ]);
+            };
+        let backwards = |n: &[i64]| n.iter().rev().copied().collect::<Vec<_>>();
+        let (back_left, back_right) = (backwards(&right_nodes), backwards(&left.nodes));
+        push(
             id,
-            center_line: Polyline::new(center.collect()),
-            left_boundary: Polyline::new(l),
-            right_boundary: Polyline::new(r),
-            left_line_marking: left.marking.clone(),
-            right_line_marking: right.marking.clone(),
-            predecessors: Vec::new(),
-            successors: Vec::new(),
-            adjacent_left: None,
-            adjacent_right: None,
-            lanelet_types: tag(rel, "subtype").map(str::to_owned).into_iter().collect(),
-            location,
-        });
-        bounds.push([
-            Bound {
-                nodes: left.nodes.clone(),
-                way: left_id,
-            },
-            Bound {
-                nodes: right_nodes,
-                way: right_id,
-            },
-        ]);
+            (left_id, left.nodes.clone(), &left.marking),
+            (right_id, right_nodes, &right.marking),
+        );
+        if two_way(rel) {
+            two_way_count += 1;
+            push(
+                reversed_id(id),
+                (right_id, back_left, &right.marking),
+                (left_id, back_right, &left.marking),
+            );
+        }
     }
     if let Some(dup) = first_duplicate(&lanelets) {
         return Err(MapError::Malformed {
             location: dup.location,
-            message: format!("duplicate lanelet id {}", dup.id),
+            message: format!(
+                "lanelet id {} is used twice (the reverse of a two-way lanelet N is numbered -N-1)",
+                dup.id
+            ),
         });
     }
     derive_topology(&mut lanelets, &bounds);
-    Ok(lanelets)
+
+    // Say what was not read.
+    let mut notes = Vec::new();
+    if !skipped.is_empty() {
+        notes.push(format!(
+            "{} lanelets not for cars skipped (crosswalks, walkways, bicycle or bus lanes): {}",
+            skipped.len(),
+            list_ids(&skipped)
+        ));
+    }
+    if two_way_count > 0 {
+        notes.push(format!(
+            "{two_way_count} two-way lanelets (one_way=no) are also read backwards, the reverse of N numbered -N-1"
+        ));
+    }
+    for (n, what) in [
+        (
+            regulatory,
+            "regulatory elements (traffic lights, signs, right of way) ignored",
+        ),
+        (
+            regulatory_members,
+            "regulatory_element members of lanelets ignored",
+        ),
+        (areas, "areas (multipolygon) skipped"),
+        (other, "other relations skipped"),
+    ] {
+        if n > 0 {
+            notes.push(format!("{n} {what}"));
+        }
+    }
+    Ok(Lanelet2Map { lanelets, notes })
+}
+
+/// Whether a car may drive a lanelet relation (lanelet2's inference for `vehicle:car`).
+fn for_cars(rel: Node) -> bool {
+    let participants: Vec<(&str, &str)> = rel
+        .children()
+        .filter(|c| c.has_tag_name("tag"))
+        .filter_map(|c| Some((c.attribute("k")?, c.attribute("v")?)))
+        .filter_map(|(k, v)| Some((k.strip_prefix("participant:")?, v)))
+        .collect();
+    if participants.is_empty() {
+        return tag(rel, "subtype").is_none_or(|s| CAR_SUBTYPES.contains(&s));
+    }
+    participants
+        .iter()
+        .any(|(who, v)| matches!(*who, "vehicle" | "vehicle:car") && is_yes(v))
+}
+
+/// Whether a car may drive a lanelet both ways.
+fn two_way(rel: Node) -> bool {
+    ["one_way", "one_way:vehicle", "one_way:vehicle:car"]
+        .iter()
+        .any(|k| tag(rel, k).is_some_and(is_no))
+}
+
+fn is_yes(v: &str) -> bool {
+    matches!(v.trim(), "yes" | "true" | "1")
+}
+
+fn is_no(v: &str) -> bool {
+    matches!(v.trim(), "no" | "false" | "0")
+}
+
+fn duplicate(what: &str, id: i64, at: SourceLocation, first: SourceLocation) -> MapError {
+    MapError::Malformed {
+        location: at,
+        message: format!("duplicate {what} id {id} (first defined at {first})"),
+    }
 }
 
 /// Node coordinates: local tags when the file has them, else the projection.
@@ -220,18 +370,24 @@ fn read_nodes<'a, 'i: 'a>(
             }
             [lon, lat]
         };
-        raw.push((id, p));
+        raw.push((id, p, n));
     }
-    if !local && let Some(b) = crate::map::Bounds::of(raw.iter().map(|(_, p)| *p)) {
+    let mut seen: HashMap<i64, SourceLocation> = HashMap::new();
+    for (id, _, n) in &raw {
+        if let Some(first) = seen.insert(*id, loc(text, *n)) {
+            return Err(duplicate("node", *id, loc(text, *n), first));
+        }
+    }
+    if !local && let Some(b) = crate::map::Bounds::of(raw.iter().map(|(_, p, _)| *p)) {
         let lat_mid = ((b.min_y_m + b.max_y_m) / 2.0).to_radians();
-        for (_, p) in &mut raw {
+        for (_, p, _) in &mut raw {
             *p = [
                 EARTH_RADIUS_M * (p[0] - b.min_x_m).to_radians() * lat_mid.cos(),
                 EARTH_RADIUS_M * (p[1] - b.min_y_m).to_radians(),
             ];
         }
     }
-    Ok(raw.into_iter().collect())
+    Ok(raw.into_iter().map(|(id, p, _)| (id, p)).collect())
 }
 
 /// Resamples two boundaries to the same number of points (the larger count), evenly by arc

@@ -50,11 +50,11 @@ fn max_diff(what: &str, ours: &Polyline, json: &Value) -> f64 {
         .fold(0.0, f64::max)
 }
 
-fn ids(v: &Value) -> Vec<u32> {
+fn ids(v: &Value) -> Vec<i64> {
     v.as_array()
         .expect("ids")
         .iter()
-        .map(|x| x.as_u64().expect("id") as u32)
+        .map(|x| x.as_i64().expect("id"))
         .collect()
 }
 
@@ -122,7 +122,7 @@ fn lanelets_match_sigmarl_parse() {
     assert_eq!(ours.len(), json.len());
     for (l, j) in ours.iter().zip(json) {
         let what = format!("lanelet {}", l.id);
-        assert_eq!(u64::from(l.id), j["id"].as_u64().expect("id"), "{what}");
+        assert_eq!(l.id, j["id"].as_i64().expect("id"), "{what}");
         for (name, line) in [
             ("left_boundary", &l.left_boundary),
             ("right_boundary", &l.right_boundary),
@@ -150,7 +150,7 @@ fn lanelets_match_sigmarl_parse() {
             match ours {
                 None => assert!(theirs.is_null(), "{what}.{name}"),
                 Some(a) => {
-                    assert_eq!(u64::from(a.id), theirs["id"].as_u64().expect("id"), "{what}");
+                    assert_eq!(a.id, theirs["id"].as_i64().expect("id"), "{what}");
                     let dir = match a.direction {
                         DrivingDirection::Same => "same",
                         DrivingDirection::Opposite => "opposite",
@@ -181,17 +181,14 @@ fn intersection_matches_sigmarl_parse() {
     for (i, j) in intersection.incomings.iter().zip(json) {
         assert_eq!(
             i.incoming_lanelets,
-            vec![j["incomingLanelet"].as_u64().expect("id") as u32]
+            vec![j["incomingLanelet"].as_i64().expect("id")]
         );
         assert_eq!(
             i.successors_right,
-            vec![j["successorsRight"].as_u64().expect("id") as u32]
+            vec![j["successorsRight"].as_i64().expect("id")]
         );
         assert_eq!(i.successors_straight, ids(&j["successorsStraight"]));
-        assert_eq!(
-            i.successors_left,
-            vec![j["successorsLeft"].as_u64().expect("id") as u32]
-        );
+        assert_eq!(i.successors_left, vec![j["successorsLeft"].as_i64().expect("id")]);
     }
     let b = map.bounds();
     assert_eq!((b.min_x_m, b.max_x_m, b.min_y_m, b.max_y_m), (0.0, 4.5, 0.0, 4.0));

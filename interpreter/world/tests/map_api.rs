@@ -66,7 +66,7 @@ fn footprints_on_and_off_the_road() {
 fn intersection_region_keeps_paths_through_it() {
     let map = map();
     let region = map.with_region("intersection").expect("region");
-    let ids: Vec<u32> = region.lanelets().map(|l| l.id).collect();
+    let ids: Vec<i64> = region.lanelets().map(|l| l.id).collect();
     assert_eq!(
         ids.len(),
         8 + 8 * 4,

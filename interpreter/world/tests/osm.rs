@@ -8,7 +8,7 @@ const OSM: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/two_lanes.osm
 fn reads_lanelets_topology_and_paths() {
     let map = Map::load(OSM).expect("loads");
     assert_eq!(map.kind(), MapKind::Generic);
-    let ids: Vec<u32> = map.lanelets().map(|l| l.id).collect();
+    let ids: Vec<i64> = map.lanelets().map(|l| l.id).collect();
     assert_eq!(ids, vec![100, 101, 102]);
 
     let a = map.lanelet(100).expect("100");

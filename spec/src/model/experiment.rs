@@ -109,11 +109,13 @@ pub enum MapFormat {
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct RefPathDefinition {
-    /// The id agents use to name this path; must not clash with the map's own ids.
-    pub id: u32,
-    /// Lanelet ids in driving order; each must be a successor of the one before.
+    /// The id agents use to name this path (64-bit); replaces a map path of the same id.
+    pub id: u64,
+    /// Lanelet ids in driving order, as the map file writes them (64-bit, negative ones too;
+    /// the reverse of a two-way lanelet2 lanelet N is -N-1); each must be a successor of
+    /// the one before. `cpmx validate` on a spec with only `cpmx`, `name` and `map` lists them.
     #[schemars(length(min = 1))]
-    pub lanelets: Vec<u32>,
+    pub lanelets: Vec<i64>,
 }
 
 /// Vehicle geometry and limits (the µCar: 0.22 m × 0.107 m, wheelbase 0.15 m).

@@ -26,7 +26,8 @@ pub use metrics::{
     Hysteresis, MetricsSpec, PairedTest, ReportSpec, Statistic,
 };
 pub use policy::{
-    ActionMode, BuiltinPolicy, LaneFollowParams, MlpSpec, ObservationDesign, ObservationSpec, PolicySpec,
+    ActionMode, BuiltinPolicy, LaneFollowParams, MlpActivation, MlpSpec, ObservationDesign, ObservationSpec,
+    OutputHead, PolicySpec, ProcessSpec,
 };
 pub use preset::PresetOr;
 pub use start::{

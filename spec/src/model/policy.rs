@@ -1,21 +1,28 @@
-//! Policies: a SigmaRL MLP actor with its observation design, or a built-in baseline.
+//! Policies: an MLP actor (any layer sizes) with its observation design, a policy process in
+//! any language, or a built-in baseline.
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use super::PresetOr;
 
-/// One policy of the matrix. Exactly one of `mlp` and `builtin` is given.
+/// One policy of the matrix. Exactly one of `mlp`, `process` and `builtin` is given.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PolicySpec {
     /// Name of the policy in run keys and tables. Lower-case letters, digits and `-`.
     #[schemars(regex(pattern = r"^[a-z0-9][a-z0-9-]*$"))]
     pub name: String,
-    /// A trained actor network in SigmaRL's layout.
+    /// A trained actor network (an MLP of any layer sizes stored as safetensors).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mlp: Option<MlpSpec>,
-    /// The observation design the network was trained with. Default: `stdlib:sigmarl`.
+    /// A policy process in any language, speaking cpmx's JSON-lines protocol over
+    /// stdin/stdout (see docs/policy-process.md); started once per run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub process: Option<ProcessSpec>,
+    /// The observation design the network was trained with (default for `mlp`:
+    /// `stdlib:sigmarl`); for a `process`, the observation sent with every step (none when
+    /// omitted).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(with = "Option<PresetOr<ObservationSpec>>")]
     pub observation: Option<ObservationSpec>,
@@ -30,12 +37,14 @@ pub struct PolicySpec {
     pub lane_follow: Option<LaneFollowParams>,
 }
 
-/// A multi-layer perceptron actor stored as safetensors.
+/// A multi-layer perceptron actor stored as safetensors; its layer sizes are read from the
+/// file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MlpSpec {
-    /// The safetensors file (SigmaRL actor layout: `actor.{0..3}.{weight,bias}`), relative to
-    /// the spec's folder or found on the data path.
+    /// The safetensors file: layers `PREFIX.N.weight` `[outputs, inputs]` and `PREFIX.N.bias`
+    /// in ascending `N` (SigmaRL: `actor.{0..3}`), relative to the spec's folder or found on
+    /// the data path.
     #[schemars(length(min = 1))]
     pub weights: String,
     /// SHA-256 of the weight file's bytes (64 hex digits). When given, only a file with this
@@ -44,6 +53,57 @@ pub struct MlpSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(regex(pattern = r"^[0-9a-f]{64}$"))]
     pub sha256: Option<String>,
+    /// The activation after every hidden layer. Default: `tanh` (SigmaRL).
+    #[serde(default)]
+    pub activation: MlpActivation,
+    /// How the last layer's outputs become an action. Default: `sigmarl-tanh-normal`.
+    #[serde(default)]
+    pub output: OutputHead,
+}
+
+/// Activations of an MLP's hidden layers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum MlpActivation {
+    /// tanh (SigmaRL).
+    #[default]
+    Tanh,
+    /// max(x, 0).
+    Relu,
+    /// x for x > 0, exp(x) - 1 otherwise.
+    Elu,
+}
+
+/// How a network's raw outputs become the action `[speed m/s, steering rad]` in SigmaRL's
+/// action box (speed ±1 m/s, steering ±31°).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum OutputHead {
+    /// 4 outputs: 2 locations and 2 pre-scales of a TanhNormal (SigmaRL, torchrl's
+    /// `NormalParamExtractor`); `action: mean | sample` applies.
+    #[default]
+    SigmarlTanhNormal,
+    /// 2 outputs squashed by tanh into the box (deterministic actors).
+    DeterministicTanh,
+    /// 2 outputs taken as speed and steering, clipped to the box.
+    DeterministicClip,
+}
+
+/// A policy process.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ProcessSpec {
+    /// Program and arguments, e.g. `[python3, planner.py, --flag]`; run in the spec's folder.
+    #[schemars(length(min = 1))]
+    pub command: Vec<String>,
+    /// Longest wait for one answer [s]; a process that takes longer fails its run.
+    #[serde(default = "default_timeout_s")]
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub timeout_s: f64,
+}
+
+fn default_timeout_s() -> f64 {
+    10.0
 }
 
 /// Deterministic or stochastic actions.

@@ -34,7 +34,7 @@ pub struct ExplicitConfiguration {
 pub struct AgentStart {
     /// The reference path the agent follows (the map's numbering: SigmaRL's 0-based index
     /// for the CPM Lab map).
-    pub ref_path: u32,
+    pub ref_path: u64,
     /// Distance along the path's centre line [m]; the agent heads along the path.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 0.0))]

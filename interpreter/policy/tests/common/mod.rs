@@ -42,7 +42,7 @@ pub fn reference_paths() -> Vec<ReferencePath> {
                 .as_array()
                 .expect("lanelet ids")
                 .iter()
-                .map(|v| v.as_u64().expect("id") as u32)
+                .map(|v| v.as_i64().expect("id"))
                 .collect(),
             is_loop: p["is_loop"].as_bool().expect("is_loop"),
             center_line: polyline(&p["center_line"]),

@@ -1,0 +1,135 @@
+//! XML helpers the loaders share: parse errors located where the text breaks off, and the
+//! location of a node's start tag.
+
+use roxmltree::Node;
+
+use crate::error::{LineIndex, MapError, SourceLocation};
+
+/// The location of a node's start tag.
+pub(crate) fn loc(index: &LineIndex, node: Node) -> SourceLocation {
+    index.locate(node.range().start)
+}
+
+/// Converts a roxmltree parse error. Errors roxmltree places at 1:1 because the text ended
+/// early (a truncated file) are placed at the end of the text instead, naming the innermost
+/// element still open and where it was opened.
+pub(crate) fn xml_error(text: &str, e: &roxmltree::Error) -> MapError {
+    let ended_early = matches!(
+        e,
+        roxmltree::Error::UnexpectedEndOfStream | roxmltree::Error::UnclosedRootNode
+    );
+    if !ended_early {
+        let pos = e.pos();
+        return MapError::NotXml {
+            location: SourceLocation::from_line_column(text, pos.row, pos.col),
+            message: e.to_string(),
+        };
+    }
+    let index = LineIndex::new(text);
+    let end = text.trim_end().len();
+    let message = match open_elements(text).last() {
+        Some((name, start)) => format!(
+            "the file ends inside <{name}> (opened at {}); is it truncated?",
+            index.locate(*start)
+        ),
+        None => format!("{e}; is the file truncated?"),
+    };
+    MapError::NotXml {
+        location: index.locate(end),
+        message,
+    }
+}
+
+/// The elements still open at the end of `text` (name and byte offset of the start tag),
+/// outermost first, by a tolerant scan that skips comments, processing instructions, CDATA
+/// and quoted attribute values.
+fn open_elements(text: &str) -> Vec<(String, usize)> {
+    let bytes = text.as_bytes();
+    let mut stack: Vec<(String, usize)> = Vec::new();
+    let mut i = 0;
+    while let Some(off) = text.get(i..).and_then(|t| t.find('<')) {
+        let start = i + off;
+        let rest = &text[start..];
+        let skip_to = |end: &str| rest.find(end).map(|p| start + p + end.len());
+        let next = if rest.starts_with("<!--") {
+            skip_to("-->")
+        } else if rest.starts_with("<![CDATA[") {
+            skip_to("]]>")
+        } else if rest.starts_with("<?") || rest.starts_with("<!") {
+            skip_to(">")
+        } else if let Some(close) = rest.strip_prefix("</") {
+            let name: String = close
+                .chars()
+                .take_while(|c| !c.is_whitespace() && *c != '>')
+                .collect();
+            if let Some(p) = stack.iter().rposition(|(n, _)| *n == name) {
+                stack.truncate(p);
+            }
+            skip_to(">")
+        } else {
+            // A start tag: find its end outside quotes.
+            let name: String = rest[1..]
+                .chars()
+                .take_while(|c| !c.is_whitespace() && *c != '>' && *c != '/')
+                .collect();
+            let mut quote = None;
+            let mut end = None;
+            for (j, &b) in bytes[start + 1..].iter().enumerate() {
+                match (quote, b) {
+                    (Some(q), b) if b == q => quote = None,
+                    (Some(_), _) => {}
+                    (None, b'"' | b'\'') => quote = Some(b),
+                    (None, b'>') => {
+                        end = Some(start + 1 + j);
+                        break;
+                    }
+                    _ => {}
+                }
+            }
+            match end {
+                Some(e) => {
+                    if bytes[e - 1] != b'/' && !name.is_empty() {
+                        stack.push((name, start));
+                    }
+                    Some(e + 1)
+                }
+                None => {
+                    if !name.is_empty() {
+                        stack.push((name, start));
+                    }
+                    None
+                }
+            }
+        };
+        match next {
+            Some(n) if n > i => i = n,
+            _ => break,
+        }
+    }
+    stack
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn truncated_text_is_located_at_its_end() {
+        let text = "<osm>\n  <node id='1' lat='1' lon='2'/>\n  <way id='2'>\n    <nd ref='1'/>\n    <nd re";
+        let Err(e) = roxmltree::Document::parse(text) else {
+            panic!("parses")
+        };
+        let MapError::NotXml { location, message } = xml_error(text, &e) else {
+            panic!("not NotXml")
+        };
+        assert_eq!((location.line, location.column), (5, 11), "{message}");
+        assert!(message.contains("<nd> (opened at 5:5)"), "{message}");
+        let text = "<osm>\n  <way id='2'>\n    <nd ref='1'/>\n";
+        let e = roxmltree::Document::parse(text).expect_err("truncated");
+        let MapError::NotXml { location, message } = xml_error(text, &e) else {
+            panic!("not NotXml")
+        };
+        assert_eq!(location.line, 3, "{message}");
+        assert!(message.contains("<way> (opened at 2:3)"), "{message}");
+    }
+}

@@ -1,0 +1,481 @@
+//! Maps as the tools write them: a JOSM-style lanelet2 map with negative ids, two-way
+//! lanelets, a crosswalk, regulatory elements and areas; a CommonRoad 2020a scenario as the
+//! benchmark ships them (obstacles, planning problem, traffic signs and lights); and broken
+//! variants of both and of the Lanelet2 example map, each with a located diagnostic. No
+//! mutation or truncation makes a loader panic.
+
+use cpmx_world::{Map, MapError, MapFormat, SourceLocation, reversed_id};
+use proptest::prelude::*;
+
+const EXAMPLE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../../shared/reference/maps/lanelet2/mapping_example.osm"
+);
+
+/// A JOSM-style lanelet2 map (lat/lon, negative ids of new elements): lanelet -10 continues
+/// into -11 (two-way, `one_way=no`); -12 is a crosswalk over -11; a traffic light regulatory
+/// element and a parking area.
+const JOSM: &str = r#"<?xml version='1.0' encoding='UTF-8'?>
+<osm version='0.6' upload='false' generator='JOSM'>
+  <node id='-1' action='modify' lat='49.0000000' lon='8.4000000' />
+  <node id='-2' action='modify' lat='49.0000000' lon='8.4001000' />
+  <node id='-3' action='modify' lat='49.0000000' lon='8.4002000' />
+  <node id='-4' action='modify' lat='49.0000300' lon='8.4000000' />
+  <node id='-5' action='modify' lat='49.0000300' lon='8.4001000' />
+  <node id='-6' action='modify' lat='49.0000300' lon='8.4002000' />
+  <node id='-7' action='modify' lat='48.9999900' lon='8.4001500' />
+  <node id='-8' action='modify' lat='49.0000400' lon='8.4001500' />
+  <node id='-9' action='modify' lat='48.9999900' lon='8.4001600' />
+  <node id='-13' action='modify' lat='49.0000400' lon='8.4001600' />
+  <way id='-20' action='modify'>
+    <nd ref='-4' />
+    <nd ref='-5' />
+    <tag k='type' v='line_thin' />
+    <tag k='subtype' v='solid' />
+  </way>
+  <way id='-21' action='modify'>
+    <nd ref='-1' />
+    <nd ref='-2' />
+    <tag k='type' v='curbstone' />
+  </way>
+  <way id='-22' action='modify'>
+    <nd ref='-5' />
+    <nd ref='-6' />
+    <tag k='type' v='line_thin' />
+    <tag k='subtype' v='dashed' />
+  </way>
+  <way id='-23' action='modify'>
+    <nd ref='-3' />
+    <nd ref='-2' />
+    <tag k='type' v='curbstone' />
+  </way>
+  <way id='-24' action='modify'>
+    <nd ref='-7' />
+    <nd ref='-8' />
+  </way>
+  <way id='-25' action='modify'>
+    <nd ref='-9' />
+    <nd ref='-13' />
+  </way>
+  <way id='-26' action='modify'>
+    <nd ref='-2' />
+    <nd ref='-5' />
+    <tag k='type' v='stop_line' />
+  </way>
+  <relation id='-10' action='modify'>
+    <member type='way' ref='-20' role='left' />
+    <member type='way' ref='-21' role='right' />
+    <member type='relation' ref='-30' role='regulatory_element' />
+    <tag k='type' v='lanelet' />
+    <tag k='subtype' v='road' />
+    <tag k='one_way' v='yes' />
+  </relation>
+  <relation id='-11' action='modify'>
+    <member type='way' ref='-22' role='left' />
+    <member type='way' ref='-23' role='right' />
+    <tag k='type' v='lanelet' />
+    <tag k='subtype' v='road' />
+    <tag k='one_way' v='no' />
+  </relation>
+  <relation id='-12' action='modify'>
+    <member type='way' ref='-24' role='left' />
+    <member type='way' ref='-25' role='right' />
+    <tag k='type' v='lanelet' />
+    <tag k='subtype' v='crosswalk' />
+    <tag k='participant:pedestrian' v='yes' />
+  </relation>
+  <relation id='-30' action='modify'>
+    <member type='way' ref='-26' role='ref_line' />
+    <member type='way' ref='-24' role='refers' />
+    <tag k='type' v='regulatory_element' />
+    <tag k='subtype' v='traffic_light' />
+  </relation>
+  <relation id='-31' action='modify'>
+    <member type='way' ref='-21' role='outer' />
+    <tag k='type' v='multipolygon' />
+    <tag k='subtype' v='parking' />
+  </relation>
+</osm>
+"#;
+
+/// A CommonRoad 2020a scenario as the benchmark writes them: large ids, a road of two
+/// lanelets with a sidewalk beside it and a crosswalk over it, an intersection with a
+/// crossing, a traffic sign and light, obstacles and a planning problem.
+const COMMONROAD: &str = r#"<?xml version='1.0' encoding='UTF-8'?>
+<commonRoad timeStepSize="0.1" commonRoadVersion="2020a" author="cpmx tests" affiliation="cpmx" source="written for cpmx's tests" benchmarkID="DEU_Test-1_1_T-1" date="2020-09-01">
+  <location>
+    <geoNameId>2867714</geoNameId>
+    <gpsLatitude>48.1</gpsLatitude>
+    <gpsLongitude>11.6</gpsLongitude>
+  </location>
+  <scenarioTags>
+    <Urban/>
+    <Intersection/>
+  </scenarioTags>
+  <lanelet id="50195">
+    <leftBound>
+      <point><x>0.0</x><y>3.5</y></point>
+      <point><x>10.0</x><y>3.5</y></point>
+      <lineMarking>solid</lineMarking>
+    </leftBound>
+    <rightBound>
+      <point><x>0.0</x><y>0.0</y></point>
+      <point><x>10.0</x><y>0.0</y></point>
+      <lineMarking>solid</lineMarking>
+    </rightBound>
+    <successor ref="50196"/>
+    <adjacentRight ref="50198" drivingDir="same"/>
+    <stopLine>
+      <point><x>10.0</x><y>3.5</y></point>
+      <point><x>10.0</x><y>0.0</y></point>
+      <lineMarking>solid</lineMarking>
+      <trafficLightRef ref="50302"/>
+    </stopLine>
+    <laneletType>urban</laneletType>
+    <userOneWay>vehicle</userOneWay>
+    <trafficSignRef ref="50301"/>
+    <trafficLightRef ref="50302"/>
+  </lanelet>
+  <lanelet id="50196">
+    <leftBound>
+      <point><x>10.0</x><y>3.5</y></point>
+      <point><x>15.0</x><y>3.5</y></point>
+      <point><x>20.0</x><y>3.5</y></point>
+    </leftBound>
+    <rightBound>
+      <point><x>10.0</x><y>0.0</y></point>
+      <point><x>15.0</x><y>0.0</y></point>
+      <point><x>20.0</x><y>0.0</y></point>
+    </rightBound>
+    <predecessor ref="50195"/>
+    <laneletType>urban</laneletType>
+    <laneletType>intersection</laneletType>
+    <userOneWay>car</userOneWay>
+  </lanelet>
+  <lanelet id="50197">
+    <leftBound>
+      <point><x>12.0</x><y>-2.0</y></point>
+      <point><x>12.0</x><y>5.5</y></point>
+    </leftBound>
+    <rightBound>
+      <point><x>14.0</x><y>-2.0</y></point>
+      <point><x>14.0</x><y>5.5</y></point>
+    </rightBound>
+    <laneletType>crosswalk</laneletType>
+    <userBidirectional>pedestrian</userBidirectional>
+  </lanelet>
+  <lanelet id="50198">
+    <leftBound>
+      <point><x>0.0</x><y>0.0</y></point>
+      <point><x>10.0</x><y>0.0</y></point>
+    </leftBound>
+    <rightBound>
+      <point><x>0.0</x><y>-2.0</y></point>
+      <point><x>10.0</x><y>-2.0</y></point>
+    </rightBound>
+    <adjacentLeft ref="50195" drivingDir="same"/>
+    <laneletType>sidewalk</laneletType>
+  </lanelet>
+  <trafficSign id="50301">
+    <trafficSignElement>
+      <trafficSignID>206</trafficSignID>
+    </trafficSignElement>
+    <position><point><x>9.5</x><y>4.0</y></point></position>
+    <virtual>false</virtual>
+  </trafficSign>
+  <trafficLight id="50302">
+    <cycle>
+      <cycleElement><duration>20</duration><color>red</color></cycleElement>
+      <cycleElement><duration>3</duration><color>redYellow</color></cycleElement>
+      <cycleElement><duration>20</duration><color>green</color></cycleElement>
+      <cycleElement><duration>3</duration><color>yellow</color></cycleElement>
+      <timeOffset>0</timeOffset>
+    </cycle>
+    <position><point><x>10.0</x><y>4.0</y></point></position>
+    <direction>all</direction>
+    <active>true</active>
+  </trafficLight>
+  <intersection id="50400">
+    <incoming id="50401">
+      <incomingLanelet ref="50195"/>
+      <successorsStraight ref="50196"/>
+    </incoming>
+    <crossing>
+      <crossingLanelet ref="50197"/>
+    </crossing>
+  </intersection>
+  <staticObstacle id="50500">
+    <type>parkedVehicle</type>
+    <shape><rectangle><length>4.5</length><width>1.8</width></rectangle></shape>
+    <initialState>
+      <position><point><x>5.0</x><y>-1.0</y></point></position>
+      <orientation><exact>0.0</exact></orientation>
+      <time><exact>0</exact></time>
+    </initialState>
+  </staticObstacle>
+  <dynamicObstacle id="50501">
+    <type>car</type>
+    <shape><rectangle><length>4.5</length><width>1.8</width></rectangle></shape>
+    <initialState>
+      <position><point><x>2.0</x><y>1.75</y></point></position>
+      <orientation><exact>0.0</exact></orientation>
+      <time><exact>0</exact></time>
+      <velocity><exact>8.0</exact></velocity>
+      <acceleration><exact>0.0</exact></acceleration>
+    </initialState>
+    <trajectory>
+      <state>
+        <position><point><x>2.8</x><y>1.75</y></point></position>
+        <orientation><exact>0.0</exact></orientation>
+        <time><exact>1</exact></time>
+        <velocity><exact>8.0</exact></velocity>
+        <acceleration><exact>0.0</exact></acceleration>
+      </state>
+    </trajectory>
+  </dynamicObstacle>
+  <planningProblem id="50600">
+    <initialState>
+      <position><point><x>1.0</x><y>1.75</y></point></position>
+      <velocity><exact>5.0</exact></velocity>
+      <orientation><exact>0.0</exact></orientation>
+      <yawRate><exact>0.0</exact></yawRate>
+      <slipAngle><exact>0.0</exact></slipAngle>
+      <time><exact>0</exact></time>
+    </initialState>
+    <goalState>
+      <time><intervalStart>20</intervalStart><intervalEnd>40</intervalEnd></time>
+      <position><lanelet ref="50196"/></position>
+    </goalState>
+  </planningProblem>
+</commonRoad>
+"#;
+
+fn load(text: &str) -> Result<Map, MapError> {
+    Map::from_str(text, MapFormat::Auto)
+}
+
+/// The 1-based line where `needle` first occurs (the `nth`, 0-based, occurrence).
+fn line_of(text: &str, needle: &str, nth: usize) -> u32 {
+    let at = text.match_indices(needle).nth(nth).expect("needle").0;
+    text[..at].matches('\n').count() as u32 + 1
+}
+
+/// The location of an error, for the error kinds that have one.
+fn location(e: &MapError) -> SourceLocation {
+    match e {
+        MapError::NotXml { location, .. }
+        | MapError::UnknownFormat { location, .. }
+        | MapError::InvalidCoordinate { location, .. }
+        | MapError::BoundaryLengthMismatch { location, .. }
+        | MapError::TooFewPoints { location, .. }
+        | MapError::UnknownReference { location, .. }
+        | MapError::Malformed { location, .. } => *location,
+        other => panic!("no location: {other}"),
+    }
+}
+
+#[test]
+fn josm_map_with_negative_ids_and_lanelet2_semantics() {
+    let map = load(JOSM).expect("loads");
+    let ids: Vec<i64> = map.lanelets().map(|l| l.id).collect();
+    let back = reversed_id(-11);
+    assert_eq!(back, 10);
+    // The crosswalk is not driven; the two-way lanelet is read both ways.
+    assert_eq!(ids, vec![-10, -11, back]);
+    assert_eq!(map.lanelet(-10).expect("-10").successors, vec![-11]);
+    assert_eq!(map.lanelet(back).expect("back").successors, Vec::<i64>::new());
+    assert_eq!(map.lanelet(back).expect("back").predecessors, Vec::<i64>::new());
+    // The lat/lon projection: 0.0001 deg of longitude at 49 deg north, 0.00003 deg of latitude.
+    let l = map.lanelet(-10).expect("-10");
+    // South-west corner: lat 48.99999, lon 8.4; middle latitude 49.000015.
+    let east_m = 6_378_137.0 * 0.0001_f64.to_radians() * 49.000_015_f64.to_radians().cos();
+    assert!(
+        (l.left_boundary.points[1][0] - east_m).abs() < 1e-6,
+        "{:?}",
+        l.left_boundary
+    );
+    let north_m = 6_378_137.0 * 0.00004_f64.to_radians();
+    assert!(
+        (l.left_boundary.points[0][1] - north_m).abs() < 1e-6,
+        "{:?}",
+        l.left_boundary
+    );
+    // Paths: the chain -10 -> -11, then the reverse on its own.
+    let paths: Vec<Vec<i64>> = map.reference_paths().map(|p| p.lanelet_ids.clone()).collect();
+    assert_eq!(paths, vec![vec![-10, -11], vec![back]]);
+    let notes = map.notes().join("\n");
+    for what in [
+        "1 lanelets not for cars skipped (crosswalks, walkways, bicycle or bus lanes): -12",
+        "1 two-way lanelets",
+        "1 regulatory elements",
+        "1 regulatory_element members",
+        "1 areas (multipolygon) skipped",
+    ] {
+        assert!(notes.contains(what), "{what}: {notes}");
+    }
+}
+
+#[test]
+fn commonroad_2020a_scenario_reads_the_road_and_ignores_the_rest() {
+    let map = load(COMMONROAD).expect("loads");
+    assert_eq!(map.benchmark_id(), Some("DEU_Test-1_1_T-1"));
+    let ids: Vec<i64> = map.lanelets().map(|l| l.id).collect();
+    assert_eq!(
+        ids,
+        vec![50195, 50196],
+        "the crosswalk and the sidewalk are not driven"
+    );
+    assert_eq!(map.lanelet(50195).expect("50195").adjacent_right, None);
+    let paths: Vec<Vec<i64>> = map.reference_paths().map(|p| p.lanelet_ids.clone()).collect();
+    assert_eq!(paths, vec![vec![50195, 50196]]);
+    assert_eq!(
+        map.region_lanelets("intersection-50400"),
+        Some(&[50195, 50196][..])
+    );
+    assert_eq!(
+        map.notes(),
+        [
+            "1 static obstacles ignored",
+            "1 dynamic obstacles ignored",
+            "1 planning problems ignored",
+            "1 traffic signs ignored",
+            "1 traffic lights ignored",
+            "2 lanelets not for vehicles skipped (sidewalks, crosswalks, bicycle lanes): 50197, 50198",
+        ]
+    );
+}
+
+/// Each damage gives its typed error on the line that is damaged.
+#[test]
+fn broken_maps_give_located_diagnostics() {
+    // A way with one node.
+    let one_node = JOSM.replacen(
+        "    <nd ref='-5' />\n    <tag k='type' v='line_thin' />\n    <tag k='subtype' v='solid' />",
+        "    <tag k='type' v='line_thin' />",
+        1,
+    );
+    let e = load(&one_node).expect_err("one-node way");
+    assert!(
+        matches!(
+            e,
+            MapError::TooFewPoints {
+                lanelet: -10,
+                count: 1,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert_eq!(location(&e).line, line_of(&one_node, "<way id='-20'", 0));
+
+    // Dangling references: a way to a node, a lanelet to a way, a CommonRoad successor.
+    let text = JOSM.replacen("<nd ref='-6' />", "<nd ref='-99' />", 1);
+    let e = load(&text).expect_err("unknown node");
+    assert!(
+        matches!(e, MapError::UnknownReference { .. }) && e.to_string().contains("unknown node -99"),
+        "{e}"
+    );
+    assert_eq!(location(&e).line, line_of(&text, "<nd ref='-99'", 0));
+    let text = JOSM.replacen("ref='-23' role='right'", "ref='-98' role='right'", 1);
+    let e = load(&text).expect_err("unknown way");
+    assert!(
+        e.to_string().contains("lanelet -11 refers to unknown way -98"),
+        "{e}"
+    );
+    assert_eq!(location(&e).line, line_of(&text, "ref='-98'", 0));
+    let text = COMMONROAD.replacen("<successor ref=\"50196\"/>", "<successor ref=\"70000\"/>", 1);
+    let e = load(&text).expect_err("unknown successor");
+    assert!(e.to_string().contains("unknown lanelet 70000"), "{e}");
+    assert_eq!(location(&e).line, line_of(&text, "<successor ref=\"70000\"", 0));
+
+    // Duplicate ids: node, way, relation, CommonRoad lanelet; located at the second one.
+    for (from, to, what, nth) in [
+        ("<node id='-9'", "<node id='-8'", "duplicate node id -8", 1),
+        ("<way id='-25'", "<way id='-24'", "duplicate way id -24", 1),
+        (
+            "<relation id='-31'",
+            "<relation id='-30'",
+            "duplicate relation id -30",
+            1,
+        ),
+    ] {
+        let text = JOSM.replacen(from, to, 1);
+        let e = load(&text).expect_err(what);
+        assert!(e.to_string().contains(what), "{e}");
+        assert_eq!(location(&e).line, line_of(&text, to, nth), "{what}");
+    }
+    let text = COMMONROAD.replacen("<lanelet id=\"50197\">", "<lanelet id=\"50195\">", 1);
+    let e = load(&text).expect_err("duplicate lanelet");
+    assert!(e.to_string().contains("duplicate lanelet id 50195"), "{e}");
+    assert_eq!(location(&e).line, line_of(&text, "<lanelet id=\"50195\"", 1));
+}
+
+/// A truncated file is reported where it breaks off, naming the element left open.
+#[test]
+fn truncated_maps_are_located_where_they_break_off() {
+    for (text, name) in [(JOSM, "josm"), (COMMONROAD, "commonroad")] {
+        for cut in [text.len() / 3, text.len() / 2, text.len() - 20] {
+            let cut = (0..=cut).rev().find(|&c| text.is_char_boundary(c)).unwrap_or(0);
+            let part = &text[..cut];
+            let e = load(part).expect_err("truncated");
+            let MapError::NotXml { location, message } = &e else {
+                panic!("{name} at {cut}: {e}")
+            };
+            let last_line = part.trim_end().matches('\n').count() as u32 + 1;
+            assert_eq!(location.line, last_line, "{name} at {cut}: {message}");
+            assert!(message.contains("the file ends inside <"), "{message}");
+        }
+    }
+}
+
+/// The real example map, damaged: truncated, a dangling reference, a duplicate id.
+#[test]
+fn the_damaged_example_map_gives_located_diagnostics() {
+    let text = std::fs::read_to_string(EXAMPLE).expect("the Lanelet2 example map is in ../shared");
+    let cut = text.len() * 2 / 3;
+    let cut = (0..=cut).rev().find(|&c| text.is_char_boundary(c)).unwrap_or(0);
+    let e = load(&text[..cut]).expect_err("truncated");
+    assert!(matches!(e, MapError::NotXml { .. }), "{e}");
+    assert_eq!(
+        location(&e).line,
+        text[..cut].trim_end().matches('\n').count() as u32 + 1
+    );
+    assert!(location(&e).line > 5000, "{e}");
+
+    let text2 = text.replacen("<node id='38992'", "<node id='38994'", 1);
+    let e = load(&text2).expect_err("duplicate node");
+    assert!(e.to_string().contains("duplicate node id 38994"), "{e}");
+    assert_eq!(location(&e).line, 4);
+
+    let first_nd = text.find("<nd ref='").expect("a way");
+    let line = text[..first_nd].matches('\n').count() as u32 + 1;
+    let mut text3 = text.clone();
+    text3.replace_range(first_nd..first_nd + "<nd ref='".len(), "<nd ref='9");
+    let e = load(&text3).expect_err("dangling node");
+    assert!(matches!(e, MapError::UnknownReference { .. }), "{e}");
+    assert_eq!(location(&e).line, line);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(96))]
+
+    /// Truncated or byte-mutated maps of both formats never make the loader panic.
+    #[test]
+    fn mutated_maps_never_panic(
+        which in 0usize..2,
+        cut in 0.0f64..1.0,
+        edits in proptest::collection::vec((0.0f64..1.0, any::<u8>()), 0..6),
+    ) {
+        let base = if which == 0 { JOSM } else { COMMONROAD };
+        let mut bytes = base.as_bytes().to_vec();
+        for (at, b) in edits {
+            let i = ((bytes.len() - 1) as f64 * at) as usize;
+            bytes[i] = b;
+        }
+        bytes.truncate(((bytes.len() as f64) * (0.2 + 0.8 * cut)) as usize);
+        let text = String::from_utf8_lossy(&bytes);
+        if let Err(e) = load(&text) {
+            let _ = e.to_string();
+        }
+    }
+}
