@@ -410,6 +410,10 @@ mod tests {
         // Sample 9 (x = 19.8 m, 0.2 m before the end up to round-off) or 10 is the first within
         // 0.2 m of the end: the waiting samples are left out either way.
         assert!((ended.as_mps - 1.0).abs() < 1e-12, "{}", ended.as_mps);
-        assert!((0.9 - 1e-9..=1.0 + 1e-9).contains(&ended.distance_m), "{}", ended.distance_m);
+        assert!(
+            (0.9 - 1e-9..=1.0 + 1e-9).contains(&ended.distance_m),
+            "{}",
+            ended.distance_m
+        );
     }
 }

@@ -331,8 +331,9 @@ impl MlpActor {
     }
 
     /// An actor from in-memory tensors: `sizes` are the layer widths (input first) and
-    /// `layers[i]` is torch's `(weight [out][in] row-major, bias [out])` of layer `i`; tanh
-    /// follows every layer but the last. (A trainer hands its current weights over this way.)
+    /// `layers[i]` is torch's `(weight [out][in] row-major, bias [out])` of layer `i`, named
+    /// `actor.{i}.*` as a trainer writes them; tanh follows every layer but the last. (A
+    /// trainer hands its current weights over this way.)
     pub fn from_layers(sizes: &[usize], layers: &[(&[f32], &[f32])]) -> Result<Self, ActorError> {
         if sizes.len() < 2 || layers.len() != sizes.len() - 1 {
             return Err(ActorError::Buffer {
@@ -359,7 +360,7 @@ impl MlpActor {
                 Activation::Identity
             };
             dense.push(Dense::new(weight, bias, inputs, outputs, activation));
-            weights.push((format!("layer.{i}.weight"), [outputs, inputs]));
+            weights.push((format!("actor.{i}.weight"), [outputs, inputs]));
         }
         Ok(Self::assemble(dense, weights))
     }
