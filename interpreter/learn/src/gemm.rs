@@ -170,6 +170,12 @@ fn pack_a(a: &Mat<'_>, i0: usize, rows: usize, pc: usize, kc: usize, out: &mut [
                     col[valid..].fill(0.0);
                 }
             }
+        } else if a.cs == 1 && valid == MR {
+            // Row-major A: read the 6 rows side by side, write each k's 6 values at once.
+            let rows: [&[f32]; MR] = std::array::from_fn(|r| &a.data[(r0 + r) * a.rs + pc..][..kc]);
+            for (kk, col) in panel.as_chunks_mut::<MR>().0.iter_mut().enumerate() {
+                *col = std::array::from_fn(|r| rows[r][kk]);
+            }
         } else {
             for r in 0..MR {
                 if r < valid {
