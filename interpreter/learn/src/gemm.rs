@@ -133,7 +133,13 @@ fn pack_b(b: &Mat<'_>, pc: usize, kc: usize, n: usize, out: &mut [f32]) {
     for (p, panel) in out.chunks_exact_mut(NR * kc).enumerate() {
         let j0 = p * NR;
         let cols = NR.min(n - j0);
-        for (kk, row) in panel.chunks_exact_mut(NR).enumerate() {
+        for (kk, row) in panel.as_chunks_mut::<NR>().0.iter_mut().enumerate() {
+            if b.cs == 1 && cols == NR {
+                // A fixed-size copy (a variable one would call memmove for 16 values).
+                let start = (pc + kk) * b.rs + j0;
+                *row = b.data[start..start + NR].try_into().expect("16 values");
+                continue;
+            }
             if b.cs == 1 {
                 let start = (pc + kk) * b.rs + j0;
                 row[..cols].copy_from_slice(&b.data[start..start + cols]);
@@ -154,10 +160,21 @@ fn pack_a(a: &Mat<'_>, i0: usize, rows: usize, pc: usize, kc: usize, out: &mut [
         let r0 = i0 + p * MR;
         let valid = MR.min(i0 + rows - r0);
         if a.rs == 1 {
-            for (kk, col) in panel.chunks_exact_mut(MR).enumerate() {
+            for (kk, col) in panel.as_chunks_mut::<MR>().0.iter_mut().enumerate() {
                 let start = (pc + kk) * a.cs + r0;
-                col[..valid].copy_from_slice(&a.data[start..start + valid]);
-                col[valid..].fill(0.0);
+                if valid == MR {
+                    // A fixed-size copy (a variable one would call memmove for 6 values).
+                    *col = a.data[start..start + MR].try_into().expect("6 values");
+                } else {
+                    col[..valid].copy_from_slice(&a.data[start..start + valid]);
+                    col[valid..].fill(0.0);
+                }
+            }
+        } else if a.cs == 1 && valid == MR {
+            // Row-major A: read the 6 rows side by side, write each k's 6 values at once.
+            let rows: [&[f32]; MR] = std::array::from_fn(|r| &a.data[(r0 + r) * a.rs + pc..][..kc]);
+            for (kk, col) in panel.as_chunks_mut::<MR>().0.iter_mut().enumerate() {
+                *col = std::array::from_fn(|r| rows[r][kk]);
             }
         } else {
             for r in 0..MR {

@@ -27,6 +27,7 @@
 pub mod checkpoint;
 pub mod env;
 pub mod gemm;
+pub mod hyperparameters;
 pub mod mlp;
 pub mod optim;
 pub mod ppo;
