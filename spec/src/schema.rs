@@ -252,7 +252,37 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
             "here",
         ),
     };
-    out.push(problem);
+    out.push(match (layer_forms(&pointer), instance) {
+        (Some(forms), Value::String(_)) => Problem {
+            help: Some(match &problem.help {
+                Some(help) => format!("{help} The valid forms: {forms}"),
+                None => format!("the valid forms: {forms}"),
+            }),
+            ..problem
+        },
+        _ => problem,
+    });
+}
+
+/// The forms a fidelity layer accepts, for a word that is none of them (`dynamics: greybox`).
+fn layer_forms(pointer: &str) -> Option<&'static str> {
+    let layer = pointer.rsplit('/').next()?;
+    if !pointer.starts_with("/fidelities/") {
+        return None;
+    }
+    match layer {
+        "dynamics" => Some(
+            "`kinematic` (SigmaRL's bicycle), `stdlib:mu-car-greybox` (the CPM Lab's identified model; \
+             `cpmx stdlib mu-car-greybox` prints it), or an inline grey-box model \
+             `{parameters: [p1, ..., p10], euler_step_s: 0.02, battery_voltage_v: 7.8}`",
+        ),
+        "sensing" => Some(
+            "`ideal`, `stdlib:cpm-ips` (the lab's positioning system), or an inline model \
+             `{rate_hz, latency_ms, noise_position_m, noise_yaw_rad, drop_probability, fusion_gain}`",
+        ),
+        "actuation" => Some("`ideal`, or `{delay_ms: 80}`"),
+        _ => None,
+    }
 }
 
 fn range(

@@ -305,6 +305,20 @@ fn a_target_speed_above_the_vehicle_maximum_is_refused() {
 }
 
 #[test]
+fn a_layer_word_that_is_no_form_lists_the_forms() {
+    let text = VALID.replace(
+        "  sim: {control: direct, dynamics: kinematic}",
+        "  sim: {control: direct, dynamics: greybox}",
+    );
+    let problems = check(&text).unwrap_err();
+    let rendered = cpmx_spec::render(&problems, false);
+    assert!(
+        rendered.contains("valid forms: `kinematic`") && rendered.contains("stdlib:mu-car-greybox"),
+        "{rendered}"
+    );
+}
+
+#[test]
 fn an_unknown_preset_gets_a_did_you_mean() {
     let problems = check(&format!("{VALID}vehicle: stdlib:mucar\n")).unwrap_err();
     let text = cpmx_spec::render(&problems, false);
