@@ -5,7 +5,7 @@ checks that the values are sane:
 
 - the start trigger is a wall-clock stamp (ns since 1970), the stop trigger is 2^64 - 1;
 - the lists arrive for every tick 0..ticks-1, on the period's grid from the start, each with
-  one state per active vehicle, stamped at the tick, on the map, at µCar speeds, moving
+  one state per active vehicle, stamped as the lab stamps (valid_after = create + 60 ms, valid at the tick), on the map, at µCar speeds, moving
   continuously from tick to tick; the period is --period-ms;
 - what it sees of the planner (announcements, trajectories) passes the lab's checks; it
   need not see any (see below).
@@ -139,6 +139,11 @@ def listen(connector, ids, args, deadline):
     }
 
 
+# The lab's vehicles stamp their states valid_after = create + 60 ms; the middleware lists
+# only valid ones.
+STATE_VALID_AFTER_NS = 60_000_000
+
+
 def check_list(state_list, k, t_now, ids, period_ms):
     """Checks one VehicleStateList; returns each vehicle's (x, y)."""
     where = f"tick {k}"
@@ -153,8 +158,9 @@ def check_list(state_list, k, t_now, ids, period_ms):
     for s in states:
         vid = s["vehicle_id"]
         header, pose = s["header"], s["pose"]
-        if header["create_stamp"]["nanoseconds"] != t_now or header["valid_after_stamp"]["nanoseconds"] != t_now:
-            fail(f"{where}: vehicle {vid} stamped {header}, not at the tick {t_now}")
+        create, valid_after = header["create_stamp"]["nanoseconds"], header["valid_after_stamp"]["nanoseconds"]
+        if valid_after != create + STATE_VALID_AFTER_NS or valid_after > t_now:
+            fail(f"{where}: vehicle {vid} stamped {header}: not valid_after = create + 60 ms <= the tick {t_now}")
         if not lab_rti.finite(pose["x"], pose["y"], pose["yaw"], s["speed"], s["steering_servo"]):
             fail(f"{where}: vehicle {vid}: non-finite state {s}")
         if not (lab_rti.MAP_X[0] <= pose["x"] <= lab_rti.MAP_X[1] and lab_rti.MAP_Y[0] <= pose["y"] <= lab_rti.MAP_Y[1]):

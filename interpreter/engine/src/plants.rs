@@ -499,4 +499,45 @@ mod tests {
             );
         }
     }
+
+    #[test]
+    fn the_grey_box_jacobians_match_central_differences() {
+        let spec = GreyBoxModel {
+            parameters: cpmx_vehicle::LAB_GREYBOX_PARAMETERS,
+            euler_step_s: 0.02,
+            battery_voltage_v: 7.8,
+        };
+        let model = GreyBoxPlant::new(&spec, VehicleParams::MU_CAR)
+            .unwrap()
+            .mpc_model();
+        for (x, u) in [
+            ([0.3, -0.2, 0.7, 0.45], [0.2, -0.3]),
+            ([1.0, 2.0, -2.0, 0.1], [-0.4, 0.6]),
+        ] {
+            let (next, a, b) = model.step_jacobians(&x, &u, 0.05);
+            assert_eq!(next, model.step(&x, &u, 0.05));
+            for col in 0..6 {
+                let h = 1e-6;
+                let (plus, minus) = if col < 4 {
+                    let (mut p, mut m) = (x, x);
+                    p[col] += h;
+                    m[col] -= h;
+                    (model.step(&p, &u, 0.05), model.step(&m, &u, 0.05))
+                } else {
+                    let (mut p, mut m) = (u, u);
+                    p[col - 4] += h;
+                    m[col - 4] -= h;
+                    (model.step(&x, &p, 0.05), model.step(&x, &m, 0.05))
+                };
+                for row in 0..4 {
+                    let numeric = (plus[row] - minus[row]) / (2.0 * h);
+                    let exact = if col < 4 { a[(row, col)] } else { b[(row, col - 4)] };
+                    assert!(
+                        (exact - numeric).abs() < 1e-7,
+                        "({row}, {col}): {exact} vs {numeric}"
+                    );
+                }
+            }
+        }
+    }
 }

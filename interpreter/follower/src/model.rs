@@ -224,6 +224,54 @@ impl Model<5, 2> for BicycleModel {
     fn stop_input(&self, _state: &[f64; 5]) -> [f64; 2] {
         [0.0, 0.0]
     }
+
+    /// Exact Jacobians of [`Model::step`]: the speed and steering become the (clamped)
+    /// commands, the pose moves by one Euler step at the old state.
+    fn step_jacobians(
+        &self,
+        state: &[f64; 5],
+        input: &[f64; 2],
+        h: f64,
+    ) -> ([f64; 5], SMatrix<f64, 5, 5>, SMatrix<f64, 5, 2>) {
+        let p = &self.bicycle.params;
+        let [_, _, yaw, v, delta] = *state;
+        let k = p.rear_axle_m / p.wheelbase_m;
+        let tan = delta.tan();
+        let sec2 = 1.0 + tan * tan;
+        let beta = (k * tan).atan();
+        let dbeta = k * sec2 / (1.0 + k * k * tan * tan);
+        let (sin, cos) = (yaw + beta).sin_cos();
+        let (sin_b, cos_b) = beta.sin_cos();
+        let mut a = SMatrix::<f64, 5, 5>::zeros();
+        a[(0, 0)] = 1.0;
+        a[(0, 2)] = -h * v * sin;
+        a[(0, 3)] = h * cos;
+        a[(0, 4)] = -h * v * sin * dbeta;
+        a[(1, 1)] = 1.0;
+        a[(1, 2)] = h * v * cos;
+        a[(1, 3)] = h * sin;
+        a[(1, 4)] = h * v * cos * dbeta;
+        a[(2, 2)] = 1.0;
+        a[(2, 3)] = h / p.wheelbase_m * tan * cos_b;
+        a[(2, 4)] = h * v / p.wheelbase_m * (sec2 * cos_b - tan * sin_b * dbeta);
+        let inside = |u: f64, limit: f64| if u.abs() < limit { 1.0 } else { 0.0 };
+        let mut b = SMatrix::<f64, 5, 2>::zeros();
+        b[(3, 0)] = inside(input[0], p.max_speed_mps);
+        b[(4, 1)] = inside(input[1], p.max_steering_rad);
+        // The step itself, from the same trigonometry ([`Model::step`] up to rounding).
+        let next = [
+            state[0] + h * v * cos,
+            state[1] + h * v * sin,
+            yaw + h * v / p.wheelbase_m * tan * cos_b,
+            input[0].clamp(-p.max_speed_mps, p.max_speed_mps),
+            input[1].clamp(-p.max_steering_rad, p.max_steering_rad),
+        ];
+        (next, a, b)
+    }
+
+    fn position_jacobian(&self, _: &[f64; 5]) -> SMatrix<f64, 2, 5> {
+        SMatrix::<f64, 2, 5>::new(1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+    }
 }
 
 #[cfg(test)]
@@ -263,5 +311,22 @@ mod tests {
         let [vx, vy] = model.bicycle.velocity_mps(&BicycleModel::to_state(&state));
         assert_relative_eq!(vx, 0.0, epsilon = 1e-12);
         assert_relative_eq!(vy, v, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn exact_jacobians_match_central_differences() {
+        let model = BicycleModel {
+            bicycle: KinematicBicycle::new(VehicleParams::MU_CAR),
+        };
+        let (x, u) = ([0.3, -0.2, 0.7, 0.45, 0.2], [0.5, -0.1]);
+        let (next, a, b) = model.step_jacobians(&x, &u, 0.05);
+        let (fd_a, fd_b) = jacobians(&model, &x, &u, 0.05);
+        let step = model.step(&x, &u, 0.05);
+        assert!(
+            next.iter().zip(&step).all(|(a, b)| (a - b).abs() < 1e-12),
+            "{next:?} vs {step:?}"
+        );
+        assert!((a - fd_a).abs().max() < 1e-7, "{a} vs {fd_a}");
+        assert!((b - fd_b).abs().max() < 1e-7, "{b} vs {fd_b}");
     }
 }

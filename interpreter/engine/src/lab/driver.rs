@@ -8,7 +8,8 @@
 //! `VehicleCommandTrajectory`, created and valid at the tick, whose points start at the
 //! state's `create_stamp` (the lab's states are at least 60 ms old; `twin::anchor_s`) and run
 //! Hp·dt from there (checked to cover the vehicles' lead time). Every tick's states are the
-//! run's recording, with times relative to the first tick. The run ends after
+//! run's recording, with times relative to the first tick, each moved by its velocity over its
+//! age to the tick. The run ends after
 //! `timing.steps` ticks, or earlier on a stop trigger or a `StopRequest`; a lab that falls
 //! silent for `timeout_s` ends it with an error that keeps what was recorded. A middleware
 //! whose period is not `timing.dt` is refused (`RunError::LabPeriod`).
@@ -338,12 +339,24 @@ impl Drive<'_> {
         }
         let t_s = s_since(origin_ns, list.t_now);
         self.recording.times_s.push(t_s);
-        self.recording.samples.push(
-            self.last_states
-                .iter()
-                .map(|s| recorded_sample(s, &self.vehicle))
-                .collect(),
-        );
+        // Each state is at least 60 ms old: it is recorded where its velocity takes it by the
+        // tick, so that the recording's times hold (a state older than a plan may start from,
+        // of a vehicle missing from the lists, is recorded as it is).
+        let recorded = self
+            .last_states
+            .iter()
+            .zip(&self.created_ns)
+            .map(|(s, created)| {
+                let mut sample = recorded_sample(s, &self.vehicle);
+                let age_s = created.map_or(0.0, |ns| s_since(ns, list.t_now));
+                if (0.0..=self.max_age_s).contains(&age_s) {
+                    sample.x_m += sample.velocity_mps[0] * age_s;
+                    sample.y_m += sample.velocity_mps[1] * age_s;
+                }
+                sample
+            })
+            .collect();
+        self.recording.samples.push(recorded);
 
         // Plan from the lab's states, each trajectory anchored at its state's time; all are
         // created and valid at the tick.
