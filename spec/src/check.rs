@@ -76,6 +76,7 @@ pub(crate) fn check_meaning(spec: &Spec, data: &DataPath, ctx: &mut CheckContext
     check_fidelities(spec, ctx);
     check_metrics(spec, ctx);
     check_report(spec, ctx);
+    crate::check_training::check_training(spec, ctx);
     find_files(spec, data, ctx)
 }
 
@@ -483,14 +484,21 @@ fn find_files(spec: &Spec, data: &DataPath, ctx: &mut CheckContext<'_>) -> Resou
         }
     }
     for (i, policy) in spec.policies.iter().enumerate() {
-        let found = policy.mlp.as_ref().and_then(|mlp| match data.find(&mlp.weights) {
-            Ok(path) => Some(path),
-            Err(tried) => {
-                let span = ctx.span(&format!("/policies/{i}/mlp/weights"));
-                ctx.push(missing_file("weight file", &mlp.weights, &tried, span));
-                None
-            }
-        });
+        let found = policy
+            .mlp
+            .as_ref()
+            .and_then(|mlp| match (&mlp.weights, &mlp.trained) {
+                (Some(weights), _) => match data.find(weights) {
+                    Ok(path) => Some(path),
+                    Err(tried) => {
+                        let span = ctx.span(&format!("/policies/{i}/mlp/weights"));
+                        ctx.push(missing_file("weight file", weights, &tried, span));
+                        None
+                    }
+                },
+                (None, Some(trained)) => crate::check_training::find_trained(spec, i, trained, data, ctx),
+                (None, None) => None,
+            });
         resources.weights.push(found);
     }
     for (i, c) in spec.initial_configurations.iter().enumerate() {

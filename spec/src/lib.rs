@@ -9,6 +9,7 @@
 //! ```
 
 mod check;
+mod check_training;
 mod diagnostic;
 pub mod matrix;
 pub mod model;
@@ -22,7 +23,7 @@ use std::sync::Arc;
 
 pub use check::{CheckContext, InterpreterChecks, Resources};
 pub use diagnostic::{ByteSpan, Level, Problem, SpecDiagnostic, render};
-pub use matrix::{ConfigurationSource, NamedConfiguration, RunPlan};
+pub use matrix::{ConfigurationSource, NamedConfiguration, RunPlan, TrainingPlan};
 pub use model::Spec;
 pub use paths::DataPath;
 pub use resolve::STDLIB_PREFIX;
@@ -75,6 +76,11 @@ impl CheckedSpec {
     /// The run matrix.
     pub fn plan(&self) -> Vec<RunPlan> {
         matrix::expand(&self.spec, &self.configurations)
+    }
+
+    /// The training runs of `cpmx train` (one per seed; none without `training:`).
+    pub fn training_plan(&self) -> Vec<TrainingPlan> {
+        matrix::training_runs(&self.spec)
     }
 }
 
