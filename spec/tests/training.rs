@@ -85,7 +85,7 @@ fn the_presets_are_sigmarls_setup_and_the_plan_has_one_run_per_seed() {
     assert_eq!((s.agents, s.envs, s.episode_steps), (4, 32, 128));
     assert_eq!(
         (s.start.first_index, s.start.speed_mps, s.start.min_gap_m),
-        (3, [0.0, 1.0], 0.36696)
+        (3, [0.0, 1.0], 0.36696082897224874)
     );
     assert_eq!(s.reset.on_collision, ResetScopeName::Environment);
     assert_eq!(s.reset.on_entry_or_exit_line, ResetScopeName::Agent);

@@ -21,6 +21,7 @@
 
 mod collision;
 mod config;
+mod from_spec;
 mod paths;
 mod result;
 mod reward;
@@ -36,6 +37,7 @@ pub use config::{
     ConfigError, EnvConfig, NearBoundaryTerm, ProgressTerm, ResetRule, ResetScope, RewardConfig,
     ScenarioConfig, StartRule, TtcTerm,
 };
+pub use from_spec::{config_from_training, training_paths};
 pub use paths::{TrainingPath, prepare_paths};
 pub use result::{AgentStepInfo, CollisionCounts, ResetCounts, RewardTermMeans, StepResult};
 pub use reward::{RewardInput, RewardTerms, decreasing, reward};
