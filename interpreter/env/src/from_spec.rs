@@ -72,7 +72,8 @@ pub fn config_from_training(
 }
 
 /// The reference paths a training scenario places agents on: one of SigmaRL's path sets, the
-/// listed ids of `map` (unknown ids are an error naming them), or the paths of a region.
+/// listed ids of `map` (ids the map lacks are left out: the caller compares the count), or
+/// the paths of a region.
 pub fn training_paths(map: &Map, training: &TrainingSpec) -> Result<Vec<ReferencePath>, MapError> {
     let s = &training.scenario;
     let map = match (s.path_set, &s.region) {
