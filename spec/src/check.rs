@@ -87,6 +87,7 @@ pub(crate) fn check_meaning(
     check_report(spec, ctx);
     check_repetitions(spec, ctx);
     check_target_speeds(spec, ctx);
+    crate::check_training::check_training(spec, ctx);
     find_files(spec, data, scope, ctx)
 }
 
@@ -706,16 +707,18 @@ fn find_files(spec: &Spec, data: &DataPath, scope: CheckScope, ctx: &mut CheckCo
         }
     }
     for (i, policy) in spec.policies.iter().enumerate() {
-        let found =
-            policy.mlp.as_ref().and_then(
-                |mlp| match data.find_pinned(&mlp.weights, mlp.sha256.as_deref()) {
+        let found = policy
+            .mlp
+            .as_ref()
+            .and_then(|mlp| match (&mlp.weights, &mlp.trained) {
+                (Some(weights), _) => match data.find_pinned(weights, mlp.sha256.as_deref()) {
                     Ok(path) => Some(path),
                     Err(_) if scope == CheckScope::Measure => None,
                     Err(missing) => {
                         let span = ctx.span(&format!("/policies/{i}/mlp/weights"));
                         ctx.push(missing_pinned(
                             "weight file",
-                            &mlp.weights,
+                            weights,
                             mlp.sha256.as_deref(),
                             &missing,
                             span,
@@ -723,7 +726,10 @@ fn find_files(spec: &Spec, data: &DataPath, scope: CheckScope, ctx: &mut CheckCo
                         None
                     }
                 },
-            );
+                (None, Some(_)) if scope == CheckScope::Measure => None,
+                (None, Some(trained)) => crate::check_training::find_trained(spec, i, trained, data, ctx),
+                (None, None) => None,
+            });
         resources.weights.push(found);
     }
     if scope == CheckScope::Measure {

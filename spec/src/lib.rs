@@ -9,6 +9,7 @@
 //! ```
 
 mod check;
+mod check_training;
 mod diagnostic;
 pub mod matrix;
 pub mod model;
@@ -23,7 +24,7 @@ use std::sync::Arc;
 
 pub use check::{CheckContext, CheckScope, InterpreterChecks, Resources};
 pub use diagnostic::{ByteSpan, Level, Problem, SpecDiagnostic, render};
-pub use matrix::{ConfigurationSource, NamedConfiguration, RunPlan};
+pub use matrix::{ConfigurationSource, NamedConfiguration, RunPlan, TrainingPlan};
 pub use model::Spec;
 pub use paths::{DataPath, NotFound, sha256_hex};
 pub use resolve::STDLIB_PREFIX;
@@ -76,6 +77,11 @@ impl CheckedSpec {
     /// The run matrix.
     pub fn plan(&self) -> Vec<RunPlan> {
         matrix::expand(&self.spec, &self.configurations)
+    }
+
+    /// The training runs of `cpmx train` (one per seed; none without `training:`).
+    pub fn training_plan(&self) -> Vec<TrainingPlan> {
+        matrix::training_runs(&self.spec)
     }
 }
 

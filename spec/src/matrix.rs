@@ -9,6 +9,9 @@
 //! - a named stream of a run (e.g. `policy`, `sensing`, `actuation`, `starts`) is a ChaCha
 //!   stream keyed with `SHA-256("cpmx/stream/v1" 0x00 run_seed 0x00 name)`, `run_seed` as 8
 //!   little-endian bytes.
+//! - a training run (`cpmx train`, one per seed of `training.seeds`) uses its seed as the
+//!   `run_seed` of its streams; the training environments draw the starts of environment `e`
+//!   from the stream `train/env/<e>`.
 
 use std::path::Path;
 
@@ -29,6 +32,41 @@ pub struct RunPlan {
     /// 1-based.
     pub repetition: u32,
     pub seed: u64,
+}
+
+/// One training run of `cpmx train`: one seed of `training.seeds`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct TrainingPlan {
+    /// `train/<seed>`; the run writes to `<out>/<seed>/`.
+    pub key: String,
+    /// The fidelity it trains in.
+    pub fidelity: String,
+    pub seed: u64,
+    pub iterations: u32,
+    /// Parallel environments and agents per environment.
+    pub envs: u32,
+    pub agents: u32,
+    /// Env-steps collected per iteration.
+    pub frames_per_iteration: u32,
+}
+
+/// The training runs of a spec, in the order of `training.seeds` (none without `training:`).
+pub fn training_runs(spec: &Spec) -> Vec<TrainingPlan> {
+    let Some(t) = &spec.training else {
+        return vec![];
+    };
+    t.seeds
+        .iter()
+        .map(|&seed| TrainingPlan {
+            key: format!("train/{seed}"),
+            fidelity: t.fidelity.clone(),
+            seed,
+            iterations: t.iterations,
+            envs: t.scenario.envs,
+            agents: t.scenario.agents,
+            frames_per_iteration: t.algorithm.mappo.frames_per_iteration,
+        })
+        .collect()
 }
 
 impl RunPlan {

@@ -25,6 +25,12 @@ fn preset_fields(doc: &Value) -> Vec<(String, PresetKind)> {
             fields.push((format!("/policies/{i}/observation"), PresetKind::Observation));
         }
     }
+    if doc.get("training").is_some_and(Value::is_object) {
+        fields.push(("/training/scenario".to_owned(), PresetKind::TrainingScenario));
+        fields.push(("/training/reward".to_owned(), PresetKind::Reward));
+        fields.push(("/training/algorithm".to_owned(), PresetKind::Algorithm));
+        fields.push(("/training/observation".to_owned(), PresetKind::Observation));
+    }
     if let Some(fidelities) = doc.get("fidelities").and_then(Value::as_object) {
         for name in fidelities.keys() {
             let base = format!("/fidelities/{}", escape_pointer(name));
@@ -42,6 +48,11 @@ fn insert_defaults(doc: &mut Value) {
         .or_insert_with(|| Value::from("stdlib:mu-car"));
     root.entry("metrics")
         .or_insert_with(|| Value::from("stdlib:at25"));
+    if let Some(training) = root.get_mut("training").and_then(Value::as_object_mut) {
+        training
+            .entry("observation")
+            .or_insert_with(|| Value::from("stdlib:sigmarl"));
+    }
     if let Some(policies) = root.get_mut("policies").and_then(Value::as_array_mut) {
         for policy in policies.iter_mut().filter_map(Value::as_object_mut) {
             if policy.contains_key("mlp") {

@@ -252,7 +252,7 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
             "here",
         ),
     };
-    out.push(match (layer_forms(&pointer), instance) {
+    out.push(match (layer_forms(&pointer), instance.as_ref()) {
         (Some(forms), Value::String(_)) => Problem {
             help: Some(match &problem.help {
                 Some(help) => format!("{help} The valid forms: {forms}"),

@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use cpmx_engine::{InitialState, Scoring, initial_states};
-use cpmx_spec::RunPlan;
+use cpmx_spec::{RunPlan, TrainingPlan};
 
 use super::{Failure, load_checked};
 use crate::DataArgs;
@@ -39,10 +39,14 @@ pub fn run(spec: &Path, format: PlanFormat, data: &DataArgs) -> Result<(), Failu
         eprintln!("error: {e}");
         Failure::InvalidInput
     })?;
-    let mut text = render(&checked.plan(), format);
+    let (runs, training) = (checked.plan(), checked.training_plan());
+    let mut text = render(&runs, format);
     match format {
-        PlanFormat::Table => text.push_str(&starts_table(&starts)),
-        PlanFormat::Json => text = starts_json(&checked.plan(), &starts),
+        PlanFormat::Table => {
+            text.push_str(&starts_table(&starts));
+            text.push_str(&render_training(&training, format));
+        }
+        PlanFormat::Json => text = plan_json(&runs, &starts, &training),
         PlanFormat::Csv => {}
     }
     print!("{text}");
@@ -75,8 +79,9 @@ fn starts_table(starts: &Starts) -> String {
     out
 }
 
-/// The matrix and the start poses as one JSON document.
-fn starts_json(runs: &[RunPlan], starts: &Starts) -> String {
+/// The matrix, the start poses and the training runs (when the spec trains) as one JSON
+/// document.
+fn plan_json(runs: &[RunPlan], starts: &Starts, training: &[TrainingPlan]) -> String {
     let starts: serde_json::Map<String, serde_json::Value> = starts
         .iter()
         .map(|(name, agents)| {
@@ -92,8 +97,78 @@ fn starts_json(runs: &[RunPlan], starts: &Starts) -> String {
             (name.clone(), serde_json::Value::from(agents))
         })
         .collect();
-    let value = serde_json::json!({ "runs": runs, "starts": starts });
+    let mut value = serde_json::json!({ "runs": runs, "starts": starts });
+    if !training.is_empty() {
+        value["training"] = serde_json::json!(training);
+    }
     format!("{}\n", serde_json::to_string_pretty(&value).unwrap_or_default())
+}
+
+/// The training runs as a second table after the run matrix (nothing for a spec without
+/// `training:`, and nothing in CSV, which holds the run matrix only; JSON puts them beside
+/// the runs as `"training": [...]`).
+pub fn render_training(runs: &[TrainingPlan], format: PlanFormat) -> String {
+    if runs.is_empty() {
+        return String::new();
+    }
+    match format {
+        PlanFormat::Csv | PlanFormat::Json => String::new(),
+        PlanFormat::Table => {
+            let header = [
+                "key",
+                "fidelity",
+                "seed",
+                "iterations",
+                "envs",
+                "agents",
+                "frames/iteration",
+            ];
+            let rows: Vec<Vec<String>> = runs
+                .iter()
+                .map(|r| {
+                    vec![
+                        r.key.clone(),
+                        r.fidelity.clone(),
+                        r.seed.to_string(),
+                        r.iterations.to_string(),
+                        r.envs.to_string(),
+                        r.agents.to_string(),
+                        r.frames_per_iteration.to_string(),
+                    ]
+                })
+                .collect();
+            let mut out = String::from("\n");
+            out.push_str(&table(&header, &rows));
+            let _ = writeln!(out, "{} training runs", runs.len());
+            out
+        }
+    }
+}
+
+/// Left-aligned columns separated by two spaces.
+fn table(header: &[&str], rows: &[Vec<String>]) -> String {
+    let mut widths: Vec<usize> = header.iter().map(|h| h.len()).collect();
+    for row in rows {
+        for (w, cell) in widths.iter_mut().zip(row) {
+            *w = (*w).max(cell.len());
+        }
+    }
+    let line = |cells: Vec<&str>| {
+        cells
+            .iter()
+            .zip(&widths)
+            .map(|(c, w)| format!("{c:<w$}"))
+            .collect::<Vec<_>>()
+            .join("  ")
+            .trim_end()
+            .to_owned()
+    };
+    let mut out = String::new();
+    let _ = writeln!(out, "{}", line(header.to_vec()));
+    for row in rows {
+        let _ = writeln!(out, "{}", line(row.iter().map(String::as_str).collect()));
+    }
+    out
 }
 
 /// The matrix in `format`.

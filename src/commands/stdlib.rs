@@ -13,6 +13,9 @@ fn field(kind: PresetKind) -> &'static str {
         PresetKind::Observation => "policies[*].observation",
         PresetKind::Metrics => "metrics",
         PresetKind::Map => "map",
+        PresetKind::TrainingScenario => "training.scenario",
+        PresetKind::Reward => "training.reward",
+        PresetKind::Algorithm => "training.algorithm",
     }
 }
 

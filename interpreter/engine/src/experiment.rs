@@ -37,6 +37,10 @@ pub enum PrepareError {
     },
     #[error("initial configuration `{name}`: {reason}")]
     Start { name: String, reason: String },
+    #[error(
+        "policy `{policy}` names the actor trained with seed {seed}, which was not found: run `cpmx train` first"
+    )]
+    NotTrained { policy: String, seed: u64 },
 }
 
 /// A policy as the spec defines it, with its network loaded once.
@@ -254,7 +258,16 @@ pub fn prepare_policy(policy: &PolicySpec, weights: Option<&Path>) -> Result<Pre
     match (&policy.mlp, weights) {
         (Some(mlp), found) => {
             let observation = observation(policy.observation.as_ref().expect("defaulted to stdlib:sigmarl"));
-            let path = found.unwrap_or(Path::new(&mlp.weights));
+            let path = match (found, &mlp.weights, &mlp.trained) {
+                (Some(path), _, _) => path,
+                (None, Some(weights), _) => Path::new(weights),
+                (None, None, trained) => {
+                    return Err(PrepareError::NotTrained {
+                        policy: policy.name.clone(),
+                        seed: trained.as_ref().map_or(0, |t| t.seed),
+                    });
+                }
+            };
             let (actor, output) =
                 load_network(mlp, &observation, path).map_err(|source| PrepareError::Actor {
                     policy: policy.name.clone(),

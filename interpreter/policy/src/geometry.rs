@@ -3,6 +3,8 @@
 //! nearest-segment search over a whole path only measures the few blocks near the query
 //! point, with the same result as measuring every segment. Built once per run, never per step.
 
+use std::sync::Arc;
+
 use cpmx_world::{Point, Polyline, ReferencePath};
 
 /// Segments per block (two 256-bit vectors of float32).
@@ -261,18 +263,30 @@ impl PreparedPath {
 }
 
 /// The prepared reference path of every agent, in agent order.
+///
+/// Paths are shared (`Arc`), so that a caller holding many sets of agents on the same few
+/// paths (the training environments, which re-assign paths at every reset) prepares each
+/// path once and swaps pointers.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct AgentPaths {
     /// One prepared path per agent.
-    pub paths: Vec<PreparedPath>,
+    pub paths: Vec<Arc<PreparedPath>>,
 }
 
 impl AgentPaths {
     /// Prepare one reference path per agent (agent `i` follows `paths[i]`).
     pub fn new<'a>(paths: impl IntoIterator<Item = &'a ReferencePath>) -> Self {
         AgentPaths {
-            paths: paths.into_iter().map(PreparedPath::new).collect(),
+            paths: paths
+                .into_iter()
+                .map(|p| Arc::new(PreparedPath::new(p)))
+                .collect(),
         }
+    }
+
+    /// Agents on already prepared paths (agent `i` follows `paths[i]`).
+    pub fn from_shared(paths: Vec<Arc<PreparedPath>>) -> Self {
+        AgentPaths { paths }
     }
 
     /// Number of agents.

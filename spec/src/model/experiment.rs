@@ -4,7 +4,7 @@ use indexmap::IndexMap;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::{Fidelity, InitialConfiguration, MetricsSpec, PolicySpec, PresetOr, ReportSpec};
+use super::{Fidelity, InitialConfiguration, MetricsSpec, PolicySpec, PresetOr, ReportSpec, TrainingSpec};
 
 /// A cpmx experiment: a paired matrix of fidelities × policies × initial configurations ×
 /// repetitions, and how to measure every run.
@@ -58,6 +58,10 @@ pub struct Spec {
     /// How results are grouped, summarised and compared.
     #[serde(default)]
     pub report: ReportSpec,
+    /// How `cpmx train` trains the policies this spec evaluates (one policy per seed);
+    /// `cpmx run` ignores it. A policy names what was trained with `mlp: {trained: {seed: N}}`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub training: Option<TrainingSpec>,
 }
 
 /// The road network of an experiment.

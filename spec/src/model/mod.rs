@@ -11,6 +11,7 @@ mod metrics;
 mod policy;
 mod preset;
 mod start;
+mod training;
 
 pub use experiment::{
     AfterControlHorizon, MapFile, MapFormat, MapSpec, OnCollision, Planner, RefPathDefinition, Spec,
@@ -27,10 +28,15 @@ pub use metrics::{
 };
 pub use policy::{
     ActionMode, BuiltinPolicy, LaneFollowParams, MlpActivation, MlpSpec, ObservationDesign, ObservationSpec,
-    OutputHead, PolicySpec, ProcessSpec,
+    OutputHead, PolicySpec, ProcessSpec, TrainedActor, TrainedChoice,
 };
 pub use preset::PresetOr;
 pub use start::{
     AgentStart, ExplicitConfiguration, FromRuns, FromRunsSpec, InitialConfiguration, Pose, SampleSpec,
     SampledStarts,
+};
+pub use training::{
+    Activation, AlgorithmSpec, MappoSpec, NearBoundarySpec, NetworkSpec, PathSetName, ProgressSpec,
+    ResetScopeName, RewardSpec, TrainingReset, TrainingScenario, TrainingSpec, TrainingStart, TtcSpec,
+    ValueLoss,
 };

@@ -37,16 +37,25 @@ pub struct PolicySpec {
     pub lane_follow: Option<LaneFollowParams>,
 }
 
-/// A multi-layer perceptron actor stored as safetensors; its layer sizes are read from the
-/// file.
+/// A multi-layer perceptron actor stored as safetensors, its layer sizes read from the file:
+/// a file (`weights`) or the actor this spec's `training:` section trains (`trained`).
+/// Exactly one of the two is given.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MlpSpec {
     /// The safetensors file: layers `PREFIX.N.weight` `[outputs, inputs]` and `PREFIX.N.bias`
     /// in ascending `N` (SigmaRL: `actor.{0..3}`), relative to the spec's folder or found on
     /// the data path.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(length(min = 1))]
-    pub weights: String,
+    pub weights: Option<String>,
+    /// The actor trained by this spec's `training:` section for one of its seeds. It is the
+    /// file `<dir>/<seed>/actor.safetensors` (`actor.last.safetensors` with `which: last`),
+    /// where `<dir>` is `cpmx train`'s output folder, by default `out/<name>-train`; the file
+    /// is looked up like any relative file (the spec's folder, then the data path) and then
+    /// in the current directory, where `cpmx train` writes by default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trained: Option<TrainedActor>,
     /// SHA-256 of the weight file's bytes (64 hex digits). When given, only a file with this
     /// content is taken: the data path is searched for one. `cpmx run` records it in the run
     /// folder's `spec.resolved.yaml`.
@@ -104,6 +113,48 @@ pub struct ProcessSpec {
 
 fn default_timeout_s() -> f64 {
     10.0
+}
+
+/// An actor trained by this spec.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TrainedActor {
+    /// The training seed (one of `training.seeds`).
+    pub seed: u64,
+    /// The best actor by SigmaRL's rule (`best`, the default) or the last one (`last`).
+    #[serde(default)]
+    pub which: TrainedChoice,
+    /// `cpmx train`'s output folder, if it was given with `--out`. Default: `out/<name>-train`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(length(min = 1))]
+    pub dir: Option<String>,
+}
+
+/// Which of a training run's actors.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum TrainedChoice {
+    /// The actor with the best `episode_reward_mean` (SigmaRL's rule): `actor.safetensors`.
+    #[default]
+    Best,
+    /// The actor of the last iteration: `actor.last.safetensors`.
+    Last,
+}
+
+impl TrainedActor {
+    /// The actor's file relative to the training folder `dir` (or the default
+    /// `out/<spec_name>-train`): `<dir>/<seed>/actor.safetensors` or `actor.last.safetensors`.
+    pub fn relative_file(&self, spec_name: &str) -> String {
+        let dir = self
+            .dir
+            .clone()
+            .unwrap_or_else(|| format!("out/{spec_name}-train"));
+        let file = match self.which {
+            TrainedChoice::Best => "actor.safetensors",
+            TrainedChoice::Last => "actor.last.safetensors",
+        };
+        format!("{}/{}/{file}", dir.trim_end_matches('/'), self.seed)
+    }
 }
 
 /// Deterministic or stochastic actions.

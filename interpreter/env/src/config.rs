@@ -1,0 +1,338 @@
+//! What a training environment is made of: the scenario (agents, environments, episode
+//! length, start sampling, reset rules) and the reward as explicit terms. The defaults are
+//! SigmaRL's intersection training setup (`main_training.py` with `config.json`,
+//! `rew_method = "ttc_sparse"`, non-testing mode).
+
+use cpmx_policy::SigmarlObservation;
+use cpmx_vehicle::VehicleParams;
+
+/// Everything a [`crate::VecEnv`] needs besides the reference paths and the seed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnvConfig {
+    /// Agents, environments, episodes, starts, resets.
+    pub scenario: ScenarioConfig,
+    /// The reward terms.
+    pub reward: RewardConfig,
+    /// The observation design (SigmaRL's 32 values by default).
+    pub observation: SigmarlObservation,
+    /// Vehicle geometry and limits (the µCar).
+    pub vehicle: VehicleParams,
+    /// Policy (and simulation) step [s].
+    pub dt_s: f64,
+}
+
+impl Default for EnvConfig {
+    fn default() -> Self {
+        EnvConfig {
+            scenario: ScenarioConfig::default(),
+            reward: RewardConfig::default(),
+            observation: SigmarlObservation::default(),
+            vehicle: VehicleParams::MU_CAR,
+            dt_s: 0.1,
+        }
+    }
+}
+
+/// The scenario: how many agents in how many environments, how episodes start and end.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScenarioConfig {
+    /// Agents per environment (SigmaRL: 4).
+    pub agents: usize,
+    /// Parallel environments (SigmaRL: 32).
+    pub envs: usize,
+    /// SigmaRL's `max_steps` (128). An environment is done when its step counter, incremented
+    /// at every step, equals `episode_steps - 1`, so an episode lasts at most 127 steps.
+    pub episode_steps: u32,
+    /// Start sampling.
+    pub start: StartRule,
+    /// Reset rules.
+    pub reset: ResetRule,
+}
+
+impl Default for ScenarioConfig {
+    fn default() -> Self {
+        ScenarioConfig {
+            agents: 4,
+            envs: 32,
+            episode_steps: 128,
+            start: StartRule::default(),
+            reset: ResetRule::default(),
+        }
+    }
+}
+
+/// How an agent is (re)placed: a uniformly drawn path, a uniformly drawn centre-line point
+/// index in `[first_index, floor(n / 2))`, heading along the segment starting there, steering
+/// zero, a uniform speed; redrawn (path and point) until its centre is at least `min_gap_m`
+/// from the agents already placed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StartRule {
+    /// First admissible centre-line point index (SigmaRL: 3).
+    pub first_index: usize,
+    /// Speed range [m/s], drawn uniformly in `[low, high)` (SigmaRL: `[0, 1)`).
+    pub speed_mps: (f64, f64),
+    /// Smallest centre distance to the other agents [m] (SigmaRL: 1.5 × the µCar's diagonal,
+    /// 0.36696).
+    pub min_gap_m: f64,
+    /// Draws per placement before giving up with an error (SigmaRL loops forever).
+    pub max_attempts: u32,
+}
+
+impl Default for StartRule {
+    fn default() -> Self {
+        StartRule {
+            first_index: 3,
+            speed_mps: (0.0, 1.0),
+            min_gap_m: 1.5 * 0.22f64.hypot(0.107),
+            max_attempts: 10_000,
+        }
+    }
+}
+
+/// What an event resets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ResetScope {
+    /// The whole environment ends its episode (done) and all agents are re-placed.
+    Environment,
+    /// Only the agents concerned are re-placed; the episode goes on (not done).
+    Agent,
+    /// Nothing happens.
+    None,
+}
+
+/// What ends an episode or re-places an agent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ResetRule {
+    /// On any agent-agent or agent-boundary collision (SigmaRL: the environment).
+    pub on_collision: ResetScope,
+    /// When an agent's rectangle touches its path's entry or exit line (SigmaRL: that agent,
+    /// after the step's reward and observation, which stay the pre-reset ones).
+    pub on_entry_or_exit_line: ResetScope,
+}
+
+impl Default for ResetRule {
+    fn default() -> Self {
+        ResetRule {
+            on_collision: ResetScope::Environment,
+            on_entry_or_exit_line: ResetScope::Agent,
+        }
+    }
+}
+
+/// The reward: a sum of explicit terms, then a clamp. A term that is `None` (or a penalty of
+/// 0) contributes nothing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RewardConfig {
+    /// Progress along the short-term reference points.
+    pub progress: Option<ProgressTerm>,
+    /// Penalty for being near the shared road boundaries.
+    pub near_boundary: Option<NearBoundaryTerm>,
+    /// Time-to-collision penalty for nearby agents.
+    pub near_agents_ttc: Option<TtcTerm>,
+    /// Added when the agent's rectangle crosses another agent's (SigmaRL adds its -1 twice: -2).
+    pub collide_agents: f64,
+    /// Added when the agent's rectangle crosses its shared road boundary (SigmaRL: -2).
+    pub collide_boundary: f64,
+    /// The sum is clamped to `[low, high]` (SigmaRL: `[-1, 1]`).
+    pub clamp: Option<(f64, f64)>,
+}
+
+impl Default for RewardConfig {
+    fn default() -> Self {
+        RewardConfig {
+            progress: Some(ProgressTerm::default()),
+            near_boundary: Some(NearBoundaryTerm::default()),
+            near_agents_ttc: Some(TtcTerm::default()),
+            collide_agents: -2.0,
+            collide_boundary: -2.0,
+            clamp: Some((-1.0, 1.0)),
+        }
+    }
+}
+
+/// `weight * sum_k w_k <p - p_prev, q_k - p_prev> / (max_speed * dt)`, with `q_k` the
+/// short-term reference points computed at the end of the previous step (or at the reset):
+/// centre-line points `c + 1 + k * spacing` after the closest point `c`, past the end of an
+/// open path continued along its last segment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProgressTerm {
+    /// Weight (SigmaRL's `reward_progress`: 0.1).
+    pub weight: f64,
+    /// Weights of the points, in order (SigmaRL: `linspace(1, 0.2, 3) / sum`).
+    pub point_weights: Vec<f64>,
+    /// Index spacing of the points on the centre line (SigmaRL: 2).
+    pub spacing: usize,
+}
+
+impl ProgressTerm {
+    /// SigmaRL's weights for `points` points: `linspace(1, 0.2, points)` normalised to sum 1.
+    pub fn sigmarl_weights(points: usize) -> Vec<f64> {
+        let raw: Vec<f64> = match points {
+            0 => vec![],
+            1 => vec![1.0],
+            _ => (0..points)
+                .map(|k| 1.0 - 0.8 * k as f64 / (points - 1) as f64)
+                .collect(),
+        };
+        let sum: f64 = raw.iter().sum();
+        raw.iter().map(|w| w / sum).collect()
+    }
+}
+
+impl Default for ProgressTerm {
+    fn default() -> Self {
+        ProgressTerm {
+            weight: 0.1,
+            point_weights: Self::sigmarl_weights(3),
+            spacing: 2,
+        }
+    }
+}
+
+/// `penalty * (1 - clamp(d, 0, within_m) / within_m)` with `d` the smallest of the distances
+/// of the centre (minus half the width) and of the 4 corners to the left and right shared
+/// boundaries. Agent 0's corners are those of the start of the step when the observation
+/// design lags them (SigmaRL's order of updates).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NearBoundaryTerm {
+    /// Penalty at distance 0 (SigmaRL: -0.2).
+    pub penalty: f64,
+    /// Distance where the penalty reaches 0 [m] (SigmaRL: 0.02).
+    pub within_m: f64,
+}
+
+impl Default for NearBoundaryTerm {
+    fn default() -> Self {
+        NearBoundaryTerm {
+            penalty: -0.2,
+            within_m: 0.02,
+        }
+    }
+}
+
+/// `penalty * mean_{j != i} (1 - clamp(ttc_ij, 0, horizon_s) / horizon_s)`; `ttc_ij` is the
+/// first positive root of `|p + v t| = safe_distance_m` (relative position and velocity),
+/// infinite for agents farther than `within_m`. With SigmaRL's `safe_distance_m = 0` the
+/// root exists only for a relative velocity pointing exactly at the other centre, so the
+/// term is practically always 0.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TtcTerm {
+    /// Penalty at TTC 0 (SigmaRL: -0.2).
+    pub penalty: f64,
+    /// Centre distance beyond which another agent is ignored [m] (SigmaRL: 0.3).
+    pub within_m: f64,
+    /// TTC where the penalty reaches 0 [s] (SigmaRL: 3.75).
+    pub horizon_s: f64,
+    /// Distance whose reaching counts as the collision [m] (SigmaRL: 0).
+    pub safe_distance_m: f64,
+}
+
+impl Default for TtcTerm {
+    fn default() -> Self {
+        TtcTerm {
+            penalty: -0.2,
+            within_m: 0.3,
+            horizon_s: 3.75,
+            safe_distance_m: 0.0,
+        }
+    }
+}
+
+/// A configuration the environment cannot run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConfigError {
+    #[error("a training scenario needs at least one agent and one environment")]
+    Empty,
+    #[error("a training scenario needs at least one reference path")]
+    NoPaths,
+    #[error("episode_steps must be at least 2 (an episode lasts episode_steps - 1 steps)")]
+    EpisodeTooShort,
+    #[error("reference path {id} has {points} centre-line points: no start index in [{first}, {points}/2)")]
+    NoStartPoint { id: usize, points: usize, first: usize },
+    #[error("reference path {id} is degenerate (fewer than two centre-line or boundary points)")]
+    DegeneratePath { id: usize },
+    #[error("the speed range [{low}, {high}) is empty")]
+    SpeedRange { low: f64, high: f64 },
+    #[error("{name} must be positive, found {value}")]
+    NotPositive { name: &'static str, value: f64 },
+    #[error("the clamp [{low}, {high}] is empty")]
+    Clamp { low: f64, high: f64 },
+    #[error("the progress term has no point weights")]
+    NoProgressPoints,
+    #[error("observation size {found} does not fit the layout ({expected} values expected)")]
+    Observation { found: usize, expected: usize },
+}
+
+impl EnvConfig {
+    /// Checks what the environment relies on (paths are checked when they are prepared).
+    pub fn check(&self) -> Result<(), ConfigError> {
+        let s = &self.scenario;
+        if s.agents == 0 || s.envs == 0 {
+            return Err(ConfigError::Empty);
+        }
+        if s.episode_steps < 2 {
+            return Err(ConfigError::EpisodeTooShort);
+        }
+        let (low, high) = s.start.speed_mps;
+        if low.partial_cmp(&high) != Some(std::cmp::Ordering::Less) {
+            return Err(ConfigError::SpeedRange { low, high });
+        }
+        positive("dt_s", self.dt_s)?;
+        positive("max_speed_mps", self.vehicle.max_speed_mps)?;
+        if let Some(p) = &self.reward.progress
+            && p.point_weights.is_empty()
+        {
+            return Err(ConfigError::NoProgressPoints);
+        }
+        if let Some(b) = &self.reward.near_boundary {
+            positive("near_boundary.within_m", b.within_m)?;
+        }
+        if let Some(t) = &self.reward.near_agents_ttc {
+            positive("near_agents_ttc.horizon_s", t.horizon_s)?;
+        }
+        if let Some((low, high)) = self.reward.clamp
+            && !matches!(
+                low.partial_cmp(&high),
+                Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+            )
+        {
+            return Err(ConfigError::Clamp { low, high });
+        }
+        Ok(())
+    }
+}
+
+fn positive(name: &'static str, value: f64) -> Result<(), ConfigError> {
+    if value > 0.0 && value.is_finite() {
+        Ok(())
+    } else {
+        Err(ConfigError::NotPositive { name, value })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sigmarl_progress_weights() {
+        let w = ProgressTerm::sigmarl_weights(3);
+        assert!((w[0] - 0.555_555_6).abs() < 1e-7);
+        assert!((w[1] - 0.333_333_3).abs() < 1e-7);
+        assert!((w[2] - 0.111_111_1).abs() < 1e-7);
+    }
+
+    #[test]
+    fn the_default_is_valid_and_the_min_gap_is_sigmarls() {
+        let c = EnvConfig::default();
+        assert_eq!(c.check(), Ok(()));
+        assert!((c.scenario.start.min_gap_m - 0.36696).abs() < 1e-5);
+    }
+
+    #[test]
+    fn an_empty_clamp_is_rejected() {
+        let mut c = EnvConfig::default();
+        c.reward.clamp = Some((1.0, -1.0));
+        assert!(matches!(c.check(), Err(ConfigError::Clamp { .. })));
+    }
+}

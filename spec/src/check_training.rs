@@ -1,0 +1,347 @@
+//! Meaning checks of the `training:` section and of policies that name a trained actor:
+//! the fidelity to train in, which paths the scenario uses, ranges the schema cannot relate
+//! (`lr_min` ≤ `lr`, minibatch ≤ frames, frames a multiple of the environments, speed and
+//! clamp ranges), point weights, duplicate seeds; and where a trained actor is found.
+
+use std::collections::HashSet;
+use std::path::PathBuf;
+
+use crate::check::CheckContext;
+use crate::diagnostic::Problem;
+use crate::model::{Fidelity, Spec, TrainedActor, TrainingSpec};
+use crate::paths::DataPath;
+
+/// Every check of `training:` and of `mlp: {trained}`.
+pub(crate) fn check_training(spec: &Spec, ctx: &mut CheckContext<'_>) {
+    check_trained_policies(spec, ctx);
+    let Some(training) = &spec.training else {
+        return;
+    };
+    check_fidelity(spec, training, ctx);
+    check_scenario(training, ctx);
+    check_reward(training, ctx);
+    check_algorithm(training, ctx);
+    check_network_and_seeds(training, ctx);
+}
+
+fn check_trained_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
+    for (i, p) in spec.policies.iter().enumerate() {
+        let Some(mlp) = &p.mlp else { continue };
+        let base = format!("/policies/{i}/mlp");
+        match (&mlp.weights, &mlp.trained) {
+            (Some(_), Some(_)) => {
+                let span = key_span(ctx, &format!("{base}/trained"));
+                ctx.push(
+                    Problem::error(
+                        "cpmx::check::policy-kind",
+                        format!("policy `{}` names both a weight file and a trained actor", p.name),
+                        span,
+                        "second source of weights",
+                    )
+                    .with_help("keep `weights: FILE` or `trained: {seed: N}`"),
+                );
+            }
+            (None, None) => {
+                let span = ctx.span(&base);
+                ctx.push(
+                    Problem::error(
+                        "cpmx::check::policy-kind",
+                        format!("policy `{}` has an `mlp` without weights", p.name),
+                        span,
+                        "which network?",
+                    )
+                    .with_help("add `weights: FILE`, or `trained: {seed: N}` for an actor this spec trains"),
+                );
+            }
+            (None, Some(trained)) => match &spec.training {
+                None => {
+                    let span = key_span(ctx, &format!("{base}/trained"));
+                    ctx.push(
+                        Problem::error(
+                            "cpmx::check::trained",
+                            format!(
+                                "policy `{}` names a trained actor, but the spec has no `training:`",
+                                p.name
+                            ),
+                            span,
+                            "nothing trains it",
+                        )
+                        .with_help("add a `training:` section, or name a weight file with `weights: FILE`"),
+                    );
+                }
+                Some(t) if !t.seeds.contains(&trained.seed) => {
+                    let span = ctx.span(&format!("{base}/trained/seed"));
+                    let seeds: Vec<String> = t.seeds.iter().map(u64::to_string).collect();
+                    ctx.push(
+                        Problem::error(
+                            "cpmx::check::trained",
+                            format!(
+                                "policy `{}` names seed {}, which `training.seeds` does not train",
+                                p.name, trained.seed
+                            ),
+                            span,
+                            "not a training seed",
+                        )
+                        .with_help(format!("training seeds: {}", seeds.join(", "))),
+                    );
+                }
+                Some(_) => {}
+            },
+            (Some(_), None) => {}
+        }
+    }
+}
+
+/// The key of a node when it has one (labels read better on `key:` than on a whole object).
+fn key_span(ctx: &CheckContext<'_>, pointer: &str) -> crate::diagnostic::ByteSpan {
+    let spans = ctx.spans(pointer);
+    spans.key.unwrap_or(spans.value)
+}
+
+fn check_fidelity(spec: &Spec, training: &TrainingSpec, ctx: &mut CheckContext<'_>) {
+    let name = &training.fidelity;
+    match spec.fidelities.get(name) {
+        None => {
+            let names: Vec<String> = spec.fidelities.keys().cloned().collect();
+            let span = ctx.span("/training/fidelity");
+            let p = Problem::error(
+                "cpmx::check::training-fidelity",
+                format!("`training.fidelity` names fidelity `{name}`, which the spec does not define"),
+                span,
+                "unknown fidelity",
+            );
+            ctx.push(match crate::schema::did_you_mean(name, &names) {
+                Some(best) => p.with_help(format!("did you mean `{best}`?")),
+                None => p.with_help(format!("fidelities: {} (the default is `sim`)", names.join(", "))),
+            });
+        }
+        Some(Fidelity::Lab(_)) => {
+            let span = ctx.span("/training/fidelity");
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::training-fidelity",
+                    format!("fidelity `{name}` drives the lab; policies train in simulation only"),
+                    span,
+                    "a lab driver",
+                )
+                .with_help("name a simulated fidelity of this spec (e.g. `sim`)"),
+            );
+        }
+        Some(Fidelity::Simulated(_)) => {}
+    }
+}
+
+fn check_scenario(training: &TrainingSpec, ctx: &mut CheckContext<'_>) {
+    let s = &training.scenario;
+    let given = usize::from(s.path_set.is_some())
+        + usize::from(s.ref_paths.is_some())
+        + usize::from(s.region.is_some());
+    if given == 0 || s.ref_paths.as_ref().is_some_and(Vec::is_empty) {
+        let span = match &s.ref_paths {
+            Some(_) => ctx.span("/training/scenario/ref_paths"),
+            None => key_span(ctx, "/training/scenario"),
+        };
+        ctx.push(
+            Problem::error(
+                "cpmx::check::training-paths",
+                "the training scenario names no reference paths",
+                span,
+                "agents have nowhere to drive",
+            )
+            .with_help("add `path_set: intersection` (SigmaRL's), `ref_paths: [IDS]` or `region: NAME`"),
+        );
+    } else if given > 1 {
+        let span = key_span(ctx, "/training/scenario");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::training-paths",
+                "the training scenario names its paths more than once",
+                span,
+                "`path_set`, `ref_paths` and `region` exclude each other",
+            )
+            .with_help("keep one of `path_set`, `ref_paths` and `region`"),
+        );
+    }
+    let [low, high] = s.start.speed_mps;
+    if low.partial_cmp(&high) != Some(std::cmp::Ordering::Less) {
+        let span = ctx.span("/training/scenario/start/speed_mps");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::range",
+                format!("the start speed range [{low}, {high}) is empty"),
+                span,
+                "low must be below high",
+            )
+            .with_help("e.g. `speed_mps: [0, 1]` (SigmaRL: U[0, 1) m/s)"),
+        );
+    }
+}
+
+fn check_reward(training: &TrainingSpec, ctx: &mut CheckContext<'_>) {
+    let r = &training.reward;
+    if let Some([low, high]) = r.clamp
+        && !matches!(
+            low.partial_cmp(&high),
+            Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+        )
+    {
+        let span = ctx.span("/training/reward/clamp");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::range",
+                format!("the reward clamp [{low}, {high}] is empty"),
+                span,
+                "low above high",
+            )
+            .with_help("e.g. `clamp: [-1, 1]`"),
+        );
+    }
+    if let Some(p) = &r.progress
+        && let Some(w) = &p.point_weights
+        && w.len() != p.points as usize
+    {
+        let span = ctx.span("/training/reward/progress/point_weights");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::reward",
+                format!("{} point weights for {} progress points", w.len(), p.points),
+                span,
+                format!("{} weights", w.len()),
+            )
+            .with_help("give one weight per point, or leave `point_weights` out for SigmaRL's"),
+        );
+    }
+    let any = r.progress.is_some()
+        || r.near_boundary.is_some()
+        || r.near_agents_ttc.is_some()
+        || r.collide_agents.is_some()
+        || r.collide_boundary.is_some();
+    if !any {
+        let span = key_span(ctx, "/training/reward");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::reward",
+                "the reward has no terms",
+                span,
+                "always 0",
+            )
+            .with_help("add terms (`progress`, `near_boundary`, `near_agents_ttc`, `collide_agents`, `collide_boundary`), or use `stdlib:sigmarl`"),
+        );
+    }
+}
+
+fn check_algorithm(training: &TrainingSpec, ctx: &mut CheckContext<'_>) {
+    let m = &training.algorithm.mappo;
+    if m.lr_min > m.lr {
+        let span = ctx.span("/training/algorithm/mappo/lr_min");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::range",
+                format!("`lr_min` = {} exceeds `lr` = {}", m.lr_min, m.lr),
+                span,
+                "lr_min > lr",
+            )
+            .with_help("the learning rate decays from `lr` towards `lr_min`: lr_min ≤ lr"),
+        );
+    }
+    if m.minibatch > m.frames_per_iteration {
+        let span = ctx.span("/training/algorithm/mappo/minibatch");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::range",
+                format!(
+                    "a minibatch of {} env-steps exceeds the {} collected per iteration",
+                    m.minibatch, m.frames_per_iteration
+                ),
+                span,
+                "minibatch > frames_per_iteration",
+            )
+            .with_help("minibatches are drawn from one iteration's batch: minibatch ≤ frames_per_iteration"),
+        );
+    }
+    let envs = training.scenario.envs;
+    if envs > 0 && !m.frames_per_iteration.is_multiple_of(envs) {
+        let span = ctx.span("/training/algorithm/mappo/frames_per_iteration");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::range",
+                format!(
+                    "{} frames per iteration do not split evenly over {} environments",
+                    m.frames_per_iteration, envs
+                ),
+                span,
+                "not a multiple of `envs`",
+            )
+            .with_help(format!(
+                "every environment collects the same number of steps: use a multiple of {envs}"
+            )),
+        );
+    }
+}
+
+fn check_network_and_seeds(training: &TrainingSpec, ctx: &mut CheckContext<'_>) {
+    for (i, width) in training.network.hidden.iter().enumerate() {
+        if *width == 0 {
+            let span = ctx.span(&format!("/training/network/hidden/{i}"));
+            ctx.push(Problem::error(
+                "cpmx::check::network",
+                "a hidden layer of width 0",
+                span,
+                "no units",
+            ));
+        }
+    }
+    let mut seen = HashSet::new();
+    for (i, seed) in training.seeds.iter().enumerate() {
+        if !seen.insert(seed) {
+            let span = ctx.span(&format!("/training/seeds/{i}"));
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::duplicate-name",
+                    format!("seed {seed} is listed twice"),
+                    span,
+                    "second use",
+                )
+                .with_help("each seed trains one policy into its own folder"),
+            );
+        }
+    }
+}
+
+/// The actor a policy's `mlp: {trained}` names: on the data path, then in the current
+/// directory (where `cpmx train` writes by default). Missing is a warning, not an error, so
+/// that the spec can be planned and trained first; `cpmx run` then refuses the policy.
+pub(crate) fn find_trained(
+    spec: &Spec,
+    i: usize,
+    trained: &TrainedActor,
+    data: &DataPath,
+    ctx: &mut CheckContext<'_>,
+) -> Option<PathBuf> {
+    let file = trained.relative_file(&spec.name);
+    match data.find(&file) {
+        Ok(path) => Some(path),
+        Err(_) if PathBuf::from(&file).is_file() => Some(PathBuf::from(&file)),
+        Err(mut tried) => {
+            tried.push(PathBuf::from(&file));
+            let spans = ctx.spans(&format!("/policies/{i}/mlp/trained"));
+            let places: Vec<String> = tried.iter().map(|p| format!("  {}", p.display())).collect();
+            ctx.push(
+                Problem::warning(
+                    "cpmx::check::not-trained",
+                    format!(
+                        "policy `{}` names the actor trained with seed {}, which is not there yet",
+                        spec.policies[i].name, trained.seed
+                    ),
+                    spans.key.unwrap_or(spans.value),
+                    "not trained yet",
+                )
+                .with_help(format!(
+                    "looked for `{file}` in:\n{}\nrun `cpmx train` first (`cpmx run` refuses this policy until then)",
+                    places.join("\n")
+                )),
+            );
+            None
+        }
+    }
+}

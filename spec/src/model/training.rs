@@ -1,0 +1,303 @@
+//! The `training:` section: how `cpmx train` trains the policies the spec evaluates — the
+//! fidelity to train in, the scenario, the reward as explicit terms, the algorithm and its
+//! hyperparameters, the network, iterations and seeds. `cpmx run` ignores it.
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use super::{ObservationSpec, PresetOr};
+
+/// How to train the spec's policies: one policy per seed (`cpmx train`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TrainingSpec {
+    /// The fidelity of this spec to train in: a simulated stack, never a lab driver.
+    /// Default: `sim`.
+    #[serde(default = "default_fidelity")]
+    pub fidelity: String,
+    /// Where the agents train: reference paths, agents, parallel environments, episode
+    /// length, start sampling and reset rules. SigmaRL's: `stdlib:sigmarl-intersection`.
+    #[schemars(with = "PresetOr<TrainingScenario>")]
+    pub scenario: TrainingScenario,
+    /// The reward, term by term; a term that is left out contributes nothing.
+    /// SigmaRL's: `stdlib:sigmarl`.
+    #[schemars(with = "PresetOr<RewardSpec>")]
+    pub reward: RewardSpec,
+    /// The learning algorithm and its hyperparameters. SigmaRL's: `stdlib:mappo-sigmarl`.
+    #[schemars(with = "PresetOr<AlgorithmSpec>")]
+    pub algorithm: AlgorithmSpec,
+    /// The actor network (the critic is centralised over all agents' observations, with the
+    /// same hidden layers). Default: SigmaRL's, `{hidden: [256, 256, 256], activation: tanh}`.
+    #[serde(default)]
+    pub network: NetworkSpec,
+    /// The observation design the policy is trained with. Default: `stdlib:sigmarl`.
+    #[schemars(with = "PresetOr<ObservationSpec>")]
+    pub observation: ObservationSpec,
+    /// Training iterations per seed (SigmaRL: 1000).
+    #[schemars(range(min = 1, max = 1000000))]
+    pub iterations: u32,
+    /// One policy per seed: the training runs of `cpmx train`, written to
+    /// `<out>/<seed>/` (default `<out>`: `out/<name>-train`).
+    #[schemars(length(min = 1))]
+    pub seeds: Vec<u64>,
+}
+
+fn default_fidelity() -> String {
+    "sim".to_owned()
+}
+
+/// The training scenario. Exactly one of `path_set`, `ref_paths` and `region` says which
+/// reference paths agents are placed on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TrainingScenario {
+    /// One of SigmaRL's path sets of the CPM Lab map, numbered as SigmaRL numbers them
+    /// (`intersection`: the 24 open paths through the central intersection).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub path_set: Option<PathSetName>,
+    /// Reference path ids of the spec's map (its own numbering and `map.ref_paths`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ref_paths: Option<Vec<u32>>,
+    /// Every reference path of the spec's map that runs through this region.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub region: Option<String>,
+    /// Agents per environment (SigmaRL: 4).
+    #[schemars(range(min = 1, max = 64))]
+    pub agents: u32,
+    /// Parallel environments (SigmaRL: 32).
+    #[schemars(range(min = 1, max = 65536))]
+    pub envs: u32,
+    /// SigmaRL's `max_steps`: an environment is done when its step counter reaches
+    /// `episode_steps - 1` (so SigmaRL's 128 gives episodes of at most 127 steps), and the
+    /// time limit counts as a termination.
+    #[schemars(range(min = 2, max = 1000000))]
+    pub episode_steps: u32,
+    /// How agents are (re)placed.
+    pub start: TrainingStart,
+    /// What collisions and the entry/exit lines reset.
+    pub reset: TrainingReset,
+}
+
+/// SigmaRL's path sets of the CPM Lab map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum PathSetName {
+    /// The 40 loops (`cpm_entire`, ids 0..39): the numbering the rest of a spec uses.
+    Entire,
+    /// The 24 open intersection paths (`cpm_mixed` scenario 1, ids 0..23).
+    Intersection,
+    /// The 4 merge-in paths (ids 0..3).
+    MergeIn,
+    /// The 4 merge-out paths (ids 0..3).
+    MergeOut,
+}
+
+/// Start sampling: a uniformly drawn path, a uniformly drawn centre-line point index in
+/// `[first_index, floor(n / 2))`, heading along the path, steering 0, a uniform speed;
+/// redrawn until the centre is `min_gap_m` from the agents already placed (at a whole reset
+/// those before it, at a single-agent reset all others).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TrainingStart {
+    /// First admissible centre-line point index (SigmaRL: 3).
+    #[schemars(range(min = 0, max = 100000))]
+    pub first_index: u32,
+    /// Speed range [m/s], `[low, high)`, low < high (SigmaRL: `[0, 1]`, i.e. U[0, 1)).
+    pub speed_mps: [f64; 2],
+    /// Smallest centre distance to other agents at placement [m] (SigmaRL: 1.5 × the µCar's
+    /// diagonal, 0.36696).
+    #[schemars(range(min = 0))]
+    pub min_gap_m: f64,
+}
+
+/// What collisions and the entry/exit lines reset.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TrainingReset {
+    /// On any agent-agent or agent-boundary collision (SigmaRL: `environment`).
+    pub on_collision: ResetScopeName,
+    /// When an agent touches its path's entry or exit line (SigmaRL: `agent`, after the
+    /// step's reward and observation, which stay the pre-reset ones).
+    pub on_entry_or_exit_line: ResetScopeName,
+}
+
+/// What an event resets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum ResetScopeName {
+    /// The episode of the whole environment ends (done) and every agent is re-placed.
+    Environment,
+    /// The agent alone is re-placed; the episode goes on.
+    Agent,
+    /// Nothing.
+    None,
+}
+
+/// The reward: the sum of the terms given, then the clamp.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RewardSpec {
+    /// Progress towards the short-term reference points:
+    /// `weight × Σ_k w_k ⟨p − p_prev, q_k − p_prev⟩ / (max speed × dt)`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub progress: Option<ProgressSpec>,
+    /// `penalty × (1 − clamp(d, 0, within_m) / within_m)`, `d` the smallest distance of the
+    /// centre (minus half the width) and the 4 corners to the shared road boundaries.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub near_boundary: Option<NearBoundarySpec>,
+    /// `penalty × mean_j (1 − clamp(TTC_ij, 0, horizon_s) / horizon_s)` over the other agents
+    /// within `within_m` (SigmaRL's, which is practically always 0: see `safe_distance_m`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub near_agents_ttc: Option<TtcSpec>,
+    /// Added when the agent's rectangle crosses another agent's (SigmaRL adds its -1 twice: -2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub collide_agents: Option<f64>,
+    /// Added when the agent's rectangle crosses its road's boundaries (SigmaRL: -2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub collide_boundary: Option<f64>,
+    /// The sum is clamped to `[low, high]` (SigmaRL: `[-1, 1]`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clamp: Option<[f64; 2]>,
+}
+
+/// The progress term.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ProgressSpec {
+    /// Weight (SigmaRL's `reward_progress`: 0.1).
+    pub weight: f64,
+    /// Number of short-term reference points (SigmaRL: 3).
+    #[schemars(range(min = 1, max = 32))]
+    pub points: u32,
+    /// Index spacing of the points on the centre line (SigmaRL: 2). Default: 2.
+    #[serde(default = "default_spacing")]
+    #[schemars(range(min = 1, max = 32))]
+    pub spacing: u32,
+    /// Weights of the points; one per point. Default: SigmaRL's `linspace(1, 0.2, points)`
+    /// normalised to sum 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub point_weights: Option<Vec<f64>>,
+}
+
+fn default_spacing() -> u32 {
+    2
+}
+
+/// The near-boundary penalty.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct NearBoundarySpec {
+    /// Penalty at distance 0 (SigmaRL: -0.2).
+    pub penalty: f64,
+    /// Distance where the penalty reaches 0 [m] (SigmaRL: 0.02).
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub within_m: f64,
+}
+
+/// The time-to-collision penalty.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TtcSpec {
+    /// Penalty at TTC 0 (SigmaRL: -0.2).
+    pub penalty: f64,
+    /// Other agents farther than this centre distance are ignored [m] (SigmaRL: 0.3).
+    #[schemars(range(min = 0))]
+    pub within_m: f64,
+    /// TTC where the penalty reaches 0 [s] (SigmaRL: 3.75).
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub horizon_s: f64,
+    /// The TTC is the time until the centres are this close [m]. Default 0 (SigmaRL's
+    /// setting, under which a TTC exists only when the relative velocity points exactly at
+    /// the other centre).
+    #[serde(default)]
+    #[schemars(range(min = 0))]
+    pub safe_distance_m: f64,
+}
+
+/// The learning algorithm. Only `mappo` exists.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AlgorithmSpec {
+    /// Multi-agent PPO with a centralised critic, as SigmaRL trains.
+    pub mappo: MappoSpec,
+}
+
+/// MAPPO's hyperparameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MappoSpec {
+    /// Env-steps collected per iteration (over all environments; SigmaRL: 4096 = 32 × 128);
+    /// a multiple of the scenario's `envs`.
+    #[schemars(range(min = 1, max = 100000000))]
+    pub frames_per_iteration: u32,
+    /// Env-steps per minibatch (SigmaRL: 512); at most `frames_per_iteration`.
+    #[schemars(range(min = 1, max = 100000000))]
+    pub minibatch: u32,
+    /// Passes over each iteration's batch (SigmaRL: 30).
+    #[schemars(range(min = 1, max = 10000))]
+    pub epochs: u32,
+    /// Learning rate of the first iterations (SigmaRL: 1e-4), decaying linearly towards
+    /// `lr_min` with SigmaRL's one-iteration lag.
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub lr: f64,
+    /// Learning rate the schedule decays towards (SigmaRL: 1e-5); at most `lr`.
+    #[schemars(range(min = 0))]
+    pub lr_min: f64,
+    /// PPO's ratio clip ε (SigmaRL: 0.2).
+    #[schemars(extend("exclusiveMinimum" = 0, "exclusiveMaximum" = 1))]
+    pub clip: f64,
+    /// Discount (SigmaRL: 0.99).
+    #[schemars(range(min = 0, max = 1))]
+    pub gamma: f64,
+    /// GAE λ (SigmaRL: 0.9).
+    #[schemars(range(min = 0, max = 1))]
+    pub lambda: f64,
+    /// Entropy coefficient (SigmaRL: 5e-4).
+    #[schemars(range(min = 0))]
+    pub entropy: f64,
+    /// Global L2 norm the joint actor and critic gradient is clipped to (SigmaRL: 1.0).
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub max_grad_norm: f64,
+    /// The critic's loss (SigmaRL: `smooth-l1`).
+    pub value_loss: ValueLoss,
+}
+
+/// The critic's loss.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum ValueLoss {
+    /// Huber loss with β = 1 (SigmaRL).
+    SmoothL1,
+    /// Squared error.
+    Mse,
+}
+
+/// The actor's hidden layers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct NetworkSpec {
+    /// Widths of the hidden layers (SigmaRL: `[256, 256, 256]`).
+    #[schemars(length(min = 1, max = 16))]
+    pub hidden: Vec<u32>,
+    /// Activation after each hidden layer (SigmaRL: `tanh`).
+    pub activation: Activation,
+}
+
+impl Default for NetworkSpec {
+    fn default() -> Self {
+        NetworkSpec {
+            hidden: vec![256, 256, 256],
+            activation: Activation::Tanh,
+        }
+    }
+}
+
+/// Activations.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum Activation {
+    /// Hyperbolic tangent (SigmaRL).
+    Tanh,
+    /// Rectified linear unit.
+    Relu,
+}

@@ -1,0 +1,226 @@
+//! The `training:` section: presets expand to SigmaRL's setup, the plan lists one training
+//! run per seed, and each class of mistake gets a located diagnostic (snapshot-tested).
+
+use std::path::{Path, PathBuf};
+
+use cpmx_spec::model::{Fidelity, PathSetName, ResetScopeName, ValueLoss};
+use cpmx_spec::{CheckContext, DataPath, InterpreterChecks, Resources, Spec, SpecDiagnostic, SpecSource};
+
+/// Stands in for the interpreter: runs everything, checks nothing more.
+struct Everything;
+
+impl InterpreterChecks for Everything {
+    fn cannot_run(&self, _: &Fidelity) -> Option<String> {
+        None
+    }
+    fn check(&self, _: &Spec, _: &Resources, _: &mut CheckContext<'_>) {}
+}
+
+const VALID: &str = "\
+cpmx: 1
+name: demo
+map: stdlib:intersection
+timing: {dt: 0.1, steps: 20}
+agents: 2
+policies:
+  - {name: base, builtin: lane-follow}
+initial_configurations:
+  - sample: {count: 1, seed: 3, min_gap: 0.5}
+repetitions: 1
+seed: 5
+fidelities:
+  sim: {control: direct, dynamics: kinematic}
+  lab: {driver: cpm-dds, domain: 21, vehicle_ids: [1, 2]}
+planner: {control_horizon: 4, prediction_horizon: 12}
+training:
+  scenario: stdlib:sigmarl-intersection
+  reward: stdlib:sigmarl
+  algorithm: stdlib:mappo-sigmarl
+  iterations: 1000
+  seeds: [1, 2, 3]
+";
+
+fn check(text: &str) -> Result<cpmx_spec::CheckedSpec, Vec<SpecDiagnostic>> {
+    let source = SpecSource {
+        name: "spec.yaml".into(),
+        dir: PathBuf::from("/nonexistent"),
+        text: text.into(),
+    };
+    let data = DataPath::new(Path::new("/nonexistent"), &[], None);
+    cpmx_spec::check(&source, &data, &Everything)
+}
+
+fn edit(from: &str, to: &str) -> String {
+    assert!(VALID.contains(from), "{from:?} is not in the base spec");
+    VALID.replacen(from, to, 1)
+}
+
+fn diagnose(text: &str, line: usize, column: usize) -> String {
+    let diagnostics = check(text).expect_err("the spec should be rejected");
+    assert_eq!(
+        (diagnostics[0].line, diagnostics[0].column),
+        (line, column),
+        "{}",
+        cpmx_spec::render(&diagnostics, false)
+    );
+    cpmx_spec::render(&diagnostics, false)
+}
+
+macro_rules! case {
+    ($name:ident, $text:expr, $line:expr, $column:expr) => {
+        #[test]
+        fn $name() {
+            insta::assert_snapshot!(diagnose(&$text, $line, $column));
+        }
+    };
+}
+
+#[test]
+fn the_presets_are_sigmarls_setup_and_the_plan_has_one_run_per_seed() {
+    let checked = check(VALID).unwrap();
+    let t = checked.spec.training.as_ref().unwrap();
+    assert_eq!(t.fidelity, "sim");
+    let s = &t.scenario;
+    assert_eq!(s.path_set, Some(PathSetName::Intersection));
+    assert_eq!((s.agents, s.envs, s.episode_steps), (4, 32, 128));
+    assert_eq!(
+        (s.start.first_index, s.start.speed_mps, s.start.min_gap_m),
+        (3, [0.0, 1.0], 0.36696082897224874)
+    );
+    assert_eq!(s.reset.on_collision, ResetScopeName::Environment);
+    assert_eq!(s.reset.on_entry_or_exit_line, ResetScopeName::Agent);
+    let r = &t.reward;
+    let progress = r.progress.as_ref().unwrap();
+    assert_eq!((progress.weight, progress.points, progress.spacing), (0.1, 3, 2));
+    assert_eq!(r.near_boundary.as_ref().unwrap().within_m, 0.02);
+    assert_eq!(r.near_agents_ttc.as_ref().unwrap().horizon_s, 3.75);
+    assert_eq!(
+        (r.collide_agents, r.collide_boundary, r.clamp),
+        (Some(-2.0), Some(-2.0), Some([-1.0, 1.0]))
+    );
+    let m = &t.algorithm.mappo;
+    assert_eq!((m.frames_per_iteration, m.minibatch, m.epochs), (4096, 512, 30));
+    assert_eq!(
+        (m.lr, m.lr_min, m.clip, m.gamma, m.lambda),
+        (1e-4, 1e-5, 0.2, 0.99, 0.9)
+    );
+    assert_eq!(
+        (m.entropy, m.max_grad_norm, m.value_loss),
+        (5e-4, 1.0, ValueLoss::SmoothL1)
+    );
+    assert_eq!(t.network.hidden, vec![256, 256, 256]);
+    assert_eq!(
+        t.observation.observed_agents, 2,
+        "observation defaults to stdlib:sigmarl"
+    );
+    let plan = checked.training_plan();
+    let keys: Vec<&str> = plan.iter().map(|p| p.key.as_str()).collect();
+    assert_eq!(keys, ["train/1", "train/2", "train/3"]);
+    // The run matrix does not change.
+    assert_eq!(checked.plan().len(), 2);
+}
+
+#[test]
+fn overrides_and_trained_policies() {
+    let text = edit(
+        "  reward: stdlib:sigmarl\n",
+        "  reward: {extends: stdlib:sigmarl, clamp: [-2, 2]}\n",
+    )
+    .replace(
+        "  - {name: base, builtin: lane-follow}\n",
+        "  - {name: base, builtin: lane-follow}\n  - {name: seed2, mlp: {trained: {seed: 2}}}\n",
+    );
+    let checked = check(&text).unwrap();
+    assert_eq!(
+        checked.spec.training.as_ref().unwrap().reward.clamp,
+        Some([-2.0, 2.0])
+    );
+    // Not trained yet: a warning, and the policy has no weights.
+    assert_eq!(checked.warnings.len(), 1);
+    assert!(checked.warnings[0].to_string().contains("seed 2"));
+    assert_eq!(checked.resources.weights[1], None);
+    let trained = checked.spec.policies[1]
+        .mlp
+        .as_ref()
+        .unwrap()
+        .trained
+        .as_ref()
+        .unwrap();
+    assert_eq!(
+        trained.relative_file("demo"),
+        "out/demo-train/2/actor.safetensors"
+    );
+}
+
+case!(
+    unknown_reward_term,
+    edit(
+        "  reward: stdlib:sigmarl\n",
+        "  reward: {extends: stdlib:sigmarl, speed_bonus: 0.1}\n"
+    ),
+    18,
+    37
+);
+case!(
+    scenario_without_paths,
+    edit(
+        "  scenario: stdlib:sigmarl-intersection\n",
+        "  scenario: {agents: 4, envs: 8, episode_steps: 128, start: {first_index: 3, speed_mps: [0, 1], min_gap_m: 0.4},\n    reset: {on_collision: environment, on_entry_or_exit_line: agent}}\n"
+    ),
+    17,
+    3
+);
+case!(
+    negative_learning_rate,
+    edit(
+        "  algorithm: stdlib:mappo-sigmarl\n",
+        "  algorithm: {extends: stdlib:mappo-sigmarl, mappo: {lr: -1.0e-4}}\n"
+    ),
+    19,
+    58
+);
+case!(
+    lr_min_above_lr,
+    edit(
+        "  algorithm: stdlib:mappo-sigmarl\n",
+        "  algorithm: {extends: stdlib:mappo-sigmarl, mappo: {lr_min: 1.0e-3}}\n"
+    ),
+    19,
+    62
+);
+case!(
+    minibatch_above_frames,
+    edit(
+        "  algorithm: stdlib:mappo-sigmarl\n",
+        "  algorithm: {extends: stdlib:mappo-sigmarl, mappo: {minibatch: 8192}}\n"
+    ),
+    19,
+    65
+);
+case!(
+    lab_fidelity,
+    edit("training:\n", "training:\n  fidelity: lab\n"),
+    17,
+    13
+);
+case!(
+    unknown_fidelity,
+    edit("training:\n", "training:\n  fidelity: simm\n"),
+    17,
+    13
+);
+case!(
+    trained_seed_not_trained,
+    edit(
+        "  - {name: base, builtin: lane-follow}\n",
+        "  - {name: base, builtin: lane-follow}\n  - {name: s9, mlp: {trained: {seed: 9}}}\n"
+    ),
+    8,
+    38
+);
+case!(
+    duplicate_seed,
+    edit("seeds: [1, 2, 3]", "seeds: [1, 2, 1]"),
+    21,
+    17
+);
