@@ -383,7 +383,8 @@ fn emulator_scenario(python: &Path, deadline: Instant) {
     let (_, rows) = stored_run(&dir);
     assert_same_times(&times(&rows), &seen, "recording vs ticks RTI read");
 
-    // What RTI decoded is what the driver decoded: the last tick's positions.
+    // What RTI decoded is what the driver decoded: the last tick's positions, which the driver
+    // records moved by the state's velocity over its age (|velocity| = |speed|).
     let final_poses = read["final_poses"].as_object().expect("final_poses");
     let last_t = *seen.last().expect("ticks");
     for (agent, id) in VEHICLE_IDS.split(',').enumerate() {
@@ -393,9 +394,12 @@ fn emulator_scenario(python: &Path, deadline: Instant) {
             .find(|r| (r[0] - last_t).abs() < 1e-9 && r[1] == agent as f64)
             .unwrap_or_else(|| panic!("agent {agent} at {last_t} s not recorded"));
         let (x, y) = (pose[0].as_f64().expect("x"), pose[1].as_f64().expect("y"));
+        let (speed, age_s) = (pose[2].as_f64().expect("speed"), pose[3].as_f64().expect("age"));
+        let moved_m = (recorded[2] - x).hypot(recorded[3] - y);
         assert!(
-            (recorded[2] - x).abs() < 1e-9 && (recorded[3] - y).abs() < 1e-9,
-            "vehicle {id}: RTI read ({x}, {y}), the driver recorded ({}, {})",
+            (moved_m - speed.abs() * age_s).abs() < 1e-6,
+            "vehicle {id}: RTI read ({x}, {y}) at {speed} m/s, {age_s} s old; the driver recorded ({}, {}), \
+             {moved_m} m away",
             recorded[2],
             recorded[3]
         );

@@ -135,6 +135,8 @@ def listen(connector, ids, args, deadline):
         "ticks_ns": expected,
         "announced": announced,
         "trajectories": len(answered),
+        # x, y [m], speed [m/s] and the state's age at the last tick [s]: the driver records
+        # each state moved by its velocity over its age.
         "final_poses": {str(v): previous[v] for v in ids},
     }
 
@@ -145,7 +147,7 @@ STATE_VALID_AFTER_NS = 60_000_000
 
 
 def check_list(state_list, k, t_now, ids, period_ms):
-    """Checks one VehicleStateList; returns each vehicle's (x, y)."""
+    """Checks one VehicleStateList; returns each vehicle's (x, y, speed, age at the tick [s])."""
     where = f"tick {k}"
     if state_list["period_ms"] != period_ms:
         fail(f"{where}: period_ms {state_list['period_ms']}, expected {period_ms}")
@@ -171,7 +173,7 @@ def check_list(state_list, k, t_now, ids, period_ms):
             fail(f"{where}: vehicle {vid} steering servo {s['steering_servo']} outside [-1, 1]")
         if s["is_real"]:
             fail(f"{where}: vehicle {vid} claims to be a real vehicle")
-        poses[vid] = (pose["x"], pose["y"])
+        poses[vid] = (pose["x"], pose["y"], s["speed"], (t_now - create) / 1e9)
     return poses
 
 
