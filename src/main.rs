@@ -55,6 +55,8 @@ enum Command {
     },
     /// Execute the run matrix and write the run folder.
     Run(commands::run::RunArgs),
+    /// Train one policy per seed of the spec's `training:` section (MAPPO, as SigmaRL).
+    Train(commands::train::TrainArgs),
     /// Recompute and summarise stored runs (several folders merge).
     Report(commands::report::ReportArgs),
     /// The spec's metrics of a recording made elsewhere, as JSON (needs only the spec's map).
@@ -91,6 +93,7 @@ fn main() -> ExitCode {
         Command::Validate { specs, data } => commands::validate::run(&specs, &data),
         Command::Plan { spec, format, data } => commands::plan::run(&spec, format, &data),
         Command::Run(args) => commands::run::run(&args),
+        Command::Train(args) => commands::train::run(&args),
         Command::Report(args) => commands::report::run(&args),
         Command::Evaluate {
             spec,

@@ -1,35 +1,16 @@
 //! The command line across crates: validate the shipped specs, plan the paper's design, the
 //! schema file, exit codes, and identical run folders for any thread count.
 
+mod support;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+use support::{files, reference, root};
 
-fn reference() -> PathBuf {
-    let dir = root().join("../shared/reference");
-    assert!(
-        dir.is_dir(),
-        "SigmaRL's reference data must be at {}",
-        dir.display()
-    );
-    dir
-}
-
-/// `cpmx ARGS` in the repository, with the reference data on `CPMX_DATA` when it is there
-/// (tests that need it call [`reference`] first, so they say what is missing).
+/// `cpmx ARGS` in the repository with the reference data on `CPMX_DATA`.
 fn cpmx(args: &[&str]) -> Output {
-    let mut command = Command::new(env!("CARGO_BIN_EXE_cpmx"));
-    command.args(args).current_dir(root());
-    let data = root().join("../shared/reference");
-    if data.is_dir() {
-        command.env("CPMX_DATA", data);
-    } else {
-        command.env_remove("CPMX_DATA");
-    }
-    command.output().expect("cpmx runs")
+    support::cpmx_with_data(args)
 }
 
 fn shipped_specs() -> Vec<String> {
@@ -135,26 +116,6 @@ fn exit_codes_follow_the_cli_contract() {
         Some(2)
     );
     std::fs::remove_dir_all(&dir).ok();
-}
-
-fn files(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for entry in std::fs::read_dir(&d).unwrap() {
-            let path = entry.unwrap().path();
-            if path.is_dir() {
-                stack.push(path);
-            } else {
-                out.push((
-                    path.strip_prefix(dir).unwrap().to_path_buf(),
-                    std::fs::read(&path).unwrap(),
-                ));
-            }
-        }
-    }
-    out.sort();
-    out
 }
 
 /// Runs `spec` with one and with two threads and asserts that every file is identical.

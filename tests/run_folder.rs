@@ -2,64 +2,15 @@
 //! nothing, another spec is refused without `--force`, a hand-edited resolved spec is caught,
 //! and a folder reports the same wherever it and its data move (files are pinned by hash).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod support;
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+use std::path::Path;
 
-fn reference() -> PathBuf {
-    let dir = root().join("../shared/reference");
-    assert!(
-        dir.is_dir(),
-        "SigmaRL's reference data must be at {}",
-        dir.display()
-    );
-    dir
-}
+use support::{cpmx, files, ok, reference, root};
 
-/// `cpmx ARGS` in the repository, without `CPMX_DATA`.
-fn cpmx(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cpmx"))
-        .args(args)
-        .current_dir(root())
-        .env_remove("CPMX_DATA")
-        .output()
-        .expect("cpmx runs")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("cpmx-folder-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// Every file of a folder with its bytes, sorted by path.
-fn files(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for entry in std::fs::read_dir(&d).unwrap() {
-            let path = entry.unwrap().path();
-            if path.is_dir() {
-                stack.push(path);
-            } else {
-                out.push((
-                    path.strip_prefix(dir).unwrap().to_path_buf(),
-                    std::fs::read(&path).unwrap(),
-                ));
-            }
-        }
-    }
-    out.sort();
-    out
-}
-
-fn ok(out: &Output) -> String {
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8(out.stdout.clone()).unwrap()
+/// A scratch folder of this file's tests.
+fn scratch(name: &str) -> std::path::PathBuf {
+    support::scratch(&format!("folder-{name}"))
 }
 
 #[test]

@@ -6,6 +6,7 @@ pub mod plan;
 pub mod report;
 pub mod run;
 pub mod stdlib;
+pub mod train;
 pub mod validate;
 
 use std::io::IsTerminal;
@@ -28,6 +29,17 @@ pub enum Failure {
 
 /// Reads and checks a spec; on failure prints every diagnostic to stderr.
 pub fn load_checked(path: &Path, data: &DataArgs) -> Result<CheckedSpec, Failure> {
+    load_checked_for(path, data, cpmx_spec::CheckScope::Run, &[])
+}
+
+/// [`load_checked`] for a purpose (`scope`), leaving out warnings with the codes in `quiet`
+/// (e.g. `cpmx train` does not warn that what it is about to train is not there yet).
+pub fn load_checked_for(
+    path: &Path,
+    data: &DataArgs,
+    scope: cpmx_spec::CheckScope,
+    quiet: &[&str],
+) -> Result<CheckedSpec, Failure> {
     let source = match SpecSource::read(path) {
         Ok(source) => source,
         Err(e) => {
@@ -38,10 +50,16 @@ pub fn load_checked(path: &Path, data: &DataArgs) -> Result<CheckedSpec, Failure
     let cpmx_data = std::env::var("CPMX_DATA").ok();
     let data_path = DataPath::new(&source.dir, &data.data, cpmx_data.as_deref());
     let colour = std::io::stderr().is_terminal();
-    match cpmx_spec::check(&source, &data_path, &cpmx_engine::BuildChecks) {
+    match cpmx_spec::check_scoped(&source, &data_path, &cpmx_engine::BuildChecks, scope) {
         Ok(checked) => {
-            if !checked.warnings.is_empty() {
-                eprint!("{}", cpmx_spec::render(&checked.warnings, colour));
+            let warnings: Vec<_> = checked
+                .warnings
+                .iter()
+                .filter(|w| !quiet.contains(&w.problem.code))
+                .cloned()
+                .collect();
+            if !warnings.is_empty() {
+                eprint!("{}", cpmx_spec::render(&warnings, colour));
             }
             Ok(checked)
         }

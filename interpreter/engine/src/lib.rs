@@ -19,7 +19,7 @@ mod twin;
 pub use checks::BuildChecks;
 pub use engine::{Engine, RunError, RunInputs, engine_for};
 pub use experiment::{
-    Experiment, PrepareError, PreparedPolicy, Scoring, load_map, load_map_spec, metrics_config,
+    Experiment, PrepareError, PreparedPolicy, Scoring, load_map, load_map_spec, metrics_config, observation,
     vehicle_params,
 };
 pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, measure_recording, simulate};

@@ -1,6 +1,6 @@
 //! The bridge from a spec's `training:` section to an [`EnvConfig`] and the path set agents
 //! are placed on. The observation design and the vehicle come in already converted (the
-//! engine owns those conversions: `cpmx_engine::experiment::observation`).
+//! engine owns those conversions: `cpmx_engine::observation`).
 
 use cpmx_policy::SigmarlObservation;
 use cpmx_spec::model::{PathSetName, ResetScopeName, TrainingSpec};

@@ -26,6 +26,7 @@ mod paths;
 mod result;
 mod reward;
 mod starts;
+mod state;
 mod vec_env;
 
 use std::path::Path;

@@ -183,6 +183,38 @@ impl VecEnv {
         self.envs[env].agents.iter().map(|a| a.placement).collect()
     }
 
+    /// Size of the path set agents are placed on.
+    pub(crate) fn path_count(&self) -> usize {
+        self.paths.len()
+    }
+
+    /// What [`VecEnv::save_state`] stores of environment `env`: counter, random stream,
+    /// running returns and placements.
+    pub(crate) fn env_parts(&self, env: usize) -> (u32, &ChaCha20Rng, &[f32], Vec<Placement>) {
+        let e = &self.envs[env];
+        (e.counter, &e.rng, &e.episode_reward, self.placements(env))
+    }
+
+    /// Sets environment `env` to a saved state: every agent re-placed (which renews its
+    /// short-term points and start corners), then counter, stream and returns.
+    pub(crate) fn restore_env(
+        &mut self,
+        env: usize,
+        counter: u32,
+        rng: ChaCha20Rng,
+        returns: &[f32],
+        placements: &[Placement],
+    ) {
+        let (config, paths) = (&self.config, &self.paths);
+        let e = &mut self.envs[env];
+        for (i, &p) in placements.iter().enumerate() {
+            e.set(config, paths, i, p);
+        }
+        e.counter = counter;
+        e.rng = rng;
+        e.episode_reward.copy_from_slice(returns);
+    }
+
     /// The current step counter of environment `env`.
     pub fn step_counter(&self, env: usize) -> u32 {
         self.envs[env].counter

@@ -5,12 +5,13 @@
 //! Checkpoint contents: tensors `actor.*`, `critic.*`, `best_actor.*`, `best_critic.*` (F32, the
 //! networks' own layout), `adam.actor.m`, `adam.actor.v`, `adam.critic.m`, `adam.critic.v`
 //! (flat F32), `state.observations` (`[E][N][D]`), `state.episode_return` (`[E][N]`),
-//! `env.state` (U8, the environment's own bytes); metadata `format`, `seed`, `iteration`,
+//! `env.state` (U8, the environment's own bytes); metadata (as sorted `key=value` lines of
+//! the one header entry `cpmx-learn`, so that equal runs give equal bytes) `format`, `seed`, `iteration`,
 //! `adam_steps`, `best_reward` (bits of the f64, hex), `hyperparameters` (must match to resume),
 //! and the word position of each random stream (`rng.train/actions`, ...).
 
 use std::borrow::Cow;
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha20Rng;
@@ -62,6 +63,28 @@ fn network_tensors(mlp: &Mlp, prefix: &str, out: &mut Vec<(String, Owned)>) {
 
 fn serialize(tensors: Vec<(String, Owned)>, metadata: Option<HashMap<String, String>>) -> Vec<u8> {
     safetensors::serialize(tensors, metadata).expect("tensor sizes match their shapes")
+}
+
+/// The safetensors header key that holds the checkpoint's metadata. safetensors writes a
+/// header's metadata map in hash order, so the entries go into this one value as sorted
+/// `key=value` lines: the same run gives the same bytes.
+const METADATA_KEY: &str = "cpmx-learn";
+
+fn pack_metadata(entries: BTreeMap<String, String>) -> HashMap<String, String> {
+    let lines: Vec<String> = entries.into_iter().map(|(k, v)| format!("{k}={v}")).collect();
+    HashMap::from([(METADATA_KEY.to_owned(), lines.join("\n"))])
+}
+
+fn unpack_metadata(metadata: &HashMap<String, String>) -> BTreeMap<String, String> {
+    metadata
+        .get(METADATA_KEY)
+        .map(|text| {
+            text.lines()
+                .filter_map(|line| line.split_once('='))
+                .map(|(k, v)| (k.to_owned(), v.to_owned()))
+                .collect()
+        })
+        .unwrap_or_default()
 }
 
 /// A network as a safetensors file with tensors `{prefix}.{l}.weight|bias` (F32): the layout
@@ -141,7 +164,7 @@ impl<E: Environment> Trainer<E> {
                 bytes: env,
             },
         ));
-        let mut meta = HashMap::from([
+        let mut meta = BTreeMap::from([
             ("format".to_owned(), FORMAT.to_owned()),
             ("seed".to_owned(), self.seed.to_string()),
             ("iteration".to_owned(), self.iteration.to_string()),
@@ -159,7 +182,7 @@ impl<E: Environment> Trainer<E> {
         {
             meta.insert(format!("rng.{name}"), rng.get_word_pos().to_string());
         }
-        serialize(tensors, Some(meta))
+        serialize(tensors, Some(pack_metadata(meta)))
     }
 
     /// Continue a run from [`Trainer::checkpoint`] bytes with the same hyperparameters; `env`
@@ -171,7 +194,7 @@ impl<E: Environment> Trainer<E> {
         let tensors =
             SafeTensors::deserialize(bytes).map_err(|e| bad(format!("not a checkpoint file: {e}")))?;
         let (_, header) = SafeTensors::read_metadata(bytes).map_err(|e| bad(e.to_string()))?;
-        let meta = header.metadata().clone().unwrap_or_default();
+        let meta = unpack_metadata(&header.metadata().clone().unwrap_or_default());
         let get = |key: &str| {
             meta.get(key)
                 .cloned()

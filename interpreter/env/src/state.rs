@@ -1,0 +1,222 @@
+//! A [`VecEnv`]'s state as bytes, for checkpoints: what `cpmx train --resume` needs to continue
+//! every episode exactly where it stopped.
+//!
+//! Saved per environment: the step counter, the position of its random stream, every agent's
+//! running return and its placement (path, point, float32 bicycle state as f64 bits, velocity).
+//! Everything else of an environment is a function of these (an agent's short-term reference
+//! points come from its path and position, the corners at the start of a step from its
+//! state), so [`VecEnv::load_state`] re-places each agent with them as a reset would.
+//!
+//! Layout (little-endian): the tag `cpmx-env/state/v1`, `E` and `N` as u64, then per
+//! environment the counter (u32), the stream's seed (32 bytes) and word position (u128), `N`
+//! returns (f32) and `N` placements (path u64, point u64, x, y, yaw, speed, steering and the
+//! two velocity components as f64).
+
+use cpmx_vehicle::BicycleState;
+use rand::SeedableRng;
+use rand_chacha::ChaCha20Rng;
+
+use crate::starts::Placement;
+use crate::vec_env::VecEnv;
+
+const TAG: &[u8] = b"cpmx-env/state/v1";
+
+/// Bytes per agent: path, point, 7 floats, the return.
+const AGENT_BYTES: usize = 8 + 8 + 7 * 8 + 4;
+/// Bytes per environment besides its agents: counter, seed, word position.
+const ENV_BYTES: usize = 4 + 32 + 16;
+
+impl VecEnv {
+    /// Everything needed to continue every episode exactly (see the module documentation).
+    pub fn save_state(&self) -> Vec<u8> {
+        let (e, n) = (self.num_envs(), self.num_agents());
+        let mut out = Vec::with_capacity(TAG.len() + 16 + e * (ENV_BYTES + n * AGENT_BYTES));
+        out.extend_from_slice(TAG);
+        out.extend_from_slice(&(e as u64).to_le_bytes());
+        out.extend_from_slice(&(n as u64).to_le_bytes());
+        for env in 0..e {
+            let (counter, rng, returns, placements) = self.env_parts(env);
+            out.extend_from_slice(&counter.to_le_bytes());
+            out.extend_from_slice(&rng.get_seed());
+            out.extend_from_slice(&rng.get_word_pos().to_le_bytes());
+            for r in returns {
+                out.extend_from_slice(&r.to_le_bytes());
+            }
+            for p in placements {
+                out.extend_from_slice(&(p.path as u64).to_le_bytes());
+                out.extend_from_slice(&(p.point as u64).to_le_bytes());
+                let s = p.state;
+                for v in [
+                    s.x_m,
+                    s.y_m,
+                    s.yaw_rad,
+                    s.speed_mps,
+                    s.steering_rad,
+                    p.velocity_mps[0],
+                    p.velocity_mps[1],
+                ] {
+                    out.extend_from_slice(&v.to_bits().to_le_bytes());
+                }
+            }
+        }
+        out
+    }
+
+    /// Restores [`VecEnv::save_state`] bytes of an environment of the same sizes and paths.
+    /// On an error nothing has changed.
+    pub fn load_state(&mut self, bytes: &[u8]) -> Result<(), String> {
+        let (e, n) = (self.num_envs(), self.num_agents());
+        let mut r = Reader { bytes, at: 0 };
+        if r.take(TAG.len())? != TAG {
+            return Err("not a cpmx-env state (wrong tag)".into());
+        }
+        let (se, sn) = (r.u64()?, r.u64()?);
+        if (se, sn) != (e as u64, n as u64) {
+            return Err(format!(
+                "the state holds {se} environments of {sn} agents, this scenario has {e} of {n}"
+            ));
+        }
+        let expected = TAG.len() + 16 + e * (ENV_BYTES + n * AGENT_BYTES);
+        if bytes.len() != expected {
+            return Err(format!(
+                "the state has {} bytes, {expected} expected (truncated or from another version)",
+                bytes.len()
+            ));
+        }
+        let paths = self.path_count();
+        let mut parsed = Vec::with_capacity(e);
+        for _ in 0..e {
+            let counter = r.u32()?;
+            let seed: [u8; 32] = r.take(32)?.try_into().map_err(|_| "seed".to_string())?;
+            let word_pos = u128::from_le_bytes(r.take(16)?.try_into().map_err(|_| "word".to_string())?);
+            let mut rng = ChaCha20Rng::from_seed(seed);
+            rng.set_word_pos(word_pos);
+            let returns = (0..n).map(|_| r.f32()).collect::<Result<Vec<f32>, String>>()?;
+            let mut placements = Vec::with_capacity(n);
+            for _ in 0..n {
+                let path = r.u64()? as usize;
+                let point = r.u64()? as usize;
+                let mut v = [0.0f64; 7];
+                for x in &mut v {
+                    *x = f64::from_bits(r.u64()?);
+                }
+                if path >= paths || v.iter().any(|x| !x.is_finite()) {
+                    return Err(format!(
+                        "an agent on path {path} of {paths} or with a non-finite state"
+                    ));
+                }
+                placements.push(Placement {
+                    path,
+                    point,
+                    state: BicycleState {
+                        x_m: v[0],
+                        y_m: v[1],
+                        yaw_rad: v[2],
+                        speed_mps: v[3],
+                        steering_rad: v[4],
+                    },
+                    velocity_mps: [v[5], v[6]],
+                });
+            }
+            parsed.push((counter, rng, returns, placements));
+        }
+        for (env, (counter, rng, returns, placements)) in parsed.into_iter().enumerate() {
+            self.restore_env(env, counter, rng, &returns, &placements);
+        }
+        Ok(())
+    }
+}
+
+/// Reads little-endian values off a byte slice.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, len: usize) -> Result<&'a [u8], String> {
+        let end = self.at + len;
+        let slice = self
+            .bytes
+            .get(self.at..end)
+            .ok_or_else(|| format!("the state ends at byte {}", self.bytes.len()))?;
+        self.at = end;
+        Ok(slice)
+    }
+    fn u32(&mut self) -> Result<u32, String> {
+        Ok(u32::from_le_bytes(self.take(4)?.try_into().map_err(|_| "u32")?))
+    }
+    fn u64(&mut self) -> Result<u64, String> {
+        Ok(u64::from_le_bytes(self.take(8)?.try_into().map_err(|_| "u64")?))
+    }
+    fn f32(&mut self) -> Result<f32, String> {
+        Ok(f32::from_le_bytes(self.take(4)?.try_into().map_err(|_| "f32")?))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::EnvConfig;
+
+    fn map_paths() -> Vec<cpmx_world::ReferencePath> {
+        let map =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference/maps/cpm.xml");
+        crate::sigmarl_intersection_paths(&map).expect("the CPM Lab map of ../shared/reference")
+    }
+
+    fn small_env(envs: usize, seed: u64) -> VecEnv {
+        let mut config = EnvConfig::default();
+        config.scenario.envs = envs;
+        VecEnv::new(config, &map_paths(), seed).expect("environment")
+    }
+
+    fn actions(step: usize, len: usize) -> Vec<f32> {
+        (0..len)
+            .map(|i| {
+                if i % 2 == 0 {
+                    0.6 + 0.05 * ((i + step) % 5) as f32
+                } else {
+                    0.1 * (((i * 7 + step) % 9) as f32 - 4.0) / 4.0
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_restored_environment_continues_exactly() {
+        let mut a = small_env(3, 5);
+        let len = a.num_envs() * a.num_agents() * 2;
+        for step in 0..40 {
+            a.step(&actions(step, len));
+        }
+        let saved = a.save_state();
+        // Another environment (other seed, other history) takes the state over.
+        let mut b = small_env(3, 99);
+        b.step(&actions(3, len));
+        b.load_state(&saved).expect("loads");
+        assert_eq!(b.save_state(), saved);
+        for step in 40..200 {
+            let (ra, rb) = (a.step(&actions(step, len)), b.step(&actions(step, len)));
+            assert_eq!(ra, rb, "step {step}");
+        }
+    }
+
+    #[test]
+    fn damaged_states_are_refused_and_change_nothing() {
+        let mut env = small_env(3, 1);
+        let saved = env.save_state();
+        let before = env.save_state();
+        for bad in [
+            &saved[..saved.len() - 3],
+            &saved[..10],
+            b"cpmx-env/state/v2 and more".as_slice(),
+        ] {
+            assert!(env.load_state(bad).is_err());
+            assert_eq!(env.save_state(), before);
+        }
+        let mut two = small_env(2, 1);
+        let message = two.load_state(&saved).expect_err("sizes differ");
+        assert!(message.contains("3 environments"), "{message}");
+    }
+}

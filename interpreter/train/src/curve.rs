@@ -1,0 +1,286 @@
+//! `learning_curve.csv` (one row per iteration) and its SVG.
+//!
+//! Columns: `iteration, samples, episode_reward_mean` (SigmaRL's: the mean return of the
+//! episodes that ended in the iteration's batch, rounded to 2 decimals; empty when none
+//! ended), `episodes`, `reward_<term>` (the mean of each reward term over the batch's
+//! agent-steps, `reward_total` the clamped reward), `collisions` (agent-steps crossing another
+//! agent or the road boundary, each counted per crossing), `env_resets`, `agent_resets`, the
+//! update's means over its minibatch steps (`policy_loss, value_loss, entropy_loss,
+//! grad_norm, clip_fraction`), `lr`, `best` (1 when the actor became the best one), and wall
+//! time `collect_s, update_s`. Everything but the last two columns is the same on any machine
+//! and thread count.
+
+use std::fmt::Write as _;
+
+use cpmx_learn::IterationRecord;
+
+use crate::environment::REWARD_TERMS;
+
+/// The CSV header line (without newline).
+pub fn header() -> String {
+    let mut h = String::from("iteration,samples,episode_reward_mean,episodes");
+    for term in REWARD_TERMS {
+        let _ = write!(h, ",reward_{term}");
+    }
+    h.push_str(
+        ",collisions,env_resets,agent_resets,policy_loss,value_loss,entropy_loss,grad_norm,clip_fraction,lr,best,\
+         collect_s,update_s",
+    );
+    h
+}
+
+/// One CSV row (without newline).
+pub fn row(r: &IterationRecord) -> String {
+    let mut s = format!("{},{},", r.iteration, r.samples);
+    if r.episode_reward_mean.is_finite() {
+        let _ = write!(s, "{:.2}", r.episode_reward_mean);
+    }
+    let _ = write!(s, ",{}", r.episodes);
+    for v in &r.reward_term_means {
+        let _ = write!(s, ",{v}");
+    }
+    let _ = write!(
+        s,
+        ",{},{},{},{},{},{},{},{},{},{},{:.3},{:.3}",
+        r.collisions,
+        r.env_resets,
+        r.agent_resets,
+        r.policy_loss,
+        r.value_loss,
+        r.entropy_loss,
+        r.grad_norm,
+        r.clip_fraction,
+        r.lr,
+        u8::from(r.best),
+        r.collect_seconds,
+        r.update_seconds
+    );
+    s
+}
+
+/// The rows of a learning curve file up to and including iteration `last` (what a checkpoint
+/// of iteration `last` continues from), header first. Rows after it (written before a kill
+/// that came before their checkpoint) are dropped.
+pub fn rows_through(text: &str, last: u64) -> Vec<String> {
+    let mut lines = vec![header()];
+    lines.extend(
+        text.lines()
+            .skip(1)
+            .filter(|line| iteration_of(line).is_some_and(|k| k <= last))
+            .map(str::to_owned),
+    );
+    lines
+}
+
+fn iteration_of(line: &str) -> Option<u64> {
+    line.split(',').next()?.parse().ok()
+}
+
+/// `(iteration, episode_reward_mean)` of every row that has a reward.
+pub fn reward_points(text: &str) -> Vec<(f64, f64)> {
+    text.lines()
+        .skip(1)
+        .filter_map(|line| {
+            let mut fields = line.split(',');
+            let k: f64 = fields.next()?.parse().ok()?;
+            let reward: f64 = fields.nth(1)?.parse().ok()?;
+            Some((k, reward))
+        })
+        .collect()
+}
+
+/// A curve of a chart.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Series {
+    /// Legend text.
+    pub name: String,
+    /// `(iteration, episode_reward_mean)`.
+    pub points: Vec<(f64, f64)>,
+}
+
+const COLOURS: [&str; 6] = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"];
+
+/// A line chart of `episode_reward_mean` over iterations, one line per series.
+pub fn svg(title: &str, series: &[Series]) -> String {
+    let (w, h) = (720.0, 380.0);
+    let (left, right, top, bottom) = (64.0, 160.0, 36.0, 48.0);
+    let all = series.iter().flat_map(|s| s.points.iter());
+    let (mut x_max, mut y_min, mut y_max) = (1.0f64, f64::INFINITY, f64::NEG_INFINITY);
+    for &(x, y) in all {
+        x_max = x_max.max(x);
+        y_min = y_min.min(y);
+        y_max = y_max.max(y);
+    }
+    if !y_min.is_finite() {
+        (y_min, y_max) = (-1.0, 1.0);
+    }
+    let y_step = nice_step((y_max - y_min).max(0.1) / 5.0);
+    let (y_lo, y_hi) = (
+        (y_min / y_step).floor() * y_step,
+        (y_max / y_step).ceil() * y_step,
+    );
+    let y_hi = if y_hi <= y_lo { y_lo + y_step } else { y_hi };
+    let x_step = nice_step(x_max / 6.0).max(1.0);
+    let x_hi = (x_max / x_step).ceil() * x_step;
+    let (pw, ph) = (w - left - right, h - top - bottom);
+    let px = |x: f64| left + (x / x_hi) * pw;
+    let py = |y: f64| top + (1.0 - (y - y_lo) / (y_hi - y_lo)) * ph;
+    let mut s = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" viewBox=\"0 0 {w} {h}\" \
+         font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"{w}\" height=\"{h}\" fill=\"white\"/>\n\
+         <text x=\"{left}\" y=\"22\" font-size=\"14\">{}</text>\n",
+        escape(title)
+    );
+    let mut y = y_lo;
+    while y <= y_hi + y_step * 1e-6 {
+        let v = py(y);
+        let _ = writeln!(
+            s,
+            "<line x1=\"{left}\" y1=\"{v:.1}\" x2=\"{:.1}\" y2=\"{v:.1}\" stroke=\"#ddd\"/>\
+             <text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{}</text>",
+            left + pw,
+            left - 6.0,
+            v + 4.0,
+            trim(y)
+        );
+        y += y_step;
+    }
+    let mut x = 0.0;
+    while x <= x_hi + 1e-9 {
+        let u = px(x);
+        let _ = writeln!(
+            s,
+            "<line x1=\"{u:.1}\" y1=\"{:.1}\" x2=\"{u:.1}\" y2=\"{:.1}\" stroke=\"#999\"/>\
+             <text x=\"{u:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>",
+            top + ph,
+            top + ph + 5.0,
+            top + ph + 18.0,
+            trim(x)
+        );
+        x += x_step;
+    }
+    let _ = writeln!(
+        s,
+        "<rect x=\"{left}\" y=\"{top}\" width=\"{pw}\" height=\"{ph}\" fill=\"none\" stroke=\"#333\"/>\n\
+         <text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">iteration</text>\n\
+         <text transform=\"translate(16 {:.1}) rotate(-90)\" text-anchor=\"middle\">episode_reward_mean</text>",
+        left + pw / 2.0,
+        h - 10.0,
+        top + ph / 2.0
+    );
+    for (i, curve) in series.iter().enumerate() {
+        let colour = COLOURS[i % COLOURS.len()];
+        let points: Vec<String> = curve
+            .points
+            .iter()
+            .map(|&(x, y)| format!("{:.1},{:.1}", px(x), py(y)))
+            .collect();
+        let _ = writeln!(
+            s,
+            "<polyline fill=\"none\" stroke=\"{colour}\" stroke-width=\"1.5\" points=\"{}\"/>\n\
+             <line x1=\"{:.1}\" y1=\"{:.1}\" x2=\"{:.1}\" y2=\"{:.1}\" stroke=\"{colour}\" stroke-width=\"3\"/>\
+             <text x=\"{:.1}\" y=\"{:.1}\">{}</text>",
+            points.join(" "),
+            left + pw + 12.0,
+            top + 10.0 + 18.0 * i as f64,
+            left + pw + 30.0,
+            top + 10.0 + 18.0 * i as f64,
+            left + pw + 36.0,
+            top + 14.0 + 18.0 * i as f64,
+            escape(&curve.name)
+        );
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+/// 1, 2 or 5 times a power of ten, at least `raw`.
+fn nice_step(raw: f64) -> f64 {
+    let power = 10f64.powf(raw.log10().floor());
+    [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * power)
+        .find(|&s| s >= raw)
+        .unwrap_or(10.0 * power)
+}
+
+fn trim(v: f64) -> String {
+    let text = format!("{v:.2}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text == "-0" { "0".into() } else { text.into() }
+}
+
+fn escape(text: &str) -> String {
+    text.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(k: u64, reward: f64) -> IterationRecord {
+        IterationRecord {
+            iteration: k,
+            samples: 64 * k,
+            episode_reward_mean: reward,
+            episodes: 2,
+            reward_term_means: vec![0.01, -0.002, 0.0, -0.5, 0.0, 0.008],
+            collisions: 3,
+            env_resets: 2,
+            agent_resets: 1,
+            policy_loss: -0.01,
+            value_loss: 0.2,
+            entropy_loss: -0.001,
+            grad_norm: 1.5,
+            clip_fraction: 0.1,
+            lr: 1e-4,
+            best: k == 1,
+            collect_seconds: 0.25,
+            update_seconds: 0.5,
+        }
+    }
+
+    #[test]
+    fn rows_have_the_headers_columns_and_read_back() {
+        let columns = header().split(',').count();
+        let text = format!(
+            "{}\n{}\n{}\n",
+            header(),
+            row(&record(1, -0.25)),
+            row(&record(2, f64::NAN))
+        );
+        for line in text.lines() {
+            assert_eq!(line.split(',').count(), columns, "{line}");
+        }
+        assert_eq!(reward_points(&text), vec![(1.0, -0.25)]);
+        assert_eq!(rows_through(&text, 1).len(), 2);
+        assert_eq!(rows_through(&text, 5).len(), 3);
+    }
+
+    #[test]
+    fn the_chart_draws_every_series() {
+        let series = [
+            Series {
+                name: "seed 1".into(),
+                points: vec![(1.0, -0.5), (2.0, 0.1), (3.0, 0.2)],
+            },
+            Series {
+                name: "seed <2>".into(),
+                points: vec![(1.0, -0.1)],
+            },
+        ];
+        let svg = svg("learning", &series);
+        assert_eq!(svg.matches("<polyline").count(), 2);
+        assert!(svg.contains("seed &lt;2&gt;"));
+        assert!(svg.ends_with("</svg>\n"));
+    }
+
+    #[test]
+    fn steps_are_round_numbers() {
+        assert_eq!(nice_step(0.13), 0.2);
+        assert_eq!(nice_step(170.0), 200.0);
+        assert_eq!(nice_step(3.0), 5.0);
+    }
+}

@@ -1,0 +1,89 @@
+//! The join of the scenario and the learner: `cpmx-env`'s [`VecEnv`] as a
+//! [`cpmx_learn::Environment`]. The learner sees observations, rewards, done flags, the mean
+//! of each reward term and the collision and reset counts; the environment's state goes into
+//! the learner's checkpoints.
+
+use cpmx_env::{EnvConfig, StepResult, VecEnv};
+use cpmx_learn::Environment;
+use cpmx_world::ReferencePath;
+
+/// The reward terms as `learning_curve.csv` names them (`reward_<term>`), in the order of
+/// [`cpmx_learn::StepResult::reward_term_means`]; `total` is the clamped reward.
+pub const REWARD_TERMS: [&str; 6] = [
+    "progress",
+    "near_boundary",
+    "near_agents_ttc",
+    "collide_agents",
+    "collide_boundary",
+    "total",
+];
+
+/// SigmaRL's training scenario stepped for the learner.
+#[derive(Debug, Clone)]
+pub struct TrainingEnv {
+    env: VecEnv,
+    /// Reused between steps.
+    result: StepResult,
+}
+
+impl TrainingEnv {
+    /// `config.scenario.envs` environments on `paths` with the random streams of `seed`.
+    pub fn new(config: EnvConfig, paths: &[ReferencePath], seed: u64) -> Result<Self, cpmx_env::ConfigError> {
+        Ok(TrainingEnv {
+            env: VecEnv::new(config, paths, seed)?,
+            result: StepResult::default(),
+        })
+    }
+}
+
+impl Environment for TrainingEnv {
+    fn num_envs(&self) -> usize {
+        self.env.num_envs()
+    }
+
+    fn num_agents(&self) -> usize {
+        self.env.num_agents()
+    }
+
+    fn obs_dim(&self) -> usize {
+        self.env.obs_dim()
+    }
+
+    fn reward_terms(&self) -> Vec<String> {
+        REWARD_TERMS.iter().map(|t| (*t).to_owned()).collect()
+    }
+
+    fn reset_all(&mut self) -> Vec<f32> {
+        self.env.reset_all()
+    }
+
+    fn step(&mut self, actions: &[f32]) -> cpmx_learn::StepResult {
+        self.env.step_into(actions, &mut self.result);
+        let r = &self.result;
+        let t = &r.reward_terms;
+        cpmx_learn::StepResult {
+            observations: r.observations.clone(),
+            rewards: r.rewards.clone(),
+            done: r.done.clone(),
+            reward_term_means: vec![
+                t.progress,
+                t.near_boundary,
+                t.near_agents_ttc,
+                t.collide_agents,
+                t.collide_boundary,
+                t.total,
+            ],
+            collisions: r.collisions.with_agents + r.collisions.with_boundary,
+            env_resets: r.resets.environments,
+            agent_resets: r.resets.agents,
+        }
+    }
+
+    fn save_state(&self) -> Vec<u8> {
+        self.env.save_state()
+    }
+
+    fn load_state(&mut self, state: &[u8]) -> Result<(), String> {
+        self.env.load_state(state)
+    }
+}

@@ -1,0 +1,28 @@
+//! `cpmx train`: a spec's `training:` section made into environments (`cpmx-env`) and a
+//! learner (`cpmx-learn`), and one folder per seed with its checkpoints and learning curve.
+//!
+//! This crate owns the join and the files: [`TrainingSetup`] reads the section (scenario,
+//! reward, algorithm, network, fidelity) and the map; [`TrainingEnv`] hands the environments
+//! to the learner; [`SeedRun`] trains one seed into `<out>/<seed>/`, checkpointing every
+//! iteration so that a killed run resumes to the same weights. Rewards, resets and PPO live in
+//! the crates below; the command line (progress bar, `--jobs`, `--only`) lives in `cpmx`.
+//!
+//! ```text
+//! let setup = TrainingSetup::prepare(&checked)?;
+//! for &seed in &setup.seeds {
+//!     let (mut run, _start) = SeedRun::open(&setup, out, seed, resume, "cpmx 0.1.0")?;
+//!     while run.done() < run.planned() {
+//!         let record = run.iterate()?;             // a row of learning_curve.csv, files written
+//!     }
+//!     run.finish()?;
+//! }
+//! ```
+
+pub mod curve;
+mod environment;
+mod seed_run;
+mod setup;
+
+pub use environment::{REWARD_TERMS, TrainingEnv};
+pub use seed_run::{RunError, RunInfo, SeedRun, Start, write_atomic, write_overview};
+pub use setup::{SetupError, TrainingSetup};

@@ -1,0 +1,322 @@
+//! One seed's training run and its folder `<out>/<seed>/`:
+//!
+//! | file | what |
+//! |---|---|
+//! | `actor.safetensors` | the best actor by SigmaRL's rule (an `mlp: {weights}` file) |
+//! | `actor.last.safetensors` | the actor of the last finished iteration |
+//! | `critic.safetensors` | the critic of the last finished iteration |
+//! | `checkpoint.safetensors` | networks, Adam's moments, environments, random streams |
+//! | `learning_curve.csv`, `learning_curve.svg` | a row per iteration (see `curve`) and its chart |
+//! | `run.json` | seed, fingerprint of the inputs, iterations done and planned, commit |
+//!
+//! Invariants: every file is replaced atomically (written beside, then renamed), and the
+//! checkpoint is written last in an iteration, so a kill at any moment leaves a folder that
+//! `--resume` continues to exactly the weights of an uninterrupted run (rows of the curve
+//! after the checkpoint's iteration are dropped and computed again). A folder is never
+//! continued with inputs whose fingerprint differs from the one it was started with.
+
+use std::fs;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use cpmx_learn::{IterationRecord, TrainError, Trainer};
+
+use crate::curve;
+use crate::environment::TrainingEnv;
+use crate::setup::TrainingSetup;
+
+/// Errors of a seed's run; none of them removes or damages a file of the folder.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The folder already holds a run of this seed and `--resume` was not given.
+    #[error(
+        "`{}` already holds seed {seed}'s training ({done} of {planned} iterations)",
+        dir.display()
+    )]
+    Exists {
+        dir: PathBuf,
+        seed: u64,
+        done: u64,
+        planned: u64,
+    },
+    /// The folder's run was started with other inputs.
+    #[error(
+        "`{}` was trained from a different training section, vehicle, timing or map (fingerprint {found}, \
+         this spec's {expected})",
+        dir.display()
+    )]
+    Changed {
+        dir: PathBuf,
+        found: String,
+        expected: String,
+    },
+    /// The checkpoint cannot be continued.
+    #[error("`{}`: {source}", path.display())]
+    Checkpoint { path: PathBuf, source: TrainError },
+    /// The learner failed.
+    #[error(transparent)]
+    Train(#[from] TrainError),
+    /// The environment could not be built.
+    #[error("the training scenario: {0}")]
+    Environment(#[from] cpmx_env::ConfigError),
+    /// A file could not be read or written.
+    #[error("`{}`: {source}", path.display())]
+    Io { path: PathBuf, source: std::io::Error },
+}
+
+/// Where a run stands when its folder is opened.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Start {
+    /// No checkpoint: training starts at iteration 1.
+    Fresh,
+    /// Continued after this many finished iterations.
+    Resumed { done: u64 },
+}
+
+/// What `run.json` records.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RunInfo {
+    /// The spec's name.
+    pub spec: String,
+    /// The training seed.
+    pub seed: u64,
+    /// SHA-256 of the inputs that shape the weights ([`TrainingSetup::fingerprint`]).
+    pub fingerprint: String,
+    /// Iterations finished (those of the checkpoint).
+    pub iterations_done: u64,
+    /// Iterations the spec plans.
+    pub iterations_planned: u64,
+    /// SigmaRL's best `episode_reward_mean` so far, and the iteration it was reached at.
+    pub best_episode_reward_mean: Option<f64>,
+    pub best_iteration: Option<u64>,
+    /// The version of cpmx that made the folder and, when known, the git commit it was built
+    /// from; a resumed run lists every build that contributed iterations.
+    pub made_by: Vec<String>,
+}
+
+/// A seed's training run bound to its folder.
+pub struct SeedRun {
+    trainer: Trainer<TrainingEnv>,
+    dir: PathBuf,
+    info: RunInfo,
+    /// Rows of the curve so far (header first), kept to rewrite the SVG.
+    curve_text: String,
+}
+
+impl SeedRun {
+    /// Opens (`resume`) or starts seed `seed`'s run in `<out>/<seed>/`. `made_by` names the
+    /// build (version and commit).
+    pub fn open(
+        setup: &TrainingSetup,
+        out: &Path,
+        seed: u64,
+        resume: bool,
+        made_by: &str,
+    ) -> Result<(SeedRun, Start), RunError> {
+        let dir = out.join(seed.to_string());
+        let checkpoint_path = dir.join("checkpoint.safetensors");
+        let planned = setup.hyperparameters.n_iters;
+        let env = TrainingEnv::new(setup.env.clone(), &setup.paths, seed)?;
+        let previous: Option<RunInfo> = fs::read(dir.join("run.json"))
+            .ok()
+            .and_then(|bytes| serde_json::from_slice(&bytes).ok());
+        if checkpoint_path.is_file() {
+            let done = previous.as_ref().map_or(0, |i| i.iterations_done);
+            if !resume {
+                return Err(RunError::Exists {
+                    dir,
+                    seed,
+                    done,
+                    planned,
+                });
+            }
+            if let Some(info) = &previous
+                && info.fingerprint != setup.fingerprint
+            {
+                return Err(RunError::Changed {
+                    dir,
+                    found: info.fingerprint.clone(),
+                    expected: setup.fingerprint.clone(),
+                });
+            }
+            let bytes = read(&checkpoint_path)?;
+            let trainer = Trainer::resume(env, setup.hyperparameters.clone(), &bytes).map_err(|source| {
+                RunError::Checkpoint {
+                    path: checkpoint_path.clone(),
+                    source,
+                }
+            })?;
+            let done = trainer.iteration();
+            let old_curve = fs::read_to_string(dir.join("learning_curve.csv")).unwrap_or_default();
+            let mut curve_text = curve::rows_through(&old_curve, done).join("\n");
+            curve_text.push('\n');
+            let mut info = previous.unwrap_or_else(|| new_info(setup, seed));
+            info.iterations_done = done;
+            info.iterations_planned = planned;
+            if info.made_by.last().map(String::as_str) != Some(made_by) {
+                info.made_by.push(made_by.to_owned());
+            }
+            let run = SeedRun {
+                trainer,
+                dir,
+                info,
+                curve_text,
+            };
+            write_atomic(&run.dir.join("learning_curve.csv"), run.curve_text.as_bytes())?;
+            return Ok((run, Start::Resumed { done }));
+        }
+        fs::create_dir_all(&dir).map_err(|source| RunError::Io {
+            path: dir.clone(),
+            source,
+        })?;
+        let trainer = Trainer::new(env, setup.hyperparameters.clone(), seed)?;
+        let mut info = new_info(setup, seed);
+        info.made_by.push(made_by.to_owned());
+        let run = SeedRun {
+            trainer,
+            dir,
+            info,
+            curve_text: format!("{}\n", curve::header()),
+        };
+        write_atomic(&run.dir.join("learning_curve.csv"), run.curve_text.as_bytes())?;
+        write_atomic(&run.dir.join("actor.safetensors"), &run.trainer.best_actor_file())?;
+        Ok((run, Start::Fresh))
+    }
+
+    /// Iterations finished.
+    pub fn done(&self) -> u64 {
+        self.trainer.iteration()
+    }
+
+    /// Iterations planned.
+    pub fn planned(&self) -> u64 {
+        self.info.iterations_planned
+    }
+
+    /// The run's folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// SigmaRL's best `episode_reward_mean` so far (-1000 before any episode ended).
+    pub fn best_reward(&self) -> f64 {
+        self.trainer.best().2
+    }
+
+    /// One iteration, then its files: the curve's row, the actors and critic, the
+    /// checkpoint, `run.json` (and the chart every 10 iterations and at the end).
+    pub fn iterate(&mut self) -> Result<IterationRecord, RunError> {
+        let record = self.trainer.iterate()?;
+        let row = curve::row(&record);
+        self.curve_text.push_str(&row);
+        self.curve_text.push('\n');
+        append_line(&self.dir.join("learning_curve.csv"), &row)?;
+        write_atomic(
+            &self.dir.join("actor.last.safetensors"),
+            &self.trainer.actor_file(),
+        )?;
+        write_atomic(&self.dir.join("critic.safetensors"), &self.trainer.critic_file())?;
+        if record.best {
+            write_atomic(
+                &self.dir.join("actor.safetensors"),
+                &self.trainer.best_actor_file(),
+            )?;
+            self.info.best_episode_reward_mean = Some(record.episode_reward_mean);
+            self.info.best_iteration = Some(record.iteration);
+        }
+        write_atomic(
+            &self.dir.join("checkpoint.safetensors"),
+            &self.trainer.checkpoint(),
+        )?;
+        self.info.iterations_done = record.iteration;
+        self.write_info()?;
+        if record.iteration.is_multiple_of(10) || record.iteration == self.planned() {
+            self.write_chart()?;
+        }
+        Ok(record)
+    }
+
+    /// Writes the chart and `run.json` (also when the run stops before its plan).
+    pub fn finish(&self) -> Result<(), RunError> {
+        self.write_chart()?;
+        self.write_info()
+    }
+
+    fn write_info(&self) -> Result<(), RunError> {
+        let mut text = serde_json::to_string_pretty(&self.info).expect("plain data");
+        text.push('\n');
+        write_atomic(&self.dir.join("run.json"), text.as_bytes())
+    }
+
+    fn write_chart(&self) -> Result<(), RunError> {
+        let series = [curve::Series {
+            name: format!("seed {}", self.info.seed),
+            points: curve::reward_points(&self.curve_text),
+        }];
+        let title = format!("{}: seed {}", self.info.spec, self.info.seed);
+        write_atomic(
+            &self.dir.join("learning_curve.svg"),
+            curve::svg(&title, &series).as_bytes(),
+        )
+    }
+}
+
+fn new_info(setup: &TrainingSetup, seed: u64) -> RunInfo {
+    RunInfo {
+        spec: setup.spec_name.clone(),
+        seed,
+        fingerprint: setup.fingerprint.clone(),
+        iterations_done: 0,
+        iterations_planned: setup.hyperparameters.n_iters,
+        best_episode_reward_mean: None,
+        best_iteration: None,
+        made_by: Vec::new(),
+    }
+}
+
+/// The learning curves of every seed folder under `out` as one chart (`learning_curves.svg`).
+pub fn write_overview(out: &Path, spec_name: &str, seeds: &[u64]) -> Result<(), RunError> {
+    let series: Vec<curve::Series> = seeds
+        .iter()
+        .filter_map(|seed| {
+            let text = fs::read_to_string(out.join(seed.to_string()).join("learning_curve.csv")).ok()?;
+            Some(curve::Series {
+                name: format!("seed {seed}"),
+                points: curve::reward_points(&text),
+            })
+        })
+        .collect();
+    write_atomic(
+        &out.join("learning_curves.svg"),
+        curve::svg(&format!("{spec_name}: episode_reward_mean"), &series).as_bytes(),
+    )
+}
+
+fn read(path: &Path) -> Result<Vec<u8>, RunError> {
+    fs::read(path).map_err(|source| RunError::Io {
+        path: path.to_owned(),
+        source,
+    })
+}
+
+/// Replaces `path` with `bytes` in one rename.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), RunError> {
+    let io = |source| RunError::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let mut partial = path.as_os_str().to_owned();
+    partial.push(".partial");
+    let partial = PathBuf::from(partial);
+    fs::write(&partial, bytes).map_err(io)?;
+    fs::rename(&partial, path).map_err(io)
+}
+
+fn append_line(path: &Path, line: &str) -> Result<(), RunError> {
+    let io = |source| RunError::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let mut file = fs::OpenOptions::new().append(true).open(path).map_err(io)?;
+    writeln!(file, "{line}").map_err(io)
+}

@@ -1,0 +1,226 @@
+//! From a checked spec's `training:` section to what a training run needs: the environment
+//! configuration and the reference paths agents are placed on (`cpmx-env`), the learner's
+//! hyperparameters (`cpmx-learn`), the seeds, and a fingerprint of everything that shapes the
+//! weights, so that `--resume` never continues a run with changed inputs.
+
+use cpmx_env::{EnvConfig, config_from_training, training_paths};
+use cpmx_learn::Hyperparameters;
+use cpmx_spec::CheckedSpec;
+use cpmx_spec::model::{
+    Activation, ActuationLayer, Control, DynamicsLayer, Fidelity, SensingLayer, TrainingSpec, ValueLoss,
+};
+use cpmx_world::ReferencePath;
+use sha2::{Digest, Sha256};
+
+/// Why a spec cannot be trained.
+#[derive(Debug, thiserror::Error)]
+pub enum SetupError {
+    /// The spec has no `training:` section.
+    #[error("the spec has no `training:` section")]
+    NoTraining,
+    /// The map did not load (or the scenario's path set is not one of its sets).
+    #[error(transparent)]
+    Map(#[from] cpmx_engine::PrepareError),
+    /// The scenario selects no reference path.
+    #[error("the training scenario places agents on no reference path ({0})")]
+    NoPaths(String),
+    /// The fidelity to train in is one the trainer cannot step yet.
+    #[error("cannot train in fidelity `{name}`: {reason}")]
+    Fidelity { name: String, reason: String },
+    /// A choice of the section the learner does not implement.
+    #[error("{0}")]
+    Unsupported(String),
+    /// The environment or the hyperparameters do not fit together.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// Everything a training run of one spec needs, for any of its seeds.
+#[derive(Debug, Clone)]
+pub struct TrainingSetup {
+    /// The spec's name (the default output folder is `out/<name>-train`).
+    pub spec_name: String,
+    /// The environments' configuration.
+    pub env: EnvConfig,
+    /// The reference paths agents are placed on.
+    pub paths: Vec<ReferencePath>,
+    /// The learner's hyperparameters (`n_iters` = the section's `iterations`).
+    pub hyperparameters: Hyperparameters,
+    /// The seeds, in the spec's order.
+    pub seeds: Vec<u64>,
+    /// SHA-256 (hex) of what shapes the weights: the resolved `training:` section, the
+    /// vehicle, `timing.dt` and the map's content.
+    pub fingerprint: String,
+    /// The resolved `training:` section (presets expanded), as JSON.
+    pub resolved: serde_json::Value,
+}
+
+impl TrainingSetup {
+    /// Reads the spec's training section and loads its map.
+    pub fn prepare(checked: &CheckedSpec) -> Result<TrainingSetup, SetupError> {
+        let spec = &checked.spec;
+        let training = spec.training.as_ref().ok_or(SetupError::NoTraining)?;
+        check_fidelity(checked, training)?;
+        check_learner_choices(training)?;
+        let map = cpmx_engine::load_map(spec, checked.resources.map_file.as_deref())?;
+        let paths = training_paths(&map, training).map_err(cpmx_engine::PrepareError::Map)?;
+        if paths.is_empty() {
+            return Err(SetupError::NoPaths(describe_paths(training)));
+        }
+        if let Some(ids) = &training.scenario.ref_paths
+            && training.scenario.path_set.is_none()
+            && training.scenario.region.is_none()
+            && paths.len() != ids.len()
+        {
+            let known: Vec<u32> = ids
+                .iter()
+                .copied()
+                .filter(|&id| map.reference_path(id as usize).is_some())
+                .collect();
+            let missing: Vec<String> = ids
+                .iter()
+                .filter(|id| !known.contains(id))
+                .map(u32::to_string)
+                .collect();
+            return Err(SetupError::NoPaths(format!(
+                "the map has no reference path {}",
+                missing.join(", ")
+            )));
+        }
+        let vehicle = cpmx_engine::vehicle_params(&spec.vehicle);
+        let observation = cpmx_engine::observation(&training.observation);
+        let env = config_from_training(training, observation, vehicle, spec.timing.dt);
+        env.check().map_err(|e| SetupError::Invalid(e.to_string()))?;
+        let hyperparameters = hyperparameters(training, &vehicle);
+        let resolved = checked
+            .resolved
+            .get("training")
+            .cloned()
+            .unwrap_or(serde_json::Value::Null);
+        let fingerprint = fingerprint(checked, &resolved)?;
+        Ok(TrainingSetup {
+            spec_name: spec.name.clone(),
+            env,
+            paths,
+            hyperparameters,
+            seeds: training.seeds.clone(),
+            fingerprint,
+            resolved,
+        })
+    }
+}
+
+/// The learner's hyperparameters a training section declares; the action range is the
+/// vehicle's (SigmaRL: speed ±1 m/s, steering ±31°).
+fn hyperparameters(training: &TrainingSpec, vehicle: &cpmx_vehicle::VehicleParams) -> Hyperparameters {
+    let m = &training.algorithm.mappo;
+    let hidden: Vec<usize> = training.network.hidden.iter().map(|&w| w as usize).collect();
+    Hyperparameters {
+        n_iters: u64::from(training.iterations),
+        frames_per_batch: m.frames_per_iteration as usize,
+        num_epochs: m.epochs as usize,
+        minibatch_size: m.minibatch as usize,
+        lr: m.lr,
+        lr_min: m.lr_min,
+        max_grad_norm: m.max_grad_norm,
+        clip_epsilon: m.clip,
+        gamma: m.gamma,
+        lmbda: m.lambda,
+        entropy_eps: m.entropy,
+        actor_hidden: hidden.clone(),
+        critic_hidden: hidden,
+        action_high: [vehicle.max_speed_mps as f32, vehicle.max_steering_rad as f32],
+        ..Hyperparameters::sigmarl(u64::from(training.iterations))
+    }
+}
+
+/// Today's trainer steps the kinematic bicycle directly with exact states (SigmaRL's
+/// simulation); any other layer would be silently ignored, so it is refused.
+fn check_fidelity(checked: &CheckedSpec, training: &TrainingSpec) -> Result<(), SetupError> {
+    let name = &training.fidelity;
+    let refuse = |reason: &str| {
+        Err(SetupError::Fidelity {
+            name: name.clone(),
+            reason: reason.to_owned(),
+        })
+    };
+    match checked.spec.fidelities.get(name) {
+        None => refuse("the spec defines no such fidelity"),
+        Some(Fidelity::Lab(_)) => refuse("it drives the lab; policies train in simulation only"),
+        Some(Fidelity::Simulated(f)) => {
+            if f.control != Control::Direct {
+                return refuse(
+                    "it plans trajectories for an MPC follower (`control: trajectory`); the trainer steps \
+                     `control: direct` fidelities so far",
+                );
+            }
+            if !matches!(f.dynamics, DynamicsLayer::Kinematic(_)) {
+                return refuse(
+                    "its dynamics are the grey-box model; the trainer steps the kinematic bicycle so far",
+                );
+            }
+            if !matches!(f.sensing, None | Some(SensingLayer::Ideal(_))) {
+                return refuse("it has a sensing model; the trainer observes exact states so far");
+            }
+            if !matches!(f.actuation, None | Some(ActuationLayer::Ideal(_))) {
+                return refuse("it has an actuation model; the trainer applies actions exactly so far");
+            }
+            Ok(())
+        }
+    }
+}
+
+/// The learner trains tanh networks with SigmaRL's smooth-L1 value loss.
+fn check_learner_choices(training: &TrainingSpec) -> Result<(), SetupError> {
+    if training.network.activation != Activation::Tanh {
+        return Err(SetupError::Unsupported(
+            "`training.network.activation: relu`: the learner trains tanh networks (SigmaRL's) so far".into(),
+        ));
+    }
+    if training.algorithm.mappo.value_loss != ValueLoss::SmoothL1 {
+        return Err(SetupError::Unsupported(
+            "`value_loss: mse`: the learner implements SigmaRL's smooth-l1 value loss so far".into(),
+        ));
+    }
+    Ok(())
+}
+
+fn describe_paths(training: &TrainingSpec) -> String {
+    let s = &training.scenario;
+    match (&s.path_set, &s.region, &s.ref_paths) {
+        (Some(set), _, _) => format!("path set {set:?}"),
+        (None, Some(region), _) => format!("no reference path runs through region `{region}`"),
+        (None, None, Some(ids)) if ids.is_empty() => "`ref_paths` is empty".into(),
+        (None, None, _) => "the map has no reference paths".into(),
+    }
+}
+
+/// SHA-256 over the resolved training section, vehicle, dt and the map file's bytes.
+fn fingerprint(checked: &CheckedSpec, training: &serde_json::Value) -> Result<String, SetupError> {
+    let mut hasher = Sha256::new();
+    hasher.update(b"cpmx/training/v1\0");
+    hasher.update(training.to_string().as_bytes());
+    // The map by content: where its file lies and how it is pinned do not matter.
+    let mut map = checked.resolved.get("map").cloned().unwrap_or_default();
+    if let Some(object) = map.as_object_mut() {
+        object.remove("file");
+        object.remove("sha256");
+    }
+    let vehicle = checked.resolved.get("vehicle").cloned().unwrap_or_default();
+    for value in [vehicle, map] {
+        hasher.update([0u8]);
+        hasher.update(value.to_string().as_bytes());
+    }
+    hasher.update([0u8]);
+    hasher.update(checked.spec.timing.dt.to_bits().to_le_bytes());
+    if let Some(file) = &checked.resources.map_file {
+        let bytes = std::fs::read(file).map_err(|e| {
+            SetupError::Map(cpmx_engine::PrepareError::Map(cpmx_world::MapError::Io {
+                path: file.clone(),
+                source: e,
+            }))
+        })?;
+        hasher.update(Sha256::digest(&bytes));
+    }
+    Ok(format!("{:x}", hasher.finalize()))
+}

@@ -1,0 +1,82 @@
+//! What the command-line tests share: the repository and reference-data folders, running the
+//! `cpmx` binary, scratch folders, and a folder's files with their bytes. Each test binary uses
+//! a part of it.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The repository.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// SigmaRL's reference data beside the repository (`../shared/reference`); tests that need it
+/// call this first, so a missing folder is named.
+pub fn reference() -> PathBuf {
+    let dir = root().join("../shared/reference");
+    assert!(
+        dir.is_dir(),
+        "SigmaRL's reference data must be at {}",
+        dir.display()
+    );
+    dir
+}
+
+/// `cpmx ARGS` in the repository, without `CPMX_DATA`.
+pub fn cpmx(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .args(args)
+        .current_dir(root())
+        .env_remove("CPMX_DATA")
+        .output()
+        .expect("cpmx runs")
+}
+
+/// `cpmx ARGS` in the repository with the reference data on `CPMX_DATA` when it is there.
+pub fn cpmx_with_data(args: &[&str]) -> Output {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_cpmx"));
+    command.args(args).current_dir(root());
+    let data = root().join("../shared/reference");
+    if data.is_dir() {
+        command.env("CPMX_DATA", data);
+    } else {
+        command.env_remove("CPMX_DATA");
+    }
+    command.output().expect("cpmx runs")
+}
+
+/// An empty folder of this test process, `<tmp>/cpmx-<name>-<pid>`.
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("cpmx-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Every file under `dir` with its bytes, sorted by path.
+pub fn files(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                out.push((
+                    path.strip_prefix(dir).unwrap().to_path_buf(),
+                    std::fs::read(&path).unwrap(),
+                ));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The standard output of a command that must have succeeded (its stderr otherwise).
+pub fn ok(out: &Output) -> String {
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout.clone()).unwrap()
+}

@@ -1,0 +1,290 @@
+//! `cpmx train` end to end: a small scenario learns, the weights do not depend on the thread
+//! count, a run killed with SIGKILL resumes to the weights of an uninterrupted one, and bad
+//! input (a run that exists, a changed spec, a damaged checkpoint, an unknown seed, paths the
+//! map lacks) gets a diagnostic and leaves every trained file as it was.
+
+mod support;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use support::{files, ok, reference, scratch};
+
+/// A small training spec: SigmaRL's intersection scenario, reward and MAPPO with fewer and
+/// smaller pieces (`{iterations}`, `{extra}` replaced).
+const SMALL: &str = "cpmx: 1
+name: small
+map: {file: maps/cpm.xml}
+timing: {dt: 0.1, steps: 40}
+agents: 2
+policies:
+  - {name: trained, mlp: {trained: {seed: 7, dir: DIR}}}
+initial_configurations:
+  - name: crossing
+    agents:
+      - {ref_path: 6, arc_length: 0.3}
+      - {ref_path: 2, arc_length: 0.3}
+repetitions: 1
+seed: 1
+fidelities:
+  sim: {control: direct, dynamics: kinematic}
+training:
+  scenario: {extends: stdlib:sigmarl-intersection, envs: 8, agents: 2, episode_steps: 64}
+  reward: stdlib:sigmarl
+  algorithm:
+    extends: stdlib:mappo-sigmarl
+    mappo: {frames_per_iteration: 256, minibatch: 64, epochs: 4, lr: 1.0e-3, lr_min: 1.0e-4}
+  network: {hidden: [32, 32], activation: tanh}
+  observation: stdlib:sigmarl
+  iterations: ITERATIONS
+  seeds: [7, 8]
+";
+
+/// Writes the small spec into `dir` (training into `dir/out`) and returns its path.
+fn small_spec(dir: &Path, iterations: u32) -> PathBuf {
+    let out = dir.join("out");
+    let text = SMALL
+        .replace("ITERATIONS", &iterations.to_string())
+        .replace("DIR", out.to_str().unwrap());
+    let path = dir.join("small.yaml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// `cpmx train SPEC --out DIR/out ARGS` with the reference data.
+fn train(dir: &Path, spec: &Path, args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .arg("train")
+        .arg(spec)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .arg("--data")
+        .arg(reference())
+        .args(args)
+        .env_remove("CPMX_DATA")
+        .output()
+        .expect("cpmx runs")
+}
+
+/// The files of a training folder without the wall-time columns of the learning curve and
+/// the files that name the inputs and the build.
+fn weights_and_curves(out: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    files(out)
+        .into_iter()
+        .map(|(path, bytes)| {
+            if path.extension().is_some_and(|e| e == "csv") {
+                let text = String::from_utf8(bytes).unwrap();
+                let trimmed: Vec<String> = text
+                    .lines()
+                    .map(|l| l.rsplitn(3, ',').nth(2).unwrap_or(l).to_owned())
+                    .collect();
+                (path, trimmed.join("\n").into_bytes())
+            } else {
+                (path, bytes)
+            }
+        })
+        // run.json names the build, spec.yaml is the input (its `--out` differs).
+        .filter(|(path, _)| {
+            let name = path.to_string_lossy();
+            !name.ends_with(".json") && !name.ends_with("spec.yaml")
+        })
+        .collect()
+}
+
+/// `column` of every row of a learning curve.
+fn column(out: &Path, seed: u64, column: &str) -> Vec<f64> {
+    let text = std::fs::read_to_string(out.join(seed.to_string()).join("learning_curve.csv")).unwrap();
+    let mut lines = text.lines();
+    let index = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .position(|c| c == column)
+        .expect("column");
+    lines
+        .map(|l| l.split(',').nth(index).unwrap().parse().unwrap_or(f64::NAN))
+        .collect()
+}
+
+#[test]
+fn a_small_scenario_learns_and_the_trained_actor_runs() {
+    let dir = scratch("train-learns");
+    let spec = small_spec(&dir, 24);
+    let table = ok(&train(&dir, &spec, &["--only", "seed=7"]));
+    assert!(table.contains("| 7 | 24 |"), "{table}");
+    let out = dir.join("out");
+    for file in [
+        "actor.safetensors",
+        "actor.last.safetensors",
+        "critic.safetensors",
+        "checkpoint.safetensors",
+        "learning_curve.csv",
+        "learning_curve.svg",
+        "run.json",
+    ] {
+        assert!(out.join("7").join(file).is_file(), "{file}");
+    }
+    assert!(!out.join("8").exists(), "--only seed=7 trains seed 7 alone");
+    // The mean reward per agent-step rises: the agents learn to make progress.
+    let reward = column(&out, 7, "reward_total");
+    let mean = |r: &[f64]| r.iter().sum::<f64>() / r.len() as f64;
+    let (first, last) = (mean(&reward[..4]), mean(&reward[reward.len() - 4..]));
+    assert!(last > first + 0.01, "reward per step {first:.4} -> {last:.4}");
+    // The trained actor is an ordinary `mlp` policy of the same spec.
+    let run_out = dir.join("run");
+    ok(&Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .args(["run", spec.to_str().unwrap(), "--out", run_out.to_str().unwrap()])
+        .arg("--data")
+        .arg(reference())
+        .env_remove("CPMX_DATA")
+        .output()
+        .unwrap());
+    let per_run = std::fs::read_to_string(run_out.join("per_run.csv")).unwrap();
+    assert!(per_run.contains("sim/trained/crossing/rep1"), "{per_run}");
+}
+
+#[test]
+fn one_and_two_threads_give_identical_actors() {
+    let (one, two) = (scratch("train-jobs1"), scratch("train-jobs2"));
+    for (dir, jobs) in [(&one, "1"), (&two, "2")] {
+        let spec = small_spec(dir, 2);
+        ok(&train(dir, &spec, &["--jobs", jobs]));
+    }
+    let (a, b) = (
+        weights_and_curves(&one.join("out")),
+        weights_and_curves(&two.join("out")),
+    );
+    assert_eq!(
+        a.len(),
+        13,
+        "two seeds of six compared files and the overview chart"
+    );
+    assert_same_files(&a, &b);
+}
+
+/// Two folders' files are equal; names the ones that are not (their bytes are long).
+fn assert_same_files(a: &[(PathBuf, Vec<u8>)], b: &[(PathBuf, Vec<u8>)]) {
+    let names = |f: &[(PathBuf, Vec<u8>)]| f.iter().map(|(p, _)| p.clone()).collect::<Vec<_>>();
+    assert_eq!(names(a), names(b));
+    let differing: Vec<String> = a
+        .iter()
+        .zip(b)
+        .filter(|(x, y)| x.1 != y.1)
+        .map(|(x, _)| x.0.display().to_string())
+        .collect();
+    assert!(differing.is_empty(), "these files differ: {differing:?}");
+}
+
+#[test]
+fn a_killed_run_resumes_to_the_weights_of_an_uninterrupted_one() {
+    let (whole, killed) = (scratch("train-whole"), scratch("train-killed"));
+    let iterations = 12;
+    ok(&train(
+        &whole,
+        &small_spec(&whole, iterations),
+        &["--only", "seed=7"],
+    ));
+
+    let spec = small_spec(&killed, iterations);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .arg("train")
+        .arg(&spec)
+        .arg("--out")
+        .arg(killed.join("out"))
+        .arg("--data")
+        .arg(reference())
+        .args(["--only", "seed=7", "--jobs", "1"])
+        .env_remove("CPMX_DATA")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // SIGKILL once a few iterations are checkpointed, wherever the run is then.
+    let run_json = killed.join("out/7/run.json");
+    let deadline = Instant::now() + Duration::from_secs(120);
+    loop {
+        let done = std::fs::read_to_string(&run_json)
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .and_then(|v| v["iterations_done"].as_u64())
+            .unwrap_or(0);
+        if done >= 3 || Instant::now() > deadline {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    child.kill().unwrap();
+    let status = child.wait().unwrap();
+    // Without --resume the folder is refused as it is.
+    let before = files(&killed.join("out"));
+    let refused = train(&killed, &spec, &["--only", "seed=7"]);
+    assert_eq!(refused.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("--resume"));
+    assert_eq!(files(&killed.join("out")), before);
+
+    let resumed = train(&killed, &spec, &["--only", "seed=7", "--resume"]);
+    let stderr = String::from_utf8_lossy(&resumed.stderr).into_owned();
+    ok(&resumed);
+    if status.success() {
+        eprintln!("note: the run finished before it was killed; resumed a finished run");
+        assert!(stderr.contains("already trained"), "{stderr}");
+    } else {
+        assert!(stderr.contains("resuming after iteration"), "{stderr}");
+    }
+    assert_same_files(
+        &weights_and_curves(&whole.join("out/7")),
+        &weights_and_curves(&killed.join("out/7")),
+    );
+}
+
+#[test]
+fn bad_input_is_refused_and_nothing_trained_is_lost() {
+    let dir = scratch("train-bad");
+    let spec = small_spec(&dir, 2);
+    ok(&train(&dir, &spec, &["--only", "seed=8"]));
+    let trained = files(&dir.join("out"));
+
+    // An unknown seed: a usage error naming the spec's seeds.
+    let out = train(&dir, &spec, &["--only", "seed=9"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("the spec's seeds: 7, 8"));
+
+    // A changed spec does not continue the folder's run.
+    let text = std::fs::read_to_string(&spec)
+        .unwrap()
+        .replace("lr: 1.0e-3", "lr: 2.0e-3");
+    let changed = dir.join("changed.yaml");
+    std::fs::write(&changed, text).unwrap();
+    let out = train(&dir, &changed, &["--only", "seed=8", "--resume"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("different training section"));
+
+    // A truncated checkpoint: a diagnostic, exit 1, the folder as it was.
+    let checkpoint = dir.join("out/8/checkpoint.safetensors");
+    let bytes = std::fs::read(&checkpoint).unwrap();
+    std::fs::write(&checkpoint, &bytes[..bytes.len() / 2]).unwrap();
+    let damaged = files(&dir.join("out"));
+    let out = train(&dir, &spec, &["--only", "seed=8", "--resume"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("checkpoint"));
+    assert_eq!(files(&dir.join("out")), damaged);
+    std::fs::write(&checkpoint, &bytes).unwrap();
+    assert_eq!(files(&dir.join("out")), trained);
+
+    // Reference paths the map lacks: a diagnostic before anything is written.
+    let text = std::fs::read_to_string(&spec).unwrap().replace(
+        "{extends: stdlib:sigmarl-intersection, envs: 8, agents: 2, episode_steps: 64}",
+        "{ref_paths: [1, 400], envs: 8, agents: 2, episode_steps: 64, \
+             start: {first_index: 3, speed_mps: [0, 1], min_gap_m: 0.37}, \
+             reset: {on_collision: environment, on_entry_or_exit_line: agent}}",
+    );
+    let lacking = dir.join("lacking.yaml");
+    std::fs::write(&lacking, text).unwrap();
+    let elsewhere = scratch("train-bad-paths");
+    let out = train(&elsewhere, &lacking, &[]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("400"), "{stderr}");
+    assert!(!elsewhere.join("out").exists());
+}
