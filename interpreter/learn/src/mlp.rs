@@ -12,7 +12,15 @@ use rand::RngExt;
 use rand_chacha::ChaCha20Rng;
 use safetensors::{Dtype, SafeTensors};
 
+use rayon::prelude::*;
+
 use crate::gemm::{Mat, gemm};
+
+/// Elements per task of the element-wise passes (a multiple of the 8 SIMD lanes). Each
+/// element is computed alone, so the split never changes a bit.
+const ELEMENTWISE_CHUNK: usize = 8192;
+/// Bias-gradient columns per task.
+const BIAS_COLUMNS: usize = 64;
 
 /// A tanh MLP (tanh after every layer but the last).
 #[derive(Debug, Clone, PartialEq)]
@@ -154,7 +162,7 @@ impl Mlp {
                 true,
             );
             if l + 1 < self.layers() {
-                tanh(y);
+                y.par_chunks_mut(ELEMENTWISE_CHUNK).for_each(tanh);
             }
         }
     }
@@ -184,14 +192,17 @@ impl Mlp {
                 inputs,
                 false,
             );
-            // db = column sums of dZ, rows in order.
+            // db = column sums of dZ, rows in order (columns split between threads).
             let db = &mut grad[b_at..b_at + outputs];
-            db.fill(0.0);
-            for row in dz.chunks_exact(outputs) {
-                for (d, &v) in db.iter_mut().zip(row) {
-                    *d += v;
+            db.par_chunks_mut(BIAS_COLUMNS).enumerate().for_each(|(c, db)| {
+                let j0 = c * BIAS_COLUMNS;
+                db.fill(0.0);
+                for row in dz.chunks_exact(outputs) {
+                    for (d, &v) in db.iter_mut().zip(&row[j0..]) {
+                        *d += v;
+                    }
                 }
-            }
+            });
             if l == 0 {
                 break;
             }
@@ -207,9 +218,13 @@ impl Mlp {
                 inputs,
                 false,
             );
-            for (d, &h) in dh.iter_mut().zip(&tape.h[l]) {
-                *d *= 1.0 - h * h;
-            }
+            dh.par_chunks_mut(ELEMENTWISE_CHUNK)
+                .zip(tape.h[l].par_chunks(ELEMENTWISE_CHUNK))
+                .for_each(|(dh, h)| {
+                    for (d, &h) in dh.iter_mut().zip(h) {
+                        *d *= 1.0 - h * h;
+                    }
+                });
             std::mem::swap(&mut dz, &mut dh);
         }
         tape.dz = dz;

@@ -2,6 +2,11 @@
 //! tensors (torch's `clip_grad_norm_`), Adam (torch's defaults, no weight decay) and the
 //! learning-rate schedule of `mappo_cavs.py`.
 
+use rayon::prelude::*;
+
+/// Elements per task of the element-wise updates.
+const CHUNK: usize = 16384;
+
 /// Torch's `clip_grad_norm_(params, max_norm)` over several gradient tensors: the total norm is
 /// the L2 norm of the per-tensor L2 norms; every gradient is scaled by
 /// `min(1, max_norm / (total + 1e-6))`. Returns the total norm before clipping. Sums run in
@@ -11,9 +16,8 @@ pub fn clip_grad_norm(grads: &mut [&mut [f32]], max_norm: f64) -> f64 {
     let coef = (max_norm / (total + 1e-6)).min(1.0) as f32;
     if coef < 1.0 {
         for g in grads.iter_mut() {
-            for v in g.iter_mut() {
-                *v *= coef;
-            }
+            g.par_chunks_mut(CHUNK)
+                .for_each(|g| g.iter_mut().for_each(|v| *v *= coef));
         }
     }
     total
@@ -73,12 +77,20 @@ impl AdamState {
         let bias2_sqrt = (1.0 - f64::from(config.beta2).powi(t)).sqrt() as f32;
         let step_size = (lr / bias1) as f32;
         let (b1, b2) = (config.beta1, config.beta2);
-        for (((p, &g), m), v) in params.iter_mut().zip(grad).zip(&mut self.m).zip(&mut self.v) {
-            *m = b1 * *m + (1.0 - b1) * g;
-            *v = b2 * *v + (1.0 - b2) * g * g;
-            let denom = v.sqrt() / bias2_sqrt + config.eps;
-            *p -= step_size * *m / denom;
-        }
+        let eps = config.eps;
+        // Element-wise, so splitting the vectors between threads changes no bit.
+        params
+            .par_chunks_mut(CHUNK)
+            .zip(grad.par_chunks(CHUNK))
+            .zip(self.m.par_chunks_mut(CHUNK).zip(self.v.par_chunks_mut(CHUNK)))
+            .for_each(|((params, grad), (m, v))| {
+                for (((p, &g), m), v) in params.iter_mut().zip(grad).zip(m).zip(v) {
+                    *m = b1 * *m + (1.0 - b1) * g;
+                    *v = b2 * *v + (1.0 - b2) * g * g;
+                    let denom = v.sqrt() / bias2_sqrt + eps;
+                    *p -= step_size * *m / denom;
+                }
+            });
     }
 }
 

@@ -459,8 +459,14 @@ impl<E: Environment> Trainer<E> {
                     w.eps.push(StandardNormal.sample(&mut self.rng_entropy));
                 }
                 // Forward both networks (the critic reads the same rows as concatenations).
-                self.actor.forward(&w.x, mb * agents, &mut w.actor_tape);
-                self.critic.forward(&w.x, mb, &mut w.critic_tape);
+                // The two networks are independent until the loss: rayon overlaps them (each
+                // computes exactly as alone).
+                let (actor, critic) = (&self.actor, &self.critic);
+                let (x, actor_tape, critic_tape) = (&w.x, &mut w.actor_tape, &mut w.critic_tape);
+                rayon::join(
+                    || actor.forward(x, mb * agents, actor_tape),
+                    || critic.forward(x, mb, critic_tape),
+                );
                 w.d_raw.resize(mb * agents * 4, 0.0);
                 w.d_value.resize(mb, 0.0);
                 let input = LossInput {
@@ -479,10 +485,13 @@ impl<E: Environment> Trainer<E> {
                     &mut w.d_value,
                 );
                 // Backward, joint clipping, one Adam step over both networks.
-                self.actor
-                    .backward(&mut w.actor_tape, &w.d_raw, &mut w.actor_grad);
-                self.critic
-                    .backward(&mut w.critic_tape, &w.d_value, &mut w.critic_grad);
+                let (actor_tape, critic_tape) = (&mut w.actor_tape, &mut w.critic_tape);
+                let (actor_grad, critic_grad) = (&mut w.actor_grad, &mut w.critic_grad);
+                let (d_raw, d_value) = (&w.d_raw, &w.d_value);
+                rayon::join(
+                    || actor.backward(actor_tape, d_raw, actor_grad),
+                    || critic.backward(critic_tape, d_value, critic_grad),
+                );
                 let norm = clip_grad_norm(
                     &mut [&mut w.actor_grad, &mut w.critic_grad],
                     self.hp.max_grad_norm,
