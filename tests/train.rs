@@ -142,6 +142,15 @@ fn a_small_scenario_learns_and_the_trained_actor_runs() {
         .unwrap());
     let per_run = std::fs::read_to_string(run_out.join("per_run.csv")).unwrap();
     assert!(per_run.contains("sim/trained/crossing/rep1"), "{per_run}");
+    // The run folder keeps the policy's learning curve, and its report draws it.
+    let kept = std::fs::read_to_string(run_out.join("training/trained/learning_curve.csv")).unwrap();
+    let trained = std::fs::read_to_string(dir.join("out/7/learning_curve.csv")).unwrap();
+    assert_eq!(kept, trained);
+    let page = std::fs::read_to_string(run_out.join("report.html")).unwrap();
+    assert!(
+        page.contains("\"learning_curves\":[{"),
+        "the page's data names the curve"
+    );
 }
 
 #[test]

@@ -5,7 +5,7 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use cpmx_train::{RunError, SeedRun, Start, TrainingSetup, write_atomic, write_overview};
+use cpmx_train::{RunError, SeedRun, Start, TrainingSetup, write_overview};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{Failure, load_checked_for};
@@ -112,7 +112,7 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
         }
     }
     if let Ok(text) = std::fs::read(&args.spec) {
-        let _ = write_atomic(&out.join("spec.yaml"), &text);
+        let _ = cpmx_engine::store::write_atomic(&out.join("spec.yaml"), &text);
     }
 
     let mut summary = Vec::new();

@@ -168,7 +168,30 @@ pub fn write_header(
             p.key, p.fidelity, p.policy, p.initial_configuration, p.repetition, p.seed
         ));
     }
-    write_atomic(&out.join("matrix.csv"), matrix.as_bytes())
+    write_atomic(&out.join("matrix.csv"), matrix.as_bytes())?;
+    keep_learning_curves(out, checked)
+}
+
+/// Copies the learning curve of every policy trained by `cpmx train` (the
+/// `learning_curve.csv` beside its actor) to `training/<policy>/learning_curve.csv`, so that the
+/// folder and its report show how its policies were trained wherever the folder moves.
+fn keep_learning_curves(out: &Path, checked: &CheckedSpec) -> std::io::Result<()> {
+    for (policy, weights) in checked.spec.policies.iter().zip(&checked.resources.weights) {
+        let trained = policy.mlp.as_ref().is_some_and(|m| m.trained.is_some());
+        let curve = weights
+            .as_deref()
+            .and_then(Path::parent)
+            .map(|dir| dir.join("learning_curve.csv"));
+        if let (true, Some(curve)) = (trained, curve)
+            && let Ok(text) = std::fs::read(&curve)
+        {
+            write_atomic(
+                &out.join("training").join(&policy.name).join("learning_curve.csv"),
+                &text,
+            )?;
+        }
+    }
+    Ok(())
 }
 
 /// Writes `per_run.csv`, the summaries, the plots and `report.html` of `records` (in matrix
@@ -225,14 +248,20 @@ pub fn write_summaries_from(
     Ok(summary)
 }
 
-/// The learning curves of trainings kept in the folder (`*/learning_curve.csv`, by folder
-/// name): `episode_reward_mean` per `iteration`.
+/// The learning curves of trainings kept in the folder (`*/learning_curve.csv` and
+/// `training/<policy>/learning_curve.csv`, by folder name): `episode_reward_mean` per
+/// `iteration`.
 fn learning_curves(out: &Path) -> Vec<cpmx_report_html::LearningCurve> {
-    let Ok(entries) = std::fs::read_dir(out) else {
-        return Vec::new();
+    let subfolders = |dir: &Path| -> Vec<PathBuf> {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return Vec::new();
+        };
+        let mut folders: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).collect();
+        folders.sort();
+        folders
     };
-    let mut folders: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).collect();
-    folders.sort();
+    let mut folders = subfolders(out);
+    folders.extend(subfolders(&out.join("training")));
     folders
         .into_iter()
         .filter_map(|dir| {

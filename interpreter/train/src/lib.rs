@@ -24,5 +24,5 @@ mod seed_run;
 mod setup;
 
 pub use environment::{REWARD_TERMS, TrainingEnv};
-pub use seed_run::{RunError, RunInfo, SeedRun, Start, write_atomic, write_overview};
+pub use seed_run::{RunError, RunInfo, SeedRun, Start, write_overview};
 pub use setup::{SetupError, TrainingSetup};

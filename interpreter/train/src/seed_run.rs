@@ -299,17 +299,13 @@ fn read(path: &Path) -> Result<Vec<u8>, RunError> {
     })
 }
 
-/// Replaces `path` with `bytes` in one rename.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), RunError> {
-    let io = |source| RunError::Io {
+/// Replaces `path` with `bytes` atomically (`cpmx-engine`'s store: a temporary file, then a
+/// rename).
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), RunError> {
+    cpmx_engine::store::write_atomic(path, bytes).map_err(|source| RunError::Io {
         path: path.to_owned(),
         source,
-    };
-    let mut partial = path.as_os_str().to_owned();
-    partial.push(".partial");
-    let partial = PathBuf::from(partial);
-    fs::write(&partial, bytes).map_err(io)?;
-    fs::rename(&partial, path).map_err(io)
+    })
 }
 
 fn append_line(path: &Path, line: &str) -> Result<(), RunError> {
