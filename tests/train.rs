@@ -297,3 +297,31 @@ fn bad_input_is_refused_and_nothing_trained_is_lost() {
     assert!(stderr.contains("400"), "{stderr}");
     assert!(!elsewhere.join("out").exists());
 }
+
+#[test]
+fn a_spec_that_only_trains_trains_and_has_nothing_to_run() {
+    let dir = scratch("train-only");
+    let spec = dir.join("only.yaml");
+    std::fs::write(
+        &spec,
+        "cpmx: 1\nname: only\nmap: {file: maps/cpm.xml}\ntraining:\n  \
+         scenario: {extends: stdlib:sigmarl-intersection, envs: 4, agents: 2}\n  reward: stdlib:sigmarl\n  \
+         algorithm: {extends: stdlib:mappo-sigmarl, mappo: {frames_per_iteration: 64, minibatch: 32, epochs: 1}}\n  \
+         network: {hidden: [16], activation: tanh}\n  iterations: 1\n  seeds: [3]\n",
+    )
+    .unwrap();
+    let table = ok(&train(&dir, &spec, &[]));
+    assert!(table.contains("| 3 | 1 |"), "{table}");
+    let run = Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .arg("run")
+        .arg(&spec)
+        .arg("--out")
+        .arg(dir.join("runs"))
+        .arg("--data")
+        .arg(reference())
+        .output()
+        .unwrap();
+    assert_eq!(run.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&run.stderr).contains("only trains"));
+    assert!(!dir.join("runs").exists());
+}

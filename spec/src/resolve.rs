@@ -41,6 +41,16 @@ fn preset_fields(doc: &Value) -> Vec<(String, PresetKind)> {
     fields
 }
 
+/// The keys of the run matrix, which a spec that only trains leaves out.
+/// (`fidelities` may stay: a spec that only trains can define the fidelity it trains in.)
+const MATRIX_KEYS: [&str; 5] = [
+    "agents",
+    "policies",
+    "initial_configurations",
+    "repetitions",
+    "seed",
+];
+
 /// Inserts the preset-valued defaults where the spec leaves them out.
 fn insert_defaults(doc: &mut Value) {
     let Some(root) = doc.as_object_mut() else { return };
@@ -52,6 +62,20 @@ fn insert_defaults(doc: &mut Value) {
         training
             .entry("observation")
             .or_insert_with(|| Value::from("stdlib:sigmarl"));
+        // A spec that only trains (no key of the run matrix): SigmaRL's step and, for the
+        // default `training.fidelity: sim`, its simulation.
+        let named_fidelity = training.contains_key("fidelity");
+        let trains_only = MATRIX_KEYS.iter().all(|k| !root.contains_key(*k));
+        if trains_only {
+            root.entry("timing")
+                .or_insert_with(|| serde_json::json!({"dt": 0.1, "steps": 180}));
+            if !named_fidelity && !root.contains_key("fidelities") {
+                root.insert(
+                    "fidelities".to_owned(),
+                    serde_json::json!({"sim": {"control": "direct", "dynamics": "kinematic"}}),
+                );
+            }
+        }
     }
     if let Some(policies) = root.get_mut("policies").and_then(Value::as_array_mut) {
         for policy in policies.iter_mut().filter_map(Value::as_object_mut) {

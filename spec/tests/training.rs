@@ -75,6 +75,50 @@ macro_rules! case {
     };
 }
 
+/// A spec that only trains: no key of the run matrix.
+const TRAINS_ONLY: &str = "\
+cpmx: 1
+name: just-training
+map: stdlib:intersection
+training:
+  scenario: stdlib:sigmarl-intersection
+  reward: stdlib:sigmarl
+  algorithm: stdlib:mappo-sigmarl
+  iterations: 100
+  seeds: [4]
+";
+
+#[test]
+fn a_spec_may_only_train_in_sigmarls_simulation() {
+    let checked = check(TRAINS_ONLY).unwrap();
+    assert!(checked.plan().is_empty());
+    let training = checked.training_plan();
+    assert_eq!(training.len(), 1);
+    assert_eq!(training[0].fidelity, "sim");
+    assert!((checked.spec.timing.dt - 0.1).abs() < 1e-12);
+    match &checked.spec.fidelities["sim"] {
+        Fidelity::Simulated(sim) => assert_eq!(sim.control, cpmx_spec::model::Control::Direct),
+        Fidelity::Lab(_) => panic!("sim is SigmaRL's simulation"),
+    }
+    // One key of the matrix makes it an experiment again, which needs all of them.
+    let partial = TRAINS_ONLY.replace("training:\n", "agents: 2\ntraining:\n");
+    let problems = cpmx_spec::render(&check(&partial).expect_err("matrix keys missing"), false);
+    for key in [
+        "policies",
+        "initial_configurations",
+        "repetitions",
+        "seed",
+        "fidelities",
+        "timing",
+    ] {
+        assert!(problems.contains(&format!("needs `{key}`")), "{key}: {problems}");
+    }
+    // Without `training:` nothing is filled in.
+    let bare = TRAINS_ONLY[..TRAINS_ONLY.find("training:").unwrap()].to_owned() + "description: x\n";
+    let problems = cpmx_spec::render(&check(&bare).expect_err("not a spec"), false);
+    assert!(problems.contains("needs `timing`"), "{problems}");
+}
+
 #[test]
 fn the_presets_are_sigmarls_setup_and_the_plan_has_one_run_per_seed() {
     let checked = check(VALID).unwrap();

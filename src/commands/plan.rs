@@ -42,6 +42,8 @@ pub fn run(spec: &Path, format: PlanFormat, data: &DataArgs) -> Result<(), Failu
     let (runs, training) = (checked.plan(), checked.training_plan());
     let mut text = render(&runs, format);
     match format {
+        // A spec that only trains has no matrix to show.
+        PlanFormat::Table if runs.is_empty() => text = render_training(&training, format),
         PlanFormat::Table => {
             text.push_str(&starts_table(&starts));
             text.push_str(&render_training(&training, format));

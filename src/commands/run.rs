@@ -154,6 +154,15 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     let only = parse_only(&args.only)?;
     let checked = load_checked(&args.spec, &args.data)?;
     let all_plans = checked.plan();
+    if all_plans.is_empty() {
+        eprintln!(
+            "error: `{}` has no runs: it only trains (no policies and initial configurations)\nhelp: \
+             `cpmx train` trains it; add `agents`, `policies`, `initial_configurations`, `repetitions`, `seed` \
+             and `fidelities` to benchmark what it trains",
+            args.spec.display()
+        );
+        return Err(Failure::InvalidInput);
+    }
     check_only_names(&only, &all_plans)?;
     let plans: Vec<_> = all_plans.iter().filter(|p| keep(p, &only)).cloned().collect();
 

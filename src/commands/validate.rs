@@ -27,7 +27,14 @@ pub fn run(specs: &[PathBuf], data: &DataArgs) -> Result<(), Failure> {
             continue;
         }
         match load_checked(path, data) {
-            Ok(checked) => println!("ok: {}: {} runs", path.display(), checked.plan().len()),
+            Ok(checked) => match checked.training_plan().len() {
+                0 => println!("ok: {}: {} runs", path.display(), checked.plan().len()),
+                trainings => println!(
+                    "ok: {}: {} runs, {trainings} training runs",
+                    path.display(),
+                    checked.plan().len()
+                ),
+            },
             Err(_) => failed = true,
         }
     }

@@ -11,6 +11,17 @@ use super::{Fidelity, InitialConfiguration, MetricsSpec, PolicySpec, PresetOr, R
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 #[schemars(title = "cpmx experiment")]
+#[schemars(extend(
+    "if" = {"anyOf": [
+        {"not": {"required": ["training"]}},
+        {"required": ["agents"]},
+        {"required": ["policies"]},
+        {"required": ["initial_configurations"]},
+        {"required": ["repetitions"]},
+        {"required": ["seed"]}
+    ]},
+    "then" = {"required": ["agents", "policies", "initial_configurations", "repetitions", "seed", "fidelities"]}
+))]
 pub struct Spec {
     /// Language version. Only `1` exists.
     pub cpmx: u32,
@@ -28,21 +39,31 @@ pub struct Spec {
     pub vehicle: VehicleSpec,
     /// Policy step and evaluation horizon.
     pub timing: Timing,
-    /// Number of agents (vehicles) in every run.
+    /// Number of agents (vehicles) in every run. A spec that only trains (`training:`) may
+    /// leave out the run matrix (`agents`, `policies`, `initial_configurations`,
+    /// `repetitions`, `seed`; `fidelities` then only names fidelities to train in, by default
+    /// SigmaRL's `sim`, and `timing` defaults to SigmaRL's `dt: 0.1`); `cpmx run` then has
+    /// nothing to run.
+    #[serde(default)]
     #[schemars(range(min = 1, max = 64))]
     pub agents: u32,
     /// The policies to compare: one axis of the run matrix.
+    #[serde(default)]
     #[schemars(length(min = 1))]
     pub policies: Vec<PolicySpec>,
     /// Initial configurations, shared by every fidelity (paired design): one axis of the matrix.
+    #[serde(default)]
     #[schemars(length(min = 1))]
     pub initial_configurations: Vec<InitialConfiguration>,
     /// Repetitions of every (fidelity, policy, initial configuration): one axis of the matrix.
+    #[serde(default = "one_repetition")]
     #[schemars(range(min = 1, max = 10000))]
     pub repetitions: u32,
     /// Root seed: every random stream of every run derives from it.
+    #[serde(default)]
     pub seed: u64,
     /// Fidelity levels by name, each a stack of layers: one axis of the matrix.
+    #[serde(default)]
     #[schemars(length(min = 1))]
     pub fidelities: IndexMap<String, Fidelity>,
     /// How a policy becomes a reference trajectory; needed by fidelities with
@@ -62,6 +83,10 @@ pub struct Spec {
     /// `cpmx run` ignores it. A policy names what was trained with `mlp: {trained: {seed: N}}`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub training: Option<TrainingSpec>,
+}
+
+fn one_repetition() -> u32 {
+    1
 }
 
 /// The road network of an experiment.
