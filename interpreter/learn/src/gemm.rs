@@ -79,12 +79,12 @@ pub fn gemm(
         return;
     }
     assert!(c.len() >= (m - 1) * ldc + n, "C too small");
-    if !accumulate {
-        for row in c.chunks_mut(ldc).take(m) {
-            row[..n].fill(0.0);
-        }
-    }
     if k == 0 {
+        if !accumulate {
+            for row in c.chunks_mut(ldc).take(m) {
+                row[..n].fill(0.0);
+            }
+        }
         return;
     }
     let fma = has_fma();
@@ -96,6 +96,9 @@ pub fn gemm(
     let mc = m.div_ceil(blocks).div_ceil(MR) * MR;
     for pc in (0..k).step_by(KC) {
         let kc = KC.min(k - pc);
+        // Without `accumulate`, the first depth block starts every tile from zero instead of
+        // loading C (the same sums as zeroing C first, without the pass over C).
+        let load_c = accumulate || pc > 0;
         pack_b(&b, pc, kc, n, &mut packed_b[..n_panels * NR * kc]);
         let packed_b = &packed_b[..n_panels * NR * kc];
         let c_rows = &mut c[..(m - 1) * ldc + n];
@@ -105,7 +108,7 @@ pub fn gemm(
             PACK_A.with_borrow_mut(|packed_a| {
                 packed_a.resize(rows.div_ceil(MR) * MR * kc, 0.0);
                 pack_a(&a, i0, rows, pc, kc, packed_a);
-                block_product(packed_a, packed_b, kc, rows, n, c_block, ldc, fma);
+                block_product(packed_a, packed_b, kc, rows, n, c_block, ldc, fma, load_c);
             });
         };
         if threads > 1 && blocks > 1 {
@@ -205,6 +208,7 @@ fn block_product(
     c_block: &mut [f32],
     ldc: usize,
     fma: bool,
+    load_c: bool,
 ) {
     let mut tile = [[0.0f32; NR]; MR];
     for (jp, b_panel) in packed_b.chunks_exact(NR * kc).enumerate() {
@@ -215,12 +219,14 @@ fn block_product(
             let valid = MR.min(rows - i0);
             if valid == MR && cols == NR {
                 let c = &mut c_block[i0 * ldc + j0..(i0 + MR - 1) * ldc + j0 + NR];
-                micro_kernel(kc, a_panel, b_panel, c, ldc, fma);
+                micro_kernel(kc, a_panel, b_panel, c, ldc, fma, load_c);
             } else {
-                for (r, t) in tile.iter_mut().enumerate().take(valid) {
-                    t[..cols].copy_from_slice(&c_block[(i0 + r) * ldc + j0..][..cols]);
+                if load_c {
+                    for (r, t) in tile.iter_mut().enumerate().take(valid) {
+                        t[..cols].copy_from_slice(&c_block[(i0 + r) * ldc + j0..][..cols]);
+                    }
                 }
-                micro_kernel(kc, a_panel, b_panel, tile.as_flattened_mut(), NR, fma);
+                micro_kernel(kc, a_panel, b_panel, tile.as_flattened_mut(), NR, fma, load_c);
                 for (r, t) in tile.iter().enumerate().take(valid) {
                     c_block[(i0 + r) * ldc + j0..][..cols].copy_from_slice(&t[..cols]);
                 }
@@ -229,27 +235,37 @@ fn block_product(
     }
 }
 
-/// `C_tile += A_panel B_panel` over `kc` terms; `c` holds the `MR x NR` tile with row
-/// stride `ldc` (`c[r * ldc + j]`).
+/// `C_tile += A_panel B_panel` over `kc` terms (`C_tile = ...` when `load_c` is false); `c`
+/// holds the `MR x NR` tile with row stride `ldc` (`c[r * ldc + j]`).
 #[inline]
-fn micro_kernel(kc: usize, a: &[f32], b: &[f32], c: &mut [f32], ldc: usize, fma: bool) {
+#[allow(clippy::too_many_arguments)]
+fn micro_kernel(kc: usize, a: &[f32], b: &[f32], c: &mut [f32], ldc: usize, fma: bool, load_c: bool) {
     assert!(a.len() >= kc * MR && b.len() >= kc * NR && c.len() > (MR - 1) * ldc + NR - 1);
     #[cfg(target_arch = "x86_64")]
     if fma {
         // SAFETY: the CPU has AVX2 and FMA (checked by `has_fma`); the panels hold `kc` rows
         // and `c` the tile (asserted above).
-        unsafe { micro_kernel_avx2(kc, a.as_ptr(), b.as_ptr(), c.as_mut_ptr(), ldc) };
+        unsafe { micro_kernel_avx2(kc, a.as_ptr(), b.as_ptr(), c.as_mut_ptr(), ldc, load_c) };
         return;
     }
     let _ = fma;
-    micro_kernel_portable(kc, a, b, c, ldc);
+    micro_kernel_portable(kc, a, b, c, ldc, load_c);
 }
 
 /// The reference micro-kernel: the same fused operations in the same order as the AVX2 one.
-pub(crate) fn micro_kernel_portable(kc: usize, a: &[f32], b: &[f32], c: &mut [f32], ldc: usize) {
+pub(crate) fn micro_kernel_portable(
+    kc: usize,
+    a: &[f32],
+    b: &[f32],
+    c: &mut [f32],
+    ldc: usize,
+    load_c: bool,
+) {
     let mut tile = [[0.0f32; NR]; MR];
-    for (r, t) in tile.iter_mut().enumerate() {
-        t.copy_from_slice(&c[r * ldc..r * ldc + NR]);
+    if load_c {
+        for (r, t) in tile.iter_mut().enumerate() {
+            t.copy_from_slice(&c[r * ldc..r * ldc + NR]);
+        }
     }
     for kk in 0..kc {
         let b_row = &b[kk * NR..kk * NR + NR];
@@ -270,10 +286,10 @@ pub(crate) fn micro_kernel_portable(kc: usize, a: &[f32], b: &[f32], c: &mut [f3
 /// values and `c` for the tile `c[r * ldc + j]`, `r < MR`, `j < NR`.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn micro_kernel_avx2(kc: usize, a: *const f32, b: *const f32, c: *mut f32, ldc: usize) {
+unsafe fn micro_kernel_avx2(kc: usize, a: *const f32, b: *const f32, c: *mut f32, ldc: usize, load_c: bool) {
     use std::arch::x86_64::*;
     let mut acc = [[_mm256_setzero_ps(); 2]; MR];
-    for (r, acc_r) in acc.iter_mut().enumerate() {
+    for (r, acc_r) in acc.iter_mut().enumerate().filter(|_| load_c) {
         // SAFETY: within the tile (caller's guarantee).
         unsafe {
             acc_r[0] = _mm256_loadu_ps(c.add(r * ldc));
@@ -361,14 +377,24 @@ mod tests {
         let b = data(kc * NR, 4.0);
         let start: [[f32; NR]; MR] =
             std::array::from_fn(|r| std::array::from_fn(|c| (r * NR + c) as f32 * 0.01));
+        let bits = |t: &[[f32; NR]; MR]| t.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
         let mut portable = start;
-        micro_kernel_portable(kc, &a, &b, portable.as_flattened_mut(), NR);
+        micro_kernel_portable(kc, &a, &b, portable.as_flattened_mut(), NR, true);
         let mut chosen = start;
-        micro_kernel(kc, &a, &b, chosen.as_flattened_mut(), NR, has_fma());
-        assert_eq!(
-            portable.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>(),
-            chosen.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>()
-        );
+        micro_kernel(kc, &a, &b, chosen.as_flattened_mut(), NR, has_fma(), true);
+        assert_eq!(bits(&portable), bits(&chosen));
+        // Without loading C, both start from zero: the same as a zeroed C.
+        let mut zeroed = [[0.0f32; NR]; MR];
+        micro_kernel_portable(kc, &a, &b, zeroed.as_flattened_mut(), NR, true);
+        for kernel in [false, true] {
+            let mut fresh = start;
+            if kernel {
+                micro_kernel(kc, &a, &b, fresh.as_flattened_mut(), NR, has_fma(), false);
+            } else {
+                micro_kernel_portable(kc, &a, &b, fresh.as_flattened_mut(), NR, false);
+            }
+            assert_eq!(bits(&fresh), bits(&zeroed));
+        }
     }
 
     #[test]
