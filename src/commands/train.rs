@@ -70,13 +70,17 @@ fn selected_seeds(only: Option<&str>, seeds: &[u64]) -> Result<Vec<u64>, Failure
 }
 
 pub fn run(args: &TrainArgs) -> Result<(), Failure> {
-    // Training needs the map and the training section, not the weights of evaluated policies,
-    // and the actors it is about to train are naturally not there yet.
+    // Training needs the map and the training section, not the weights of evaluated policies;
+    // the actors it is about to train are naturally not there yet, and what the run matrix's
+    // repetitions will be is not its concern.
     let checked = load_checked_for(
         &args.spec,
         &args.data,
         cpmx_spec::CheckScope::Measure,
-        &["cpmx::check::not-trained"],
+        &[
+            "cpmx::check::not-trained",
+            "cpmx::check::deterministic-repetitions",
+        ],
     )?;
     let setup = TrainingSetup::prepare(&checked).map_err(|e| {
         eprintln!("error: {e}");
