@@ -11,12 +11,12 @@
 //! bench measures it rather than assuming a clock. Run with one thread while others build:
 //! `RAYON_NUM_THREADS=1 cargo bench -p cpmx-learn --bench update`.
 //!
-//! Measured here (2026-11-23, one thread, the other core busy with builds): peak 100-102
-//! GFLOP/s (about 3.1 GHz x 32); one minibatch step 33.5 ms = 64.5 GFLOP/s, 63 % of that peak
-//! (SigmaRL/PyTorch: 43 ms, about 50 %), i.e. 8.0 s for the 240 steps of an iteration; the
-//! products alone (`parts/gemm_*`) run at 83-85 GFLOP/s (83 %); the rest is tanh, packing,
-//! the loss and Adam. A 240-step update needs 524 GFLOP, so 3 s would take 175 GFLOP/s:
-//! beyond one core's f32 peak.
+//! Measured here (2026-11-23, one thread, the machine otherwise idle): peak 88 GFLOP/s; one
+//! minibatch step 53.5 ms = 40 GFLOP/s, 46 % of that peak (two threads: 36 ms), i.e. 12.8 s
+//! for the 240 steps of an iteration; the products alone (`parts/gemm_*`) run at 59-65 GFLOP/s
+//! (67-74 %); tanh (535 M values/s, 7 % of a step), packing, the loss and Adam take the rest.
+//! (A first run of this bench recorded 33.5 ms at a 100 GFLOP/s peak.) A 240-step update needs
+//! 524 GFLOP, so 3 s would take 175 GFLOP/s: beyond one core's f32 peak.
 
 use std::hint::black_box;
 
