@@ -131,28 +131,52 @@ pub fn has_fma() -> bool {
     }
 }
 
-/// Pack rows `pc..pc + kc` of B into micro-panels of [`NR`] columns, `k`-major, zero-padded.
+/// Pack rows `pc..pc + kc` of B into micro-panels of [`NR`] columns, `k`-major, zero-padded;
+/// panels are split between rayon's threads when there are several (a copy: no bit changes).
 fn pack_b(b: &Mat<'_>, pc: usize, kc: usize, n: usize, out: &mut [f32]) {
-    for (p, panel) in out.chunks_exact_mut(NR * kc).enumerate() {
-        let j0 = p * NR;
-        let cols = NR.min(n - j0);
-        for (kk, row) in panel.as_chunks_mut::<NR>().0.iter_mut().enumerate() {
-            if b.cs == 1 && cols == NR {
-                // A fixed-size copy (a variable one would call memmove for 16 values).
-                let start = (pc + kk) * b.rs + j0;
-                *row = b.data[start..start + NR].try_into().expect("16 values");
-                continue;
+    let panel = |(p, panel): (usize, &mut [f32])| pack_b_panel(b, pc, kc, n, p * NR, panel);
+    if rayon::current_num_threads() > 1 && n >= 4 * NR {
+        out.par_chunks_exact_mut(NR * kc).enumerate().for_each(panel);
+    } else {
+        out.chunks_exact_mut(NR * kc).enumerate().for_each(panel);
+    }
+}
+
+/// One micro-panel of [`pack_b`]: columns `j0..j0 + NR` of B's rows `pc..pc + kc`.
+fn pack_b_panel(b: &Mat<'_>, pc: usize, kc: usize, n: usize, j0: usize, panel: &mut [f32]) {
+    let cols = NR.min(n - j0);
+    if b.rs == 1 {
+        // B is a transposed row-major matrix (W^T): each column is contiguous, so read
+        // columns and scatter them into the panel, which stays in L1.
+        for jj in 0..cols {
+            let column = &b.data[(j0 + jj) * b.cs + pc..][..kc];
+            for (kk, &v) in column.iter().enumerate() {
+                panel[kk * NR + jj] = v;
             }
-            if b.cs == 1 {
-                let start = (pc + kk) * b.rs + j0;
-                row[..cols].copy_from_slice(&b.data[start..start + cols]);
-            } else {
-                for (jj, v) in row[..cols].iter_mut().enumerate() {
-                    *v = b.at(pc + kk, j0 + jj);
-                }
-            }
-            row[cols..].fill(0.0);
         }
+        if cols < NR {
+            for row in panel.as_chunks_mut::<NR>().0 {
+                row[cols..].fill(0.0);
+            }
+        }
+        return;
+    }
+    for (kk, row) in panel.as_chunks_mut::<NR>().0.iter_mut().enumerate() {
+        if b.cs == 1 && cols == NR {
+            // A fixed-size copy (a variable one would call memmove for 16 values).
+            let start = (pc + kk) * b.rs + j0;
+            *row = b.data[start..start + NR].try_into().expect("16 values");
+            continue;
+        }
+        if b.cs == 1 {
+            let start = (pc + kk) * b.rs + j0;
+            row[..cols].copy_from_slice(&b.data[start..start + cols]);
+        } else {
+            for (jj, v) in row[..cols].iter_mut().enumerate() {
+                *v = b.at(pc + kk, j0 + jj);
+            }
+        }
+        row[cols..].fill(0.0);
     }
 }
 
