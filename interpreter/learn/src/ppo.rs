@@ -3,6 +3,8 @@
 //! smooth-L1 value loss, one-sample entropy estimate) with its gradients with respect to the
 //! actor's raw outputs and the critic's values.
 
+use rayon::prelude::*;
+
 use crate::tanh_normal::{self, Params};
 
 /// GAE over one environment's `T` consecutive steps with `N` agents, torchrl's recursion with
@@ -108,41 +110,61 @@ pub fn ppo_loss(
     assert_eq!(raw.len(), entries * 4, "actor outputs");
     let inv = 1.0 / entries as f64;
     let (log_low, log_high) = ((1.0 - config.clip_epsilon).ln(), (1.0 + config.clip_epsilon).ln());
-    let mut sums = Losses::default();
+    // Entries are independent but for the sums: each env-step's entries (its agents) run as one
+    // task, in parallel, and the sums are then taken in entry order, so the result does not
+    // depend on the threads.
+    let mut terms = vec![[0.0f64; 4]; entries];
     d_value.fill(0.0);
-    for i in 0..entries {
-        let p: Params = tanh_normal::params(&raw[i * 4..i * 4 + 4]);
-        let action = [input.action[2 * i], input.action[2 * i + 1]];
-        let eps = [input.entropy_eps[2 * i], input.entropy_eps[2 * i + 1]];
-        let scored = tanh_normal::log_prob(&p, action, config.high);
-        let advantage = f64::from(input.advantage[i]);
+    d_raw[..entries * 4]
+        .par_chunks_mut(4 * agents)
+        .zip(terms.par_chunks_mut(agents))
+        .zip(d_value.par_iter_mut())
+        .enumerate()
+        .for_each(|(s, ((d_raw, terms), d_value))| {
+            for (a, (d_raw, term)) in d_raw.chunks_exact_mut(4).zip(terms).enumerate() {
+                let i = s * agents + a;
+                let p: Params = tanh_normal::params(&raw[i * 4..i * 4 + 4]);
+                let action = [input.action[2 * i], input.action[2 * i + 1]];
+                let eps = [input.entropy_eps[2 * i], input.entropy_eps[2 * i + 1]];
+                let scored = tanh_normal::log_prob(&p, action, config.high);
+                let advantage = f64::from(input.advantage[i]);
 
-        // Clipped objective on the log-ratio.
-        let log_ratio = scored.log_prob - f64::from(input.log_prob_old[i]);
-        let clipped = log_ratio.clamp(log_low, log_high);
-        let (gain, clipped_gain) = (log_ratio.exp() * advantage, clipped.exp() * advantage);
-        sums.objective -= gain.min(clipped_gain);
-        sums.clip_fraction += f64::from(u8::from(clipped != log_ratio));
-        let d_log_prob = if gain <= clipped_gain { -gain * inv } else { 0.0 };
+                // Clipped objective on the log-ratio.
+                let log_ratio = scored.log_prob - f64::from(input.log_prob_old[i]);
+                let clipped = log_ratio.clamp(log_low, log_high);
+                let (gain, clipped_gain) = (log_ratio.exp() * advantage, clipped.exp() * advantage);
+                let d_log_prob = if gain <= clipped_gain { -gain * inv } else { 0.0 };
 
-        // Entropy estimate through a reparameterised sample.
-        let sampled = tanh_normal::sample_log_prob(&p, eps, config.high);
-        sums.entropy -= sampled.log_prob;
-        let d_sample = config.entropy_coef * inv;
+                // Entropy estimate through a reparameterised sample.
+                let sampled = tanh_normal::sample_log_prob(&p, eps, config.high);
+                let d_sample = config.entropy_coef * inv;
 
-        for k in 0..4 {
-            d_raw[i * 4 + k] = (d_log_prob * scored.grad_raw[k] + d_sample * sampled.grad_raw[k]) as f32;
-        }
+                for k in 0..4 {
+                    d_raw[k] = (d_log_prob * scored.grad_raw[k] + d_sample * sampled.grad_raw[k]) as f32;
+                }
 
-        // Smooth-L1 value loss (beta 1) on the shared value.
-        let s = i / agents;
-        let diff = f64::from(value[s]) - f64::from(input.value_target[i]);
-        sums.critic += if diff.abs() < 1.0 {
-            0.5 * diff * diff
-        } else {
-            diff.abs() - 0.5
-        };
-        d_value[s] += (config.critic_coef * diff.clamp(-1.0, 1.0) * inv) as f32;
+                // Smooth-L1 value loss (beta 1) on the shared value.
+                let diff = f64::from(value[s]) - f64::from(input.value_target[i]);
+                let critic = if diff.abs() < 1.0 {
+                    0.5 * diff * diff
+                } else {
+                    diff.abs() - 0.5
+                };
+                *d_value += (config.critic_coef * diff.clamp(-1.0, 1.0) * inv) as f32;
+                *term = [
+                    gain.min(clipped_gain),
+                    f64::from(u8::from(clipped != log_ratio)),
+                    sampled.log_prob,
+                    critic,
+                ];
+            }
+        });
+    let mut sums = Losses::default();
+    for [gain, clip, log_prob, critic] in terms {
+        sums.objective -= gain;
+        sums.clip_fraction += clip;
+        sums.entropy -= log_prob;
+        sums.critic += critic;
     }
     let entropy = sums.entropy * inv;
     Losses {
