@@ -139,8 +139,10 @@ pub fn ppo_loss(
                 let sampled = tanh_normal::sample_log_prob(&p, eps, config.high);
                 let d_sample = config.entropy_coef * inv;
 
-                for k in 0..4 {
-                    d_raw[k] = (d_log_prob * scored.grad_raw[k] + d_sample * sampled.grad_raw[k]) as f32;
+                for ((d, &g_scored), &g_sampled) in
+                    d_raw.iter_mut().zip(&scored.grad_raw).zip(&sampled.grad_raw)
+                {
+                    *d = (d_log_prob * g_scored + d_sample * g_sampled) as f32;
                 }
 
                 // Smooth-L1 value loss (beta 1) on the shared value.
