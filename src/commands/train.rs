@@ -56,7 +56,11 @@ fn selected_seeds(only: Option<&str>, seeds: &[u64]) -> Result<Vec<u64>, Failure
     let mut chosen = Vec::new();
     for value in values.split(',') {
         match value.trim().parse::<u64>() {
-            Ok(seed) if seeds.contains(&seed) => chosen.push(seed),
+            Ok(seed) if seeds.contains(&seed) => {
+                if !chosen.contains(&seed) {
+                    chosen.push(seed);
+                }
+            }
             _ => {
                 eprintln!(
                     "error: `--only seed={values}`: the spec trains no seed `{value}`\nhelp: the spec's seeds: {}",
@@ -224,7 +228,7 @@ fn report_open_error(e: &RunError) -> Failure {
             );
             Failure::Usage
         }
-        RunError::Changed { .. } => {
+        RunError::Changed { .. } | RunError::Unknown { .. } => {
             eprintln!(
                 "error: {e}\nhelp: train the changed spec into another folder with `--out DIR`; nothing was changed here"
             );

@@ -89,6 +89,16 @@ pub fn reward_points(text: &str) -> Vec<(f64, f64)> {
         .collect()
 }
 
+/// `(iteration, episode_reward_mean)` of the last row marked `best`.
+pub fn last_best(text: &str) -> Option<(u64, f64)> {
+    let mut lines = text.lines();
+    let best = lines.next()?.split(',').position(|c| c == "best")?;
+    lines.rev().find_map(|line| {
+        let fields: Vec<&str> = line.split(',').collect();
+        (fields.get(best) == Some(&"1")).then(|| Some((fields[0].parse().ok()?, fields[2].parse().ok()?)))?
+    })
+}
+
 /// A curve of a chart.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Series {
@@ -255,6 +265,7 @@ mod tests {
             assert_eq!(line.split(',').count(), columns, "{line}");
         }
         assert_eq!(reward_points(&text), vec![(1.0, -0.25)]);
+        assert_eq!(last_best(&text), Some((1, -0.25)));
         assert_eq!(rows_through(&text, 1).len(), 2);
         assert_eq!(rows_through(&text, 5).len(), 3);
     }

@@ -50,6 +50,9 @@ pub enum RunError {
         found: String,
         expected: String,
     },
+    /// A checkpoint without the `run.json` that says what it was trained from.
+    #[error("`{}` holds a checkpoint without its run.json: what it was trained from is unknown", dir.display())]
+    Unknown { dir: PathBuf },
     /// The checkpoint cannot be continued.
     #[error("`{}`: {source}", path.display())]
     Checkpoint { path: PathBuf, source: TrainError },
@@ -130,9 +133,10 @@ impl SeedRun {
                     planned,
                 });
             }
-            if let Some(info) = &previous
-                && info.fingerprint != setup.fingerprint
-            {
+            let Some(mut info) = previous else {
+                return Err(RunError::Unknown { dir });
+            };
+            if info.fingerprint != setup.fingerprint {
                 return Err(RunError::Changed {
                     dir,
                     found: info.fingerprint.clone(),
@@ -150,9 +154,13 @@ impl SeedRun {
             let old_curve = fs::read_to_string(dir.join("learning_curve.csv")).unwrap_or_default();
             let mut curve_text = curve::rows_through(&old_curve, done).join("\n");
             curve_text.push('\n');
-            let mut info = previous.unwrap_or_else(|| new_info(setup, seed));
             info.iterations_done = done;
             info.iterations_planned = planned;
+            // The checkpoint may be one iteration ahead of run.json: its best comes from the curve.
+            if let Some((iteration, reward)) = curve::last_best(&curve_text) {
+                info.best_iteration = Some(iteration);
+                info.best_episode_reward_mean = Some(reward);
+            }
             if info.made_by.last().map(String::as_str) != Some(made_by) {
                 info.made_by.push(made_by.to_owned());
             }
@@ -178,6 +186,8 @@ impl SeedRun {
             info,
             curve_text: format!("{}\n", curve::header()),
         };
+        // run.json first: a checkpoint is never without it.
+        run.write_info()?;
         write_atomic(&run.dir.join("learning_curve.csv"), run.curve_text.as_bytes())?;
         write_atomic(&run.dir.join("actor.safetensors"), &run.trainer.best_actor_file())?;
         Ok((run, Start::Fresh))
