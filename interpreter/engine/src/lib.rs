@@ -23,6 +23,7 @@ pub use experiment::{
     vehicle_params,
 };
 pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, measure_recording, simulate};
+pub use plants::GreyBoxMpcModel;
 pub use sim::SimEngine;
 pub use stack::{CONTROL_PERIOD_S, VehicleStack};
 pub use starts::{InitialState, initial_states};

@@ -135,12 +135,8 @@ impl GreyBoxPlant {
             euler_step_s: spec.euler_step_s,
             battery_voltage_v: spec.battery_voltage_v,
         };
-        let model = GreyBoxVehicle::new(params).map_err(|e| e.to_string())?;
         Ok(Self {
-            model: GreyBoxMpcModel {
-                model,
-                battery_voltage_v: params.battery_voltage_v,
-            },
+            model: GreyBoxMpcModel::new(params).map_err(|e| e.to_string())?,
             vehicle,
         })
     }
@@ -238,6 +234,17 @@ pub const STOP_BRAKE_GAIN: f64 = 0.5;
 pub struct GreyBoxMpcModel {
     model: GreyBoxVehicle,
     battery_voltage_v: f64,
+}
+
+impl GreyBoxMpcModel {
+    /// The MPC model of a grey-box vehicle, predicting at its battery voltage until the MPC's
+    /// filter says otherwise.
+    pub fn new(params: GreyBoxParams) -> Result<Self, cpmx_vehicle::GreyBoxError> {
+        Ok(Self {
+            model: GreyBoxVehicle::new(params)?,
+            battery_voltage_v: params.battery_voltage_v,
+        })
+    }
 }
 
 impl Model<4, 2> for GreyBoxMpcModel {

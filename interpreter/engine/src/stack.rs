@@ -48,6 +48,9 @@ pub struct StampedState {
     pub create_s: f64,
     /// Pose and odometer speed as estimated on the car, steering σ = σ_max · servo command.
     pub state: BicycleState,
+    /// Time since the newest IPS fix the car received was measured, at `create_s` [s]
+    /// (the lab's `IPS_update_age_nanoseconds`; 0 with ideal sensing).
+    pub ips_update_age_s: f64,
 }
 
 impl StampedState {
@@ -214,7 +217,12 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
     /// Publishes the current report stamped `create_s`.
     fn publish(&mut self, create_s: f64) {
         let state = self.reported_state();
-        self.published.push_back(StampedState { create_s, state });
+        let ips_update_age_s = self.ips_update_age_s(create_s);
+        self.published.push_back(StampedState {
+            create_s,
+            state,
+            ips_update_age_s,
+        });
         if self.published.len() > PUBLISHED_STATES {
             self.published.pop_front();
         }
@@ -231,7 +239,16 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
             .unwrap_or(StampedState {
                 create_s: t_now_s,
                 state: self.reported_state(),
+                ips_update_age_s: self.ips_update_age_s(t_now_s),
             })
+    }
+
+    /// Time since the newest IPS fix that reached the car was measured [s]: what the lab's
+    /// controller stops on after 3 s; 0 with ideal sensing (the car always knows its pose).
+    fn ips_update_age_s(&self, now_s: f64) -> f64 {
+        self.sensing
+            .as_ref()
+            .map_or(0.0, |sensing| sensing.ips_update_age_s(now_s))
     }
 
     fn receive(&mut self, points: Vec<TrajectoryPoint>, create_stamp_s: f64, valid_after_s: f64) {
@@ -258,7 +275,7 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
             now_s,
             &StateEstimate {
                 state: estimate,
-                ips_update_age_s: 0.0,
+                ips_update_age_s: self.ips_update_age_s(now_s),
             },
         );
         let input = match &mut self.delay {
@@ -335,6 +352,7 @@ fn on_car_sensing(s: &SensingModel, pose: Pose2, speed_mps: f64) -> Result<OnCar
 #[cfg(test)]
 mod tests {
     use super::*;
+    use cpmx_follower::StopReason;
     use cpmx_spec::model::{ActuationModel, Control, GreyBoxModel};
 
     fn twin_without_sensing() -> SimulatedFidelity {
@@ -411,6 +429,86 @@ mod tests {
             (speed - v.plant.speed_mps(&v.state)).abs() < 1e-12,
             "odometer speed is recorded"
         );
+    }
+
+    /// The twin with the lab's positioning system, losing every frame with `lost`.
+    fn twin_with_ips(drop_probability: f64) -> SimulatedFidelity {
+        SimulatedFidelity {
+            sensing: Some(SensingLayer::Model(SensingModel {
+                rate_hz: 50.0,
+                latency_ms: 60.0,
+                noise_position_m: 0.002,
+                noise_yaw_rad: 0.01,
+                drop_probability,
+                fusion_gain: 0.3,
+            })),
+            ..twin_without_sensing()
+        }
+    }
+
+    /// Straight along +x at 0.5 m/s, points every 0.1 s for 1.5 s from `from_s`.
+    fn straight(from_s: f64) -> Vec<TrajectoryPoint> {
+        (0..16)
+            .map(|k| {
+                let t = from_s + f64::from(k) * 0.1;
+                TrajectoryPoint {
+                    t_s: t,
+                    x_m: 0.5 * t,
+                    y_m: 0.0,
+                    vx_mps: 0.5,
+                    vy_mps: 0.0,
+                }
+            })
+            .collect()
+    }
+
+    /// Drives 4 s along a fresh straight trajectory every 0.1 s; the statuses and the
+    /// reported IPS ages of every step.
+    fn drive_straight(fidelity: &SimulatedFidelity) -> (Vec<Status>, Vec<f64>) {
+        let mut stack = VehicleStack::new(fidelity, VehicleParams::MU_CAR, &start(), 9, 0).unwrap();
+        let (mut statuses, mut ages) = (Vec::new(), Vec::new());
+        for k in 0..200 {
+            let now_s = f64::from(k) * CONTROL_PERIOD_S;
+            if k % 5 == 0 {
+                stack.receive(straight(now_s), now_s, now_s);
+            }
+            statuses.push(stack.step(now_s));
+            ages.push(
+                stack
+                    .listed_state(now_s + CONTROL_PERIOD_S + STATE_VALID_AFTER_S)
+                    .ips_update_age_s,
+            );
+        }
+        (statuses, ages)
+    }
+
+    /// The lab's controller stops a car whose IPS updates are older than 3 s ("Lost IPS
+    /// position reference"); the age comes from the positioning system, so a car that loses
+    /// every frame stops 3 s into the run, and one that loses the lab's 1 in 20 never does.
+    #[test]
+    fn a_car_that_loses_its_positions_stops_after_3_s() {
+        let (statuses, ages) = drive_straight(&twin_with_ips(1.0));
+        for (k, status) in statuses.iter().enumerate() {
+            let now_s = f64::from(k as u32) * CONTROL_PERIOD_S;
+            let lost = matches!(status, Status::Stopped(StopReason::LostIps { .. }));
+            assert_eq!(lost, now_s > 3.0 + 1e-9, "at {now_s} s: {status:?}");
+            assert!((ages[k] - (now_s + CONTROL_PERIOD_S)).abs() < 1e-9, "{}", ages[k]);
+        }
+
+        let (statuses, ages) = drive_straight(&twin_with_ips(0.05));
+        assert!(statuses.iter().all(|s| *s == Status::Following), "{statuses:?}");
+        // The start counts as a fix until the first frame arrives (at 80 ms, 60 ms old).
+        assert!(
+            ages[2..].iter().all(|&a| (0.06 - 1e-9..0.2).contains(&a)),
+            "{ages:?}"
+        );
+        assert!(
+            ages.iter().any(|&a| a > 0.07),
+            "a dropped frame makes the age grow"
+        );
+
+        let (_, ages) = drive_straight(&twin_without_sensing());
+        assert!(ages.iter().all(|&a| a == 0.0), "ideal sensing: {ages:?}");
     }
 
     /// The middleware lists the newest state whose `valid_after = create + 60 ms` has passed;

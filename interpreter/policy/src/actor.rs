@@ -167,12 +167,14 @@ pub enum ActorError {
     },
 }
 
-/// A loaded MLP actor. Weights are packed once at load into the panels the kernel streams.
+/// A loaded MLP actor. Weights are packed once at load into the panels the kernel streams,
+/// and shared by its clones (a planner forks the policy every tick: a copy of SigmaRL's
+/// 140,000 weights each time cost more than the forward passes).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MlpActor {
-    layers: Vec<Dense>,
+    layers: std::sync::Arc<[Dense]>,
     /// The weight tensor of each layer and its shape `[outputs, inputs]`.
-    weights: Vec<(String, [usize; 2])>,
+    weights: std::sync::Arc<[(String, [usize; 2])]>,
     input_size: usize,
     output_size: usize,
     /// Widest activation row (input or padded layer output).
@@ -375,8 +377,8 @@ impl MlpActor {
             .max()
             .unwrap_or(0);
         MlpActor {
-            layers,
-            weights,
+            layers: layers.into(),
+            weights: weights.into(),
             input_size,
             output_size,
             width,
@@ -494,7 +496,7 @@ impl MlpActor {
                 src[k * R + r] = v;
             }
         }
-        for layer in &self.layers {
+        for layer in self.layers.iter() {
             layer.apply::<R>(&src[..layer.inputs() * R], &mut dst[..layer.out_padded() * R]);
             std::mem::swap(&mut src, &mut dst);
         }

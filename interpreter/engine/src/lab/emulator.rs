@@ -36,7 +36,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use cpmx_follower::TrajectoryPoint;
 use cpmx_lab::{
     DiscoveryConfig, KeyedReader, LabError, LabParticipant, Reader, ReadyStatus, SystemTrigger, TimeStamp,
-    VehicleCommandTrajectory, VehicleStateList, Writer, topics,
+    VehicleCommandTrajectory, VehicleState, VehicleStateList, Writer, topics,
 };
 use cpmx_spec::model::{Control, Fidelity, LabFidelity, OnCollision, SimulatedFidelity};
 use cpmx_spec::{CheckedSpec, RunPlan};
@@ -316,8 +316,9 @@ impl<'a> Emulator<'a> {
                 state_list: listed
                     .iter()
                     .zip(ids)
-                    .map(|(s, id)| {
-                        lab_state(
+                    .map(|(s, id)| VehicleState {
+                        ips_update_age_nanoseconds: ns_from_s(s.ips_update_age_s),
+                        ..lab_state(
                             *id,
                             &s.state,
                             stamp_ns(origin_ns, s.create_s),
