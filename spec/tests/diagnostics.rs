@@ -1,10 +1,11 @@
 //! One wrong spec per class of problem: the rendered diagnostics are snapshot-tested, and the
 //! line and column of the first one are asserted.
 
-use std::path::{Path, PathBuf};
+#[macro_use]
+mod common;
 
 use cpmx_spec::model::Fidelity;
-use cpmx_spec::{CheckContext, DataPath, InterpreterChecks, Resources, Spec, SpecDiagnostic, SpecSource};
+use cpmx_spec::{CheckContext, InterpreterChecks, Resources, Spec, SpecDiagnostic};
 
 /// Stands in for the interpreter: can run only `control: direct` on `kinematic` dynamics.
 struct SimOnly;
@@ -39,40 +40,17 @@ fidelities:
 ";
 
 fn check(text: &str) -> Result<cpmx_spec::CheckedSpec, Vec<SpecDiagnostic>> {
-    let source = SpecSource {
-        name: "spec.yaml".into(),
-        dir: PathBuf::from("/nonexistent"),
-        text: text.into(),
-    };
-    let data = DataPath::new(Path::new("/nonexistent"), &[], None);
-    cpmx_spec::check(&source, &data, &SimOnly)
+    common::check_with(text, &SimOnly)
 }
 
 /// The valid spec with `from` replaced by `to` (which must occur).
 fn edit(from: &str, to: &str) -> String {
-    assert!(VALID.contains(from), "{from:?} is not in the base spec");
-    VALID.replacen(from, to, 1)
+    common::edit(VALID, from, to)
 }
 
 /// Checks `text`, asserts the first diagnostic's place and returns the rendering.
 fn diagnose(text: &str, line: usize, column: usize) -> String {
-    let diagnostics = check(text).expect_err("the spec should be rejected");
-    assert_eq!(
-        (diagnostics[0].line, diagnostics[0].column),
-        (line, column),
-        "{}",
-        cpmx_spec::render(&diagnostics, false)
-    );
-    cpmx_spec::render(&diagnostics, false)
-}
-
-macro_rules! case {
-    ($name:ident, $text:expr, $line:expr, $column:expr) => {
-        #[test]
-        fn $name() {
-            insta::assert_snapshot!(diagnose(&$text, $line, $column));
-        }
-    };
+    common::rejected_at(check(text), line, column)
 }
 
 #[test]

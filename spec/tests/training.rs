@@ -1,10 +1,11 @@
 //! The `training:` section: presets expand to SigmaRL's setup, the plan lists one training
 //! run per seed, and each class of mistake gets a located diagnostic (snapshot-tested).
 
-use std::path::{Path, PathBuf};
+#[macro_use]
+mod common;
 
 use cpmx_spec::model::{Fidelity, PathSetName, ResetScopeName, ValueLoss};
-use cpmx_spec::{CheckContext, DataPath, InterpreterChecks, Resources, Spec, SpecDiagnostic, SpecSource};
+use cpmx_spec::{CheckContext, InterpreterChecks, Resources, Spec, SpecDiagnostic};
 
 /// Stands in for the interpreter: runs everything, checks nothing more.
 struct Everything;
@@ -41,38 +42,17 @@ training:
 ";
 
 fn check(text: &str) -> Result<cpmx_spec::CheckedSpec, Vec<SpecDiagnostic>> {
-    let source = SpecSource {
-        name: "spec.yaml".into(),
-        dir: PathBuf::from("/nonexistent"),
-        text: text.into(),
-    };
-    let data = DataPath::new(Path::new("/nonexistent"), &[], None);
-    cpmx_spec::check(&source, &data, &Everything)
+    common::check_with(text, &Everything)
 }
 
+/// The valid spec with `from` replaced by `to` (which must occur).
 fn edit(from: &str, to: &str) -> String {
-    assert!(VALID.contains(from), "{from:?} is not in the base spec");
-    VALID.replacen(from, to, 1)
+    common::edit(VALID, from, to)
 }
 
+/// Checks `text`, asserts the first diagnostic's place and returns the rendering.
 fn diagnose(text: &str, line: usize, column: usize) -> String {
-    let diagnostics = check(text).expect_err("the spec should be rejected");
-    assert_eq!(
-        (diagnostics[0].line, diagnostics[0].column),
-        (line, column),
-        "{}",
-        cpmx_spec::render(&diagnostics, false)
-    );
-    cpmx_spec::render(&diagnostics, false)
-}
-
-macro_rules! case {
-    ($name:ident, $text:expr, $line:expr, $column:expr) => {
-        #[test]
-        fn $name() {
-            insta::assert_snapshot!(diagnose(&$text, $line, $column));
-        }
-    };
+    common::rejected_at(check(text), line, column)
 }
 
 /// A spec that only trains: no key of the run matrix.

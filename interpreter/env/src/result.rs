@@ -90,25 +90,13 @@ pub(crate) struct StepTotals {
 
 impl StepTotals {
     pub(crate) fn add_agent(&mut self, info: &AgentStepInfo) {
-        let (s, t) = (&mut self.terms, &info.terms);
-        s.progress += t.progress;
-        s.near_boundary += t.near_boundary;
-        s.near_agents_ttc += t.near_agents_ttc;
-        s.collide_agents += t.collide_agents;
-        s.collide_boundary += t.collide_boundary;
-        s.total += t.total;
+        self.terms += &info.terms;
         self.with_agents += u64::from(info.collides_with_agents);
         self.with_boundary += u64::from(info.collides_with_boundary);
     }
 
     pub(crate) fn add(&mut self, o: &StepTotals) {
-        let (s, t) = (&mut self.terms, &o.terms);
-        s.progress += t.progress;
-        s.near_boundary += t.near_boundary;
-        s.near_agents_ttc += t.near_agents_ttc;
-        s.collide_agents += t.collide_agents;
-        s.collide_boundary += t.collide_boundary;
-        s.total += t.total;
+        self.terms += &o.terms;
         self.with_agents += o.with_agents;
         self.with_boundary += o.with_boundary;
         self.env_resets += o.env_resets;

@@ -25,6 +25,18 @@ pub struct RewardTerms {
     pub total: f64,
 }
 
+impl std::ops::AddAssign<&RewardTerms> for RewardTerms {
+    /// Term by term (for sums over agent-steps; `sum_unclamped` is left as it is).
+    fn add_assign(&mut self, t: &RewardTerms) {
+        self.progress += t.progress;
+        self.near_boundary += t.near_boundary;
+        self.near_agents_ttc += t.near_agents_ttc;
+        self.collide_agents += t.collide_agents;
+        self.collide_boundary += t.collide_boundary;
+        self.total += t.total;
+    }
+}
+
 /// What one agent's reward depends on.
 #[derive(Debug, Clone, Copy)]
 pub struct RewardInput<'a> {
