@@ -22,8 +22,8 @@ pub use experiment::{
     Experiment, PrepareError, PreparedPolicy, Scoring, load_map, load_map_spec, metrics_config,
     vehicle_params,
 };
-pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, measure_recording, simulate};
 pub use plants::GreyBoxMpcModel;
+pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, measure_recording, simulate};
 pub use sim::SimEngine;
 pub use stack::{CONTROL_PERIOD_S, VehicleStack};
 pub use starts::{InitialState, initial_states};
