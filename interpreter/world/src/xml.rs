@@ -45,10 +45,9 @@ pub(crate) fn xml_error(text: &str, e: &roxmltree::Error) -> MapError {
 /// Whether the text from the start of the markup around `offset` to its end is one
 /// unfinished piece of markup (no `>` closes it): the file was cut there.
 fn breaks_off_after(text: &str, offset: usize) -> bool {
-    let start = text
-        .get(..offset)
-        .and_then(|t| t.rfind(['<', '>']))
-        .unwrap_or(offset);
+    // The markup character at `offset` itself counts (roxmltree points at a lone `<`).
+    let through = text.get(..=offset).or(text.get(..offset)).unwrap_or_default();
+    let start = through.rfind(['<', '>']).unwrap_or(offset);
     text.get(start..)
         .is_some_and(|rest| rest.starts_with('<') && !rest.contains('>'))
 }
