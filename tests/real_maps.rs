@@ -78,10 +78,16 @@ fidelities:
     let out = cpmx(&dir, &["run", "spec.yaml", "--out", "out", "--jobs", "1"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
 
-    // Every run's first sample: each car's footprint lies on its path's road.
     let map = Map::load(dir.join("karlsruhe.osm")).unwrap();
+    assert_eq!(starts_on_the_road_and_drives(&map, &dir.join("out")), 3);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Every run's first sample: each car's footprint lies on its path's road; and the cars
+/// drive (one may wait behind another). Returns the number of runs.
+fn starts_on_the_road_and_drives(map: &Map, out: &Path) -> usize {
     let mut runs = 0;
-    for entry in walk(&dir.join("out")) {
+    for entry in walk(out) {
         if entry.file_name().is_none_or(|n| n != "trajectory.csv") {
             continue;
         }
@@ -114,7 +120,81 @@ fidelities:
             .fold(0.0, f64::max);
         assert!(moved > 0.5, "{}: moved {moved} m", entry.display());
     }
-    assert_eq!(runs, 3);
+    runs
+}
+
+/// CommonRoad benchmark scenarios held back from the repository (the benchmark's licence
+/// and size keep them out): every `*.xml` of `CPMX_COMMONROAD_SCENARIOS` with lanelets
+/// validates, runs with sampled starts and the lane-follow baseline, and no run starts off
+/// the road. Run with
+/// `CPMX_COMMONROAD_SCENARIOS=DIR cargo test --test real_maps -- --ignored held_back`.
+#[test]
+#[ignore = "needs CommonRoad scenarios outside the repository in CPMX_COMMONROAD_SCENARIOS"]
+fn held_back_commonroad_scenarios_validate_and_run_on_the_road() {
+    let scenarios =
+        PathBuf::from(std::env::var_os("CPMX_COMMONROAD_SCENARIOS").expect("CPMX_COMMONROAD_SCENARIOS=DIR"));
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&scenarios)
+        .expect("a folder of CommonRoad scenarios")
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "xml"))
+        .collect();
+    files.sort();
+    let dir = temp("held-back");
+    let mut ran = 0;
+    for file in &files {
+        let Ok(map) = Map::load(file) else {
+            let text = std::fs::read_to_string(file).unwrap_or_default();
+            assert!(
+                !text.contains("<lanelet"),
+                "{} has lanelets and does not load",
+                file.display()
+            );
+            continue;
+        };
+        let spec = format!(
+            "cpmx: 1
+name: held-back
+map: {{file: \"{}\"}}
+timing: {{dt: 0.1, steps: 40}}
+agents: 3
+policies:
+  - {{name: baseline, builtin: lane-follow}}
+initial_configurations:
+  - sample: {{count: 2, seed: 5, min_gap: 1.0}}
+repetitions: 1
+seed: 1
+fidelities:
+  sim: {{control: direct, dynamics: kinematic}}
+",
+            file.display()
+        );
+        std::fs::write(dir.join("spec.yaml"), spec).unwrap();
+        let out = cpmx(&dir, &["validate", "spec.yaml"]);
+        assert!(
+            out.status.success(),
+            "{}: {}",
+            file.display(),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        std::fs::remove_dir_all(dir.join("out")).ok();
+        let out = cpmx(&dir, &["run", "spec.yaml", "--out", "out"]);
+        assert!(
+            out.status.success(),
+            "{}: {}",
+            file.display(),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert_eq!(
+            starts_on_the_road_and_drives(&map, &dir.join("out")),
+            2,
+            "{}",
+            file.display()
+        );
+        eprintln!("{}: validates and runs, starts on the road", file.display());
+        ran += 1;
+    }
+    assert!(ran > 0, "no scenario with lanelets in {}", scenarios.display());
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -17,7 +17,8 @@ use crate::yaml::{NodeSpans, SpannedDocument, escape_pointer};
 pub struct Resources {
     /// The map file, when the map is a file.
     pub map_file: Option<PathBuf>,
-    /// The weights of each policy with an `mlp`, by policy index.
+    /// The network file of each policy with an `mlp` (its weights) or an `onnx` (its file), by
+    /// policy index.
     pub weights: Vec<Option<PathBuf>>,
     /// The folder of each `from_runs` entry, by initial-configuration index.
     pub from_runs: Vec<Option<PathBuf>>,
@@ -124,7 +125,7 @@ fn check_target_speeds(spec: &Spec, ctx: &mut CheckContext<'_>) {
 fn policy_is_deterministic(policy: &crate::model::PolicySpec) -> bool {
     if policy.builtin.is_some() {
         true
-    } else if policy.mlp.is_some() {
+    } else if policy.mlp.is_some() || policy.onnx.is_some() {
         policy.action != Some(crate::model::ActionMode::Sample)
     } else {
         false
@@ -287,6 +288,7 @@ fn check_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
         let base = format!("/policies/{i}");
         let kinds: Vec<&str> = [
             ("mlp", p.mlp.is_some()),
+            ("onnx", p.onnx.is_some()),
             ("process", p.process.is_some()),
             ("builtin", p.builtin.is_some()),
         ]
@@ -313,12 +315,15 @@ fn check_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
                 ctx.push(
                     Problem::error(
                         "cpmx::check::policy-kind",
-                        format!("policy `{}` names neither `mlp`, `process` nor `builtin`", p.name),
+                        format!(
+                            "policy `{}` names neither `mlp`, `onnx`, `process` nor `builtin`",
+                            p.name
+                        ),
                         span,
                         "what drives this policy?",
                     )
                     .with_help(
-                        "add `mlp: {weights: FILE}`, `process: {command: [PROGRAM, ARGS...]}` or `builtin: lane-follow`",
+                        "add `mlp: {weights: FILE}`, `onnx: {file: FILE}`, `process: {command: [PROGRAM, ARGS...]}` or `builtin: lane-follow`",
                     ),
                 );
             }
@@ -335,7 +340,7 @@ fn check_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
                         "second kind of policy",
                     )
                     .with_help(
-                        "a policy is a trained network (`mlp`), a policy process (`process`) or a built-in baseline (`builtin`); split it in two",
+                        "a policy is a trained network (`mlp` or `onnx`), a policy process (`process`) or a built-in baseline (`builtin`); split it in two",
                     ),
                 );
             }
@@ -346,17 +351,20 @@ fn check_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
                 ] {
                     let why = if key == "observation" {
                         format!(
-                            "`{key}` belongs to `mlp` and `process` policies, and `{}` is built in",
+                            "`{key}` belongs to `mlp`, `onnx` and `process` policies, and `{}` is built in",
                             p.name
                         )
                     } else {
-                        format!("`{key}` belongs to `mlp` policies, and `{}` is built in", p.name)
+                        format!(
+                            "`{key}` belongs to `mlp` and `onnx` policies, and `{}` is built in",
+                            p.name
+                        )
                     };
                     unused(ctx, key, present, why, "not used by a built-in policy");
                 }
             }
             [kind] => {
-                let what = if kind == "mlp" {
+                let what = if kind == "mlp" || kind == "onnx" {
                     "a network"
                 } else {
                     "a policy process"
@@ -383,10 +391,12 @@ fn check_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
                         "not used by a process policy",
                     );
                 }
-                let deterministic = p
+                let head = p
                     .mlp
                     .as_ref()
-                    .is_some_and(|m| m.output != OutputHead::SigmarlTanhNormal);
+                    .map(|m| m.output)
+                    .or(p.onnx.as_ref().map(|o| o.output));
+                let deterministic = head.is_some_and(|h| h != OutputHead::SigmarlTanhNormal);
                 if deterministic && p.action == Some(ActionMode::Sample) {
                     let span = ctx.span(&format!("{base}/action"));
                     ctx.push(
@@ -729,6 +739,24 @@ fn find_files(spec: &Spec, data: &DataPath, scope: CheckScope, ctx: &mut CheckCo
                 (None, Some(_)) if scope == CheckScope::Measure => None,
                 (None, Some(trained)) => crate::check_training::find_trained(spec, i, trained, data, ctx),
                 (None, None) => None,
+            })
+            .or_else(|| {
+                let onnx = policy.onnx.as_ref()?;
+                match data.find_pinned(&onnx.file, onnx.sha256.as_deref()) {
+                    Ok(path) => Some(path),
+                    Err(_) if scope == CheckScope::Measure => None,
+                    Err(missing) => {
+                        let span = ctx.span(&format!("/policies/{i}/onnx/file"));
+                        ctx.push(missing_pinned(
+                            "ONNX file",
+                            &onnx.file,
+                            onnx.sha256.as_deref(),
+                            &missing,
+                            span,
+                        ));
+                        None
+                    }
+                }
             });
         resources.weights.push(found);
     }

@@ -79,7 +79,7 @@ fn insert_defaults(doc: &mut Value) {
     }
     if let Some(policies) = root.get_mut("policies").and_then(Value::as_array_mut) {
         for policy in policies.iter_mut().filter_map(Value::as_object_mut) {
-            if policy.contains_key("mlp") {
+            if policy.contains_key("mlp") || policy.contains_key("onnx") {
                 policy
                     .entry("observation")
                     .or_insert_with(|| Value::from("stdlib:sigmarl"));

@@ -26,6 +26,7 @@ impl InterpreterChecks for BuildChecks {
 
     fn check(&self, spec: &Spec, resources: &Resources, ctx: &mut CheckContext<'_>) {
         check_weights(spec, resources, ctx);
+        check_onnx(spec, resources, ctx);
         check_processes(spec, resources, ctx);
         let map = match load_map(spec, resources.map_file.as_deref()) {
             Ok(map) => map,
@@ -143,6 +144,57 @@ fn check_weights(spec: &Spec, resources: &Resources, ctx: &mut CheckContext<'_>)
         ctx.push(
             Problem::error(
                 "cpmx::policy::weights",
+                format!("policy `{}`: {e}", policy.name),
+                span,
+                "this network",
+            )
+            .with_help(help),
+        );
+    }
+}
+
+/// Every ONNX graph loads, takes the observation's values and gives what the output head
+/// reads; a failure names the input or output and both shapes.
+fn check_onnx(spec: &Spec, resources: &Resources, ctx: &mut CheckContext<'_>) {
+    use crate::onnx::OnnxLoadError;
+    for (i, (policy, file)) in spec.policies.iter().zip(&resources.weights).enumerate() {
+        let (Some(path), Some(design), Some(onnx)) = (file, &policy.observation, &policy.onnx) else {
+            continue;
+        };
+        let obs = observation(design);
+        let Err(e) = crate::onnx::load(onnx, obs.size(), path) else {
+            continue;
+        };
+        let (pointer, help) = match &e {
+            OnnxLoadError::NotBuilt => (
+                format!("/policies/{i}/onnx"),
+                "build cpmx with its default features (`cargo install --path .`), which include `onnx`".to_owned(),
+            ),
+            OnnxLoadError::InputSize(_) => (
+                format!("/policies/{i}/onnx/file"),
+                format!(
+                    "the observation design here gives {} values; set `observation:` to the design this network was trained with, \
+                     or export the network that takes it",
+                    obs.size()
+                ),
+            ),
+            OnnxLoadError::OutputSize(_) => (
+                format!("/policies/{i}/onnx/file"),
+                "declare the head the network was trained with: `output: sigmarl-tanh-normal` reads 4 values per agent, \
+                 `deterministic-tanh` and `deterministic-clip` read 2; export the graph up to the actor's raw outputs"
+                    .to_owned(),
+            ),
+            OnnxLoadError::Other(_) => (
+                format!("/policies/{i}/onnx/file"),
+                "export the actor alone, float32, with one input `[batch, observation]` and one output `[batch, 4]` \
+                 (torch.onnx.export(actor, example, FILE, dynamic_axes={...: {0: \"batch\"}}))"
+                    .to_owned(),
+            ),
+        };
+        let span = ctx.span(&pointer);
+        ctx.push(
+            Problem::error(
+                "cpmx::policy::onnx",
                 format!("policy `{}`: {e}", policy.name),
                 span,
                 "this network",

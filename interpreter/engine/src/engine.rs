@@ -100,6 +100,26 @@ impl RunInputs<'_> {
                     rng,
                 )?)
             }
+            PreparedPolicy::Onnx {
+                network,
+                observation,
+                output,
+                sample,
+            } => {
+                let rng = ChaCha20Rng::from_seed(stream_key(self.plan.seed, "policy"));
+                let mode = if *sample {
+                    cpmx_policy::ActionMode::Sample
+                } else {
+                    cpmx_policy::ActionMode::Mean
+                };
+                Box::new(MlpPolicy::with_network(
+                    network.clone(),
+                    *observation,
+                    *output,
+                    mode,
+                    rng,
+                )?)
+            }
             PreparedPolicy::Process {
                 spec,
                 observation,

@@ -35,6 +35,11 @@ pub enum PrepareError {
         policy: String,
         source: cpmx_policy::ActorError,
     },
+    #[error("policy `{policy}`: {source}")]
+    Onnx {
+        policy: String,
+        source: crate::onnx::OnnxLoadError,
+    },
     #[error("initial configuration `{name}`: {reason}")]
     Start { name: String, reason: String },
     #[error(
@@ -48,6 +53,13 @@ pub enum PrepareError {
 pub enum PreparedPolicy {
     Mlp {
         actor: Arc<MlpActor>,
+        observation: SigmarlObservation,
+        output: OutputHead,
+        sample: bool,
+    },
+    /// A network exported to ONNX, loaded once and shared by the runs.
+    Onnx {
+        network: Arc<dyn cpmx_policy::Network>,
         observation: SigmarlObservation,
         output: OutputHead,
         sample: bool,
@@ -219,18 +231,23 @@ pub fn observation(o: &ObservationSpec) -> SigmarlObservation {
 
 /// The spec's activation and output head as the policy crate's.
 pub fn network_options(mlp: &cpmx_spec::model::MlpSpec) -> (Activation, OutputHead) {
-    use cpmx_spec::model::{MlpActivation, OutputHead as Head};
+    use cpmx_spec::model::MlpActivation;
     let activation = match mlp.activation {
         MlpActivation::Tanh => Activation::Tanh,
         MlpActivation::Relu => Activation::Relu,
         MlpActivation::Elu => Activation::Elu,
     };
-    let output = match mlp.output {
+    (activation, output_head(mlp.output))
+}
+
+/// The spec's output head as the policy crate's.
+pub(crate) fn output_head(head: cpmx_spec::model::OutputHead) -> OutputHead {
+    use cpmx_spec::model::OutputHead as Head;
+    match head {
         Head::SigmarlTanhNormal => OutputHead::SigmarlTanhNormal,
         Head::DeterministicTanh => OutputHead::DeterministicTanh,
         Head::DeterministicClip => OutputHead::DeterministicClip,
-    };
-    (activation, output)
+    }
 }
 
 /// Loads a policy's network (once per experiment): layer sizes from the file, checked against
@@ -255,6 +272,22 @@ pub fn prepare_policy(policy: &PolicySpec, weights: Option<&Path>) -> Result<Pre
             dir: std::path::PathBuf::from("."),
         });
     }
+    let sample = policy.action == Some(cpmx_spec::model::ActionMode::Sample);
+    if let Some(onnx) = &policy.onnx {
+        let observation = observation(policy.observation.as_ref().expect("defaulted to stdlib:sigmarl"));
+        let path = weights.unwrap_or(Path::new(&onnx.file));
+        let network =
+            crate::onnx::load(onnx, observation.size(), path).map_err(|source| PrepareError::Onnx {
+                policy: policy.name.clone(),
+                source,
+            })?;
+        return Ok(PreparedPolicy::Onnx {
+            network,
+            observation,
+            output: crate::onnx::head(onnx),
+            sample,
+        });
+    }
     match (&policy.mlp, weights) {
         (Some(mlp), found) => {
             let observation = observation(policy.observation.as_ref().expect("defaulted to stdlib:sigmarl"));
@@ -273,7 +306,6 @@ pub fn prepare_policy(policy: &PolicySpec, weights: Option<&Path>) -> Result<Pre
                     policy: policy.name.clone(),
                     source,
                 })?;
-            let sample = policy.action == Some(cpmx_spec::model::ActionMode::Sample);
             Ok(PreparedPolicy::Mlp {
                 actor: Arc::new(actor),
                 observation,

@@ -25,13 +25,15 @@ pub fn resolved_spec(checked: &CheckedSpec) -> serde_json::Value {
         map.insert("sha256".into(), sha256_hex(&bytes).into());
     }
     for (i, weights) in checked.resources.weights.iter().enumerate() {
-        if let Some(path) = weights
-            && let Some(mlp) = resolved
-                .pointer_mut(&format!("/policies/{i}/mlp"))
-                .and_then(|m| m.as_object_mut())
-            && let Ok(bytes) = std::fs::read(path)
-        {
-            mlp.insert("sha256".into(), sha256_hex(&bytes).into());
+        for kind in ["mlp", "onnx"] {
+            if let Some(path) = weights
+                && let Some(network) = resolved
+                    .pointer_mut(&format!("/policies/{i}/{kind}"))
+                    .and_then(|m| m.as_object_mut())
+                && let Ok(bytes) = std::fs::read(path)
+            {
+                network.insert("sha256".into(), sha256_hex(&bytes).into());
+            }
         }
     }
     resolved

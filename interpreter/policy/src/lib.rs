@@ -43,5 +43,5 @@ pub use geometry::{AgentPaths, PreparedPath, Segments};
 pub use kernel::tanh_in_place;
 pub use lane_follow::{LaneFollow, LaneFollowParams};
 pub use observation::{AgentState, BoundaryCorners, ObservationError, ObservationInput, SigmarlObservation};
-pub use policy::{MlpPolicy, Policy, PolicyError, check_input_size};
+pub use policy::{MlpPolicy, Network, Policy, PolicyError, check_input_size};
 pub use process::{PROTOCOL_VERSION, ProcessConfig, ProcessPolicy};

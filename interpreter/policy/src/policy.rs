@@ -1,10 +1,12 @@
 //! The interface the engines call ([`Policy`]) and its learned implementation
-//! ([`MlpPolicy`]: SigmaRL observation -> MLP actor -> TanhNormal head).
+//! ([`MlpPolicy`]: SigmaRL observation -> network -> output head), where the network is an
+//! [`MlpActor`] on cpmx's kernels or a [`Network`] another runtime evaluates (ONNX).
 //!
 //! A policy is built once per run and then called once per step with all agents; it owns
 //! its buffers, its random stream and SigmaRL's one-step memory of footprint corners.
 
 use std::path::Path;
+use std::sync::Arc;
 
 use cpmx_vehicle::{Command, Footprint, footprint_corners};
 use rand::{Rng, SeedableRng};
@@ -33,6 +35,9 @@ pub enum PolicyError {
         expected: usize,
         what: &'static str,
     },
+    /// A network of another runtime (ONNX) failed to run.
+    #[error("the network failed: {0}")]
+    Network(String),
     /// A policy process failed (crashed, hung, or answered out of protocol).
     #[error("the policy process {0}")]
     Process(String),
@@ -67,16 +72,55 @@ pub(crate) fn check_commands(input: &ObservationInput<'_>, out: &[Command]) -> R
     }
 }
 
-/// A SigmaRL policy: observation design, MLP actor and action head.
+/// A network evaluated by another runtime (an ONNX graph): raw outputs for a batch of
+/// observations. Loaded once per experiment and shared by the runs.
+pub trait Network: std::fmt::Debug + Send + Sync {
+    /// Values per observation.
+    fn input_size(&self) -> usize;
+    /// Raw outputs per agent.
+    fn output_size(&self) -> usize;
+    /// Raw outputs for a batch: `observations` holds `agents * input_size()` values
+    /// (agent-major), `raw` receives `agents * output_size()` values.
+    fn forward(&self, observations: &[f32], raw: &mut [f32]) -> Result<(), String>;
+}
+
+/// The network of an [`MlpPolicy`].
+#[derive(Debug, Clone)]
+enum Net {
+    /// An MLP on cpmx's kernels, with its buffers.
+    Mlp {
+        actor: MlpActor,
+        workspace: ActorWorkspace,
+    },
+    /// A network of another runtime.
+    External(Arc<dyn Network>),
+}
+
+impl Net {
+    fn input_size(&self) -> usize {
+        match self {
+            Net::Mlp { actor, .. } => actor.input_size(),
+            Net::External(n) => n.input_size(),
+        }
+    }
+
+    fn output_size(&self) -> usize {
+        match self {
+            Net::Mlp { actor, .. } => actor.output_size(),
+            Net::External(n) => n.output_size(),
+        }
+    }
+}
+
+/// A SigmaRL policy: observation design, network and action head.
 #[derive(Debug, Clone)]
 pub struct MlpPolicy {
     observation: SigmarlObservation,
-    actor: MlpActor,
+    net: Net,
     head: ActionHead,
     output: OutputHead,
     mode: ActionMode,
     rng: ChaCha20Rng,
-    workspace: ActorWorkspace,
     observations: Vec<f32>,
     raw: Vec<f32>,
     outputs: Vec<ActionOutput>,
@@ -107,17 +151,46 @@ impl MlpPolicy {
         rng: ChaCha20Rng,
     ) -> Result<Self, PolicyError> {
         check_input_size(&observation, &actor)?;
-        if actor.output_size() != output.raw_size() {
+        let workspace = actor.workspace(0);
+        Self::with_net(Net::Mlp { actor, workspace }, observation, output, mode, rng)
+    }
+
+    /// A policy over a network of another runtime (an ONNX graph) with `output`'s head; fails
+    /// if the network's input is not the observation's size or its outputs are not what the
+    /// head reads.
+    pub fn with_network(
+        network: Arc<dyn Network>,
+        observation: SigmarlObservation,
+        output: OutputHead,
+        mode: ActionMode,
+        rng: ChaCha20Rng,
+    ) -> Result<Self, PolicyError> {
+        if network.input_size() != observation.size() {
+            return Err(PolicyError::InputSize {
+                observation: observation.size(),
+                network: network.input_size(),
+            });
+        }
+        Self::with_net(Net::External(network), observation, output, mode, rng)
+    }
+
+    fn with_net(
+        net: Net,
+        observation: SigmarlObservation,
+        output: OutputHead,
+        mode: ActionMode,
+        rng: ChaCha20Rng,
+    ) -> Result<Self, PolicyError> {
+        if net.output_size() != output.raw_size() {
             return Err(PolicyError::OutputSize {
-                found: actor.output_size(),
+                found: net.output_size(),
                 expected: output.raw_size(),
                 what: output.describe(),
             });
         }
         Ok(MlpPolicy {
-            workspace: actor.workspace(0),
             observation,
-            actor,
+            net,
             head: ActionHead::default(),
             output,
             mode,
@@ -158,19 +231,17 @@ impl MlpPolicy {
     /// Size buffers for `agents` (allocates only when the agent count grows).
     fn prepare(&mut self, agents: usize) {
         self.observations.resize(agents * self.observation.size(), 0.0);
-        self.raw.resize(agents * self.actor.output_size(), 0.0);
+        self.raw.resize(agents * self.net.output_size(), 0.0);
         self.outputs.resize(agents, ActionOutput::default());
         self.current_corners.resize(agents, Footprint::default());
         if self.previous_corners.len() != agents {
             self.previous_corners.clear();
         }
-        if self.workspace_capacity() < agents {
-            self.workspace = self.actor.workspace(agents);
+        if let Net::Mlp { actor, workspace } = &mut self.net
+            && workspace.capacity() < agents
+        {
+            *workspace = actor.workspace(agents);
         }
-    }
-
-    fn workspace_capacity(&self) -> usize {
-        self.workspace.capacity()
     }
 }
 
@@ -210,8 +281,13 @@ impl Policy for MlpPolicy {
         self.current_corners.resize(agents, Footprint::default());
 
         // Network and action head.
-        self.actor
-            .forward(&self.observations, &mut self.workspace, &mut self.raw)?;
+        debug_assert_eq!(self.net.input_size(), self.observation.size());
+        match &mut self.net {
+            Net::Mlp { actor, workspace } => actor.forward(&self.observations, workspace, &mut self.raw)?,
+            Net::External(network) => network
+                .forward(&self.observations, &mut self.raw)
+                .map_err(PolicyError::Network)?,
+        }
         for ((raw, output), command) in self
             .raw
             .chunks_exact(self.output.raw_size())

@@ -1,4 +1,4 @@
-//! CommonRoad XML (2020a) loader: lanelets (boundaries, markings, topology, types) and
+//! CommonRoad XML (2018b and 2020a) loader: lanelets (boundaries, markings, topology, types) and
 //! intersections. It validates what the path builder relies on and reports every problem as a
 //! [`MapError`] with its place in the file; it never panics on any input.
 //!
@@ -45,10 +45,11 @@ const VEHICLE_USERS: [&str; 7] = [
 /// Lanelet types no vehicle drives on (when the lanelet names no users).
 const NON_VEHICLE_TYPES: [&str; 4] = ["sidewalk", "crosswalk", "bicycleLane", "busStop"];
 /// Top-level elements that are read over, by the name the notes use.
-const IGNORED: [(&str, &str); 6] = [
+const IGNORED: [(&str, &str); 7] = [
     ("staticObstacle", "static obstacles"),
     ("dynamicObstacle", "dynamic obstacles"),
     ("environmentObstacle", "environment obstacles"),
+    ("obstacle", "obstacles"),
     ("planningProblem", "planning problems"),
     ("trafficSign", "traffic signs"),
     ("trafficLight", "traffic lights"),
@@ -94,6 +95,15 @@ pub(crate) fn read_document(
             }
             "intersection" => intersections.push(parse_intersection(text, child, &mut refs)?),
             name => {
+                // 2018b keeps every obstacle in `<obstacle>` with its `<role>`.
+                let name = match name {
+                    "obstacle" => match child_text(child, "role") {
+                        Some("static") => "staticObstacle",
+                        Some("dynamic") => "dynamicObstacle",
+                        _ => "obstacle",
+                    },
+                    name => name,
+                };
                 if let Some(i) = IGNORED.iter().position(|(n, _)| *n == name) {
                     ignored[i] += 1;
                 }
@@ -373,6 +383,14 @@ fn parse_intersection(
 }
 
 /// Reads a 64-bit integer id attribute.
+/// The trimmed text of `node`'s first child element named `name`.
+fn child_text<'a>(node: Node<'a, '_>, name: &str) -> Option<&'a str> {
+    node.children()
+        .find(|c| c.is_element() && c.tag_name().name() == name)
+        .and_then(|c| c.text())
+        .map(str::trim)
+}
+
 fn id_attribute(text: &LineIndex, node: Node, name: &str) -> Result<i64, MapError> {
     let raw = node.attribute(name);
     raw.and_then(|v| v.trim().parse::<i64>().ok())

@@ -10,18 +10,20 @@ pub(crate) fn loc(index: &LineIndex, node: Node) -> SourceLocation {
     index.locate(node.range().start)
 }
 
-/// Converts a roxmltree parse error. Errors roxmltree places at 1:1 because the text ended
-/// early (a truncated file) are placed at the end of the text instead, naming the innermost
-/// element still open and where it was opened.
+/// Converts a roxmltree parse error. A text that ends early (a truncated file) is reported
+/// at its end, naming the innermost element still open and where it was opened: errors
+/// roxmltree places at 1:1 because the stream ended, and errors inside markup that never
+/// closes (a file cut after `<` or `</`, which roxmltree calls an unknown or invalid token).
 pub(crate) fn xml_error(text: &str, e: &roxmltree::Error) -> MapError {
+    let pos = e.pos();
+    let at = SourceLocation::from_line_column(text, pos.row, pos.col);
     let ended_early = matches!(
         e,
         roxmltree::Error::UnexpectedEndOfStream | roxmltree::Error::UnclosedRootNode
-    );
+    ) || breaks_off_after(text, at.offset);
     if !ended_early {
-        let pos = e.pos();
         return MapError::NotXml {
-            location: SourceLocation::from_line_column(text, pos.row, pos.col),
+            location: at,
             message: e.to_string(),
         };
     }
@@ -38,6 +40,16 @@ pub(crate) fn xml_error(text: &str, e: &roxmltree::Error) -> MapError {
         location: index.locate(end),
         message,
     }
+}
+
+/// Whether the text from the start of the markup around `offset` to its end is one
+/// unfinished piece of markup (no `>` closes it): the file was cut there.
+fn breaks_off_after(text: &str, offset: usize) -> bool {
+    // The markup character at `offset` itself counts (roxmltree points at a lone `<`).
+    let through = text.get(..=offset).or(text.get(..offset)).unwrap_or_default();
+    let start = through.rfind(['<', '>']).unwrap_or(offset);
+    text.get(start..)
+        .is_some_and(|rest| rest.starts_with('<') && !rest.contains('>'))
 }
 
 /// The elements still open at the end of `text` (name and byte offset of the start tag),
@@ -131,5 +143,50 @@ mod tests {
         };
         assert_eq!(location.line, 3, "{message}");
         assert!(message.contains("<way> (opened at 2:3)"), "{message}");
+    }
+
+    /// Cut right after `<` or `</`: roxmltree sees an unknown or invalid token, and the
+    /// diagnostic still says where the file breaks off and which element is open.
+    #[test]
+    fn text_cut_inside_a_tag_is_reported_as_truncated() {
+        for (text, line, column, open) in [
+            (
+                "<commonRoad>\n  <lanelet id='1'>\n    <x>1</x>\n    <",
+                4,
+                6,
+                "<lanelet> (opened at 2:3)",
+            ),
+            (
+                "<commonRoad>\n  <lanelet id='1'>\n    <x>1</",
+                3,
+                11,
+                "<x> (opened at 3:5)",
+            ),
+            (
+                "<commonRoad>\n  <lanelet id='1'>\n    <x>1</x>\n  </lane",
+                4,
+                9,
+                "<lanelet> (opened at 2:3)",
+            ),
+        ] {
+            let e = roxmltree::Document::parse(text).expect_err("truncated");
+            let MapError::NotXml { location, message } = xml_error(text, &e) else {
+                panic!("not NotXml")
+            };
+            assert_eq!(
+                (location.line, location.column),
+                (line, column),
+                "{text:?}: {message}"
+            );
+            assert!(message.contains(open), "{text:?}: {message}");
+        }
+        // A broken tag followed by more markup is a syntax error where roxmltree finds it.
+        let text = "<commonRoad>\n  <lanelet id='1'>\n    <1x>1</x>\n  </lanelet>\n</commonRoad>\n";
+        let e = roxmltree::Document::parse(text).expect_err("invalid");
+        let MapError::NotXml { location, message } = xml_error(text, &e) else {
+            panic!("not NotXml")
+        };
+        assert_eq!(location.line, 3, "{message}");
+        assert!(!message.contains("truncated"), "{message}");
     }
 }

@@ -1,6 +1,6 @@
 //! Maps as the tools write them: a JOSM-style lanelet2 map with negative ids, two-way
-//! lanelets, a crosswalk, regulatory elements and areas; a CommonRoad 2020a scenario as the
-//! benchmark ships them (obstacles, planning problem, traffic signs and lights); and broken
+//! lanelets, a crosswalk, regulatory elements and areas; CommonRoad 2020a and 2018b scenarios as
+//! the benchmark ships them (obstacles, planning problem, traffic signs and lights); and broken
 //! variants of both and of the Lanelet2 example map, each with a located diagnostic. No
 //! mutation or truncation makes a loader panic.
 
@@ -345,6 +345,126 @@ fn commonroad_2020a_scenario_reads_the_road_and_ignores_the_rest() {
     );
 }
 
+/// A CommonRoad 2018b scenario as the benchmark shipped them: obstacles in `<obstacle>` with
+/// a `<role>`, no intersections, traffic signs or lights.
+const COMMONROAD_2018B: &str = r#"<?xml version='1.0' encoding='UTF-8'?>
+<commonRoad commonRoadVersion="2018b" benchmarkID="USA_Test-1_1_T-1" date="2018-10-01" author="cpmx tests" affiliation="cpmx" source="written for cpmx's tests" tags="highway multi_lane" timeStepSize="0.1">
+  <lanelet id="100">
+    <leftBound>
+      <point>
+        <x>0.0</x>
+        <y>3.6</y>
+      </point>
+      <point>
+        <x>30.0</x>
+        <y>3.6</y>
+      </point>
+      <lineMarking>solid</lineMarking>
+    </leftBound>
+    <rightBound>
+      <point>
+        <x>0.0</x>
+        <y>0.0</y>
+      </point>
+      <point>
+        <x>30.0</x>
+        <y>0.0</y>
+      </point>
+      <lineMarking>dashed</lineMarking>
+    </rightBound>
+    <successor ref="101"/>
+    <speedLimit>30.0</speedLimit>
+  </lanelet>
+  <lanelet id="101">
+    <leftBound>
+      <point>
+        <x>30.0</x>
+        <y>3.6</y>
+      </point>
+      <point>
+        <x>60.0</x>
+        <y>4.6</y>
+      </point>
+    </leftBound>
+    <rightBound>
+      <point>
+        <x>30.0</x>
+        <y>0.0</y>
+      </point>
+      <point>
+        <x>60.0</x>
+        <y>1.0</y>
+      </point>
+    </rightBound>
+    <predecessor ref="100"/>
+  </lanelet>
+  <obstacle id="200">
+    <role>static</role>
+    <type>parkedVehicle</type>
+    <shape>
+      <rectangle>
+        <length>4.5</length>
+        <width>2.0</width>
+      </rectangle>
+    </shape>
+    <initialState>
+      <position><point><x>50.0</x><y>2.0</y></point></position>
+      <orientation><exact>0.0</exact></orientation>
+      <time><exact>0</exact></time>
+    </initialState>
+  </obstacle>
+  <obstacle id="201">
+    <role>dynamic</role>
+    <type>car</type>
+    <shape>
+      <rectangle>
+        <length>4.5</length>
+        <width>2.0</width>
+      </rectangle>
+    </shape>
+    <trajectory>
+      <state>
+        <position><point><x>10.0</x><y>1.8</y></point></position>
+        <orientation><exact>0.0</exact></orientation>
+        <time><exact>1</exact></time>
+      </state>
+    </trajectory>
+  </obstacle>
+  <planningProblem id="300">
+    <initialState>
+      <position><point><x>2.0</x><y>1.8</y></point></position>
+      <velocity><exact>10.0</exact></velocity>
+      <orientation><exact>0.0</exact></orientation>
+      <yawRate><exact>0.0</exact></yawRate>
+      <slipAngle><exact>0.0</exact></slipAngle>
+      <time><exact>0</exact></time>
+    </initialState>
+    <goalRegion>
+      <state>
+        <position><lanelet ref="101"/></position>
+        <time><intervalStart>10</intervalStart><intervalEnd>50</intervalEnd></time>
+      </state>
+    </goalRegion>
+  </planningProblem>
+</commonRoad>
+"#;
+
+#[test]
+fn commonroad_2018b_scenario_reads_the_road_and_counts_its_obstacles() {
+    let map = load(COMMONROAD_2018B).expect("loads");
+    assert_eq!(map.benchmark_id(), Some("USA_Test-1_1_T-1"));
+    let paths: Vec<Vec<i64>> = map.reference_paths().map(|p| p.lanelet_ids.clone()).collect();
+    assert_eq!(paths, vec![vec![100, 101]]);
+    assert_eq!(
+        map.notes(),
+        [
+            "1 static obstacles ignored",
+            "1 dynamic obstacles ignored",
+            "1 planning problems ignored",
+        ]
+    );
+}
+
 /// Each damage gives its typed error on the line that is damaged.
 #[test]
 fn broken_maps_give_located_diagnostics() {
@@ -410,12 +530,20 @@ fn broken_maps_give_located_diagnostics() {
     assert_eq!(location(&e).line, line_of(&text, "<lanelet id=\"50195\"", 1));
 }
 
-/// A truncated file is reported where it breaks off, naming the element left open.
+/// A truncated file is reported where it breaks off, naming the element left open: cut at
+/// every byte between the root's start tag and its end tag (inside names, attributes, text,
+/// right after `<` or `</`).
 #[test]
 fn truncated_maps_are_located_where_they_break_off() {
-    for (text, name) in [(JOSM, "josm"), (COMMONROAD, "commonroad")] {
-        for cut in [text.len() / 3, text.len() / 2, text.len() - 20] {
-            let cut = (0..=cut).rev().find(|&c| text.is_char_boundary(c)).unwrap_or(0);
+    for (text, name) in [
+        (JOSM, "josm"),
+        (COMMONROAD, "commonroad"),
+        (COMMONROAD_2018B, "2018b"),
+    ] {
+        let root = text.find("<osm").or(text.find("<commonRoad")).expect("a root");
+        let root_end = root + text[root..].find('>').expect("its start tag ends") + 1;
+        let close = text.rfind("</").expect("a closing tag");
+        for cut in (root_end..close).filter(|&c| text.is_char_boundary(c)) {
             let part = &text[..cut];
             let e = load(part).expect_err("truncated");
             let MapError::NotXml { location, message } = &e else {

@@ -28,7 +28,7 @@ pub use metrics::{
 };
 pub use policy::{
     ActionMode, BuiltinPolicy, LaneFollowParams, MlpActivation, MlpSpec, ObservationDesign, ObservationSpec,
-    OutputHead, PolicySpec, ProcessSpec, TrainedActor, TrainedChoice,
+    OnnxSpec, OutputHead, PolicySpec, ProcessSpec, TrainedActor, TrainedChoice,
 };
 pub use preset::PresetOr;
 pub use start::{

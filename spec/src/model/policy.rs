@@ -1,12 +1,12 @@
-//! Policies: an MLP actor (any layer sizes) with its observation design, a policy process in
-//! any language, or a built-in baseline.
+//! Policies: an MLP actor (any layer sizes) or a network exported to ONNX, with its
+//! observation design, a policy process in any language, or a built-in baseline.
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use super::PresetOr;
 
-/// One policy of the matrix. Exactly one of `mlp`, `process` and `builtin` is given.
+/// One policy of the matrix. Exactly one of `mlp`, `onnx`, `process` and `builtin` is given.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PolicySpec {
@@ -16,11 +16,15 @@ pub struct PolicySpec {
     /// A trained actor network (an MLP of any layer sizes stored as safetensors).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mlp: Option<MlpSpec>,
+    /// A trained actor network exported to ONNX from any framework, run by cpmx's ONNX
+    /// runtime (tract).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub onnx: Option<OnnxSpec>,
     /// A policy process in any language, speaking cpmx's JSON-lines protocol over
     /// stdin/stdout (see docs/policy-process.md); started once per run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub process: Option<ProcessSpec>,
-    /// The observation design the network was trained with (default for `mlp`:
+    /// The observation design the network was trained with (default for `mlp` and `onnx`:
     /// `stdlib:sigmarl`); for a `process`, the observation sent with every step (none when
     /// omitted).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -66,6 +70,36 @@ pub struct MlpSpec {
     #[serde(default)]
     pub activation: MlpActivation,
     /// How the last layer's outputs become an action. Default: `sigmarl-tanh-normal`.
+    #[serde(default)]
+    pub output: OutputHead,
+}
+
+/// A network stored as ONNX: one input fed the observation (`[batch, size]` with a symbolic
+/// or unit batch, or `[size]`) and one output read as the raw outputs (`[batch, 4]` for
+/// SigmaRL's head, `[batch, 2]` for the deterministic ones), float32.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OnnxSpec {
+    /// The ONNX file (e.g. `torch.onnx.export(actor, ...)`), relative to the spec's folder or
+    /// found on the data path.
+    #[schemars(length(min = 1))]
+    pub file: String,
+    /// SHA-256 of the file's bytes (64 hex digits). When given, only a file with this content
+    /// is taken: the data path is searched for one. `cpmx run` records it in the run folder's
+    /// `spec.resolved.yaml`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(regex(pattern = r"^[0-9a-f]{64}$"))]
+    pub sha256: Option<String>,
+    /// The graph input that takes the observation. Default: the graph's only input.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(length(min = 1))]
+    pub input_name: Option<String>,
+    /// The graph output read as the network's raw outputs. Default: the graph's only output.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(length(min = 1))]
+    pub output_name: Option<String>,
+    /// How the raw outputs become an action. Default: `sigmarl-tanh-normal` (an exported
+    /// SigmaRL actor whose graph ends in the 4 raw outputs).
     #[serde(default)]
     pub output: OutputHead,
 }
