@@ -20,7 +20,6 @@ pub fn check_with(
     cpmx_spec::check(&source, &data, interpreter)
 }
 
-
 /// `base` with `from` replaced by `to` (which must occur).
 pub fn edit(base: &str, from: &str, to: &str) -> String {
     assert!(base.contains(from), "{from:?} is not in the base spec");
