@@ -4,26 +4,11 @@
 //! in a trajectory fidelity (with predictions); a process that exits mid-run or hangs fails only
 //! its own runs, with its stderr.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod support;
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+use support::{cpmx_in as cpmx, root, temp, walk};
 
-fn cpmx(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cpmx"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("cpmx runs")
-}
-
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("cpmx-bring-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+use std::path::Path;
 
 /// A safetensors file of an MLP with layer `sizes` (`actor.N.weight` / `actor.N.bias`).
 fn write_mlp(path: &Path, sizes: &[usize]) {
@@ -209,17 +194,4 @@ fidelities:
         .count();
     assert_eq!(metrics, 6);
     std::fs::remove_dir_all(&dir).ok();
-}
-
-fn walk(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
-        let path = entry.path();
-        if path.is_dir() {
-            out.extend(walk(&path));
-        } else {
-            out.push(path);
-        }
-    }
-    out
 }

@@ -5,14 +5,13 @@
 //! ONNX file is kept in the repository) against the safetensors actors on the at25 sim table
 //! is ignored: it does not hold yet (see the test).
 
+mod support;
+
+use support::{cpmx_in as cpmx, root, temp};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use cpmx_onnx::{Activation, LinearStyle, mlp_to_onnx};
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
 
 fn reference() -> PathBuf {
     let dir = root().join("../shared/reference");
@@ -21,20 +20,6 @@ fn reference() -> PathBuf {
         "SigmaRL's reference data must be at {}",
         dir.display()
     );
-    dir
-}
-
-fn cpmx(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cpmx"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("cpmx runs")
-}
-
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("cpmx-onnx-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
     dir
 }
 

@@ -3,14 +3,13 @@
 //! run with sampled starts and the lane-follow baseline, every start on the road; a broken
 //! map gives a diagnostic naming the map file's line.
 
+mod support;
+
+use support::{cpmx_in as cpmx, root, temp, walk};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use cpmx_world::Map;
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
 
 fn example_map() -> PathBuf {
     let path = root().join("../shared/reference/maps/lanelet2/mapping_example.osm");
@@ -20,20 +19,6 @@ fn example_map() -> PathBuf {
         path.display()
     );
     path
-}
-
-fn cpmx(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cpmx"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("cpmx runs")
-}
-
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("cpmx-real-maps-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 #[test]
@@ -219,19 +204,6 @@ fn a_truncated_map_is_reported_at_the_line_where_it_breaks_off() {
     );
     assert!(stderr.contains("the file ends inside <"), "{stderr}");
     std::fs::remove_dir_all(&dir).ok();
-}
-
-fn walk(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
-        let path = entry.path();
-        if path.is_dir() {
-            out.extend(walk(&path));
-        } else {
-            out.push(path);
-        }
-    }
-    out
 }
 
 /// A spec path with a 64-bit id over negative lanelet ids (the reverses of two-way lanelets

@@ -73,6 +73,16 @@ impl RunInputs<'_> {
         Ok(AgentPaths::new(paths))
     }
 
+    /// How the run's policy acts (`action: sample` or the mean) and its `policy` stream.
+    fn action_mode(&self, sample: bool) -> (cpmx_policy::ActionMode, ChaCha20Rng) {
+        let mode = if sample {
+            cpmx_policy::ActionMode::Sample
+        } else {
+            cpmx_policy::ActionMode::Mean
+        };
+        (mode, ChaCha20Rng::from_seed(stream_key(self.plan.seed, "policy")))
+    }
+
     /// A fresh policy for this run, with its random stream (`policy`) from the run's seed.
     pub fn policy(&self) -> Result<Box<dyn Policy>, RunError> {
         let prepared = self
@@ -86,12 +96,7 @@ impl RunInputs<'_> {
                 output,
                 sample,
             } => {
-                let rng = ChaCha20Rng::from_seed(stream_key(self.plan.seed, "policy"));
-                let mode = if *sample {
-                    cpmx_policy::ActionMode::Sample
-                } else {
-                    cpmx_policy::ActionMode::Mean
-                };
+                let (mode, rng) = self.action_mode(*sample);
                 Box::new(MlpPolicy::with_output(
                     actor.as_ref().clone(),
                     *observation,
@@ -106,12 +111,7 @@ impl RunInputs<'_> {
                 output,
                 sample,
             } => {
-                let rng = ChaCha20Rng::from_seed(stream_key(self.plan.seed, "policy"));
-                let mode = if *sample {
-                    cpmx_policy::ActionMode::Sample
-                } else {
-                    cpmx_policy::ActionMode::Mean
-                };
+                let (mode, rng) = self.action_mode(*sample);
                 Box::new(MlpPolicy::with_network(
                     network.clone(),
                     *observation,
