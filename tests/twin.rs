@@ -2,7 +2,7 @@
 //! follows the sim closely, and the grey-box twin with noise and delay off follows sim-mpc.
 //! Every fidelity plans from the states the vehicles report (measured position, yaw, speed and
 //! σ = σ_max · servo command, 60 ms old) with the lab's MPC solver; the exact QP is checked on
-//! straight driving.
+//! straight driving here and through the CPM Lab intersection's turns in `twin_turns.rs`.
 
 use std::path::PathBuf;
 
