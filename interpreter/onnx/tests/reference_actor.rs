@@ -1,7 +1,8 @@
 //! SigmaRL's reference actor (`shared/reference/policy/actor.safetensors`) written as ONNX by
-//! the test (Gemm and MatMul + Add graphs) and run by tract agrees with the safetensors actor
-//! on cpmx's kernels on every reference observation (697 agent-steps and the 36 test vectors),
-//! raw outputs and actions; and graphs that do not fit are refused naming their shapes.
+//! the test (Gemm and MatMul + Add graphs) runs on cpmx's MLP kernels bit for bit as the
+//! safetensors actor, and run by tract agrees with it on every reference observation (697
+//! agent-steps and the 36 test vectors), raw outputs and actions; graphs that do not fit are
+//! refused naming their shapes.
 
 use std::path::PathBuf;
 
@@ -108,7 +109,15 @@ fn the_reference_actor_as_onnx_agrees_with_the_safetensors_actor() {
 
     for style in [LinearStyle::Gemm, LinearStyle::MatMulAdd] {
         let bytes = mlp_to_onnx(&weights, Activation::Tanh, style).unwrap();
-        let onnx = OnnxActor::from_bytes(&bytes, None, None).unwrap();
+        let lowered = OnnxActor::from_bytes(&bytes, None, None).unwrap();
+        assert!(lowered.runs_on_mlp_kernels(), "{style:?}");
+        let all: Vec<f32> = groups.concat();
+        assert_eq!(
+            mlp_raw(&mlp, &all),
+            onnx_raw(&lowered, &all),
+            "{style:?}: bit for bit"
+        );
+        let onnx = lowered.on_tract();
         assert_eq!(onnx.batch(), Batch::Symbolic);
         assert_eq!(onnx.input().1.to_string(), "[batch, 32]");
         assert_eq!(onnx.output().1.to_string(), "[batch, 4]");
@@ -121,7 +130,6 @@ fn the_reference_actor_as_onnx_agrees_with_the_safetensors_actor() {
             worst_raw = worst_raw.max(max_diff(&a, &b));
             worst_action = worst_action.max(max_diff(&actions(&a), &actions(&b)));
         }
-        let all: Vec<f32> = groups.concat();
         worst_raw = worst_raw.max(max_diff(&mlp_raw(&mlp, &all), &onnx_raw(&onnx, &all)));
         assert!(
             worst_raw < TOLERANCE,
@@ -187,6 +195,9 @@ fn relu_and_elu_networks_of_other_sizes_agree_and_a_unit_batch_runs_agent_by_age
         let mlp = MlpActor::from_bytes_any(&weights, activation).unwrap();
         let bytes = mlp_to_onnx(&weights, activation, LinearStyle::Gemm).unwrap();
         let onnx = OnnxActor::from_bytes(&bytes, Some("observation"), Some("raw")).unwrap();
+        assert!(onnx.runs_on_mlp_kernels());
+        assert_eq!(mlp_raw(&mlp, &observations), onnx_raw(&onnx, &observations));
+        let onnx = onnx.on_tract();
         onnx.check_fits(20, OutputHead::DeterministicTanh).unwrap();
         let d = max_diff(&mlp_raw(&mlp, &observations), &onnx_raw(&onnx, &observations));
         assert!(d < TOLERANCE, "{activation:?}: {d}");
@@ -197,7 +208,9 @@ fn relu_and_elu_networks_of_other_sizes_agree_and_a_unit_batch_runs_agent_by_age
         for value in graph.input.iter_mut().chain(graph.output.iter_mut()) {
             set_first_dim(value, 1);
         }
-        let unit = OnnxActor::from_bytes(&model.encode_to_vec(), None, None).unwrap();
+        let unit = OnnxActor::from_bytes(&model.encode_to_vec(), None, None)
+            .unwrap()
+            .on_tract();
         assert_eq!(unit.batch(), Batch::One);
         let d = max_diff(&onnx_raw(&onnx, &observations), &onnx_raw(&unit, &observations));
         assert!(d < TOLERANCE, "{activation:?} unit batch: {d}");
