@@ -2,8 +2,7 @@
 //! observation's size or whose output is not what the head reads, naming both shapes at the
 //! spec's line and column; a graph that fits runs and the run folder pins it by SHA-256.
 //! SigmaRL's three reference actors written as ONNX by the test (`cpmx_onnx::mlp_to_onnx`; no
-//! ONNX file is kept in the repository) against the safetensors actors on the at25 sim table
-//! is ignored: it does not hold yet (see the test).
+//! ONNX file is kept in the repository) give the same at25 sim table as the safetensors actors.
 
 mod support;
 
@@ -53,12 +52,10 @@ fn table(dir: &Path) -> Vec<String> {
         .collect()
 }
 
-/// Open: tract's float32 results differ from cpmx's MLP kernels by up to 3.8e-6 in raw outputs
-/// and 4.2e-7 in actions (summation order, tract's tanh); seed1's closed loop amplifies that
-/// over 180 steps (CRA-L 93.40 against 93.57 in the sim row), seed2 and seed3 agree to 1e-8.
-/// Running MLP-shaped graphs on cpmx's kernels would make the two bit-identical.
+/// The exported graphs are plain MLPs, so they run on cpmx's MLP kernels and the two tables are
+/// equal to the last digit. (On tract the raw outputs differ by up to 3.8e-6 and seed1's closed
+/// loop amplifies that: CRA-L 93.40 against 93.57 in the sim row.)
 #[test]
-#[ignore = "open: tract's actions differ by 4e-7 and seed1's closed loop amplifies it"]
 fn the_reference_actors_as_onnx_give_the_same_at25_sim_table() {
     let dir = temp("at25");
     let data = reference();

@@ -142,6 +142,33 @@ case!(
     32
 );
 case!(
+    missing_onnx_file,
+    edit(
+        "{name: base, builtin: lane-follow}",
+        "{name: net, onnx: {file: nets/actor.onnx}}"
+    ),
+    7,
+    30
+);
+case!(
+    onnx_and_mlp_in_one_policy,
+    edit(
+        "{name: base, builtin: lane-follow}",
+        "{name: net, mlp: {weights: a.safetensors}, onnx: {file: a.onnx}}"
+    ),
+    7,
+    32
+);
+case!(
+    onnx_that_samples_a_deterministic_head,
+    edit(
+        "{name: base, builtin: lane-follow}",
+        "{name: net, onnx: {file: a.onnx, output: deterministic-clip}, action: sample}"
+    ),
+    7,
+    30
+);
+case!(
     policy_with_two_kinds,
     edit(
         "builtin: lane-follow}",

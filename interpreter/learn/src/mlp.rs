@@ -7,7 +7,7 @@
 //! `{prefix}.{l}.weight` / `{prefix}.{l}.bias`, so a trained actor loads with
 //! `cpmx_policy::MlpActor` (and [`Mlp::to_actor`] hands it over in memory).
 
-use cpmx_policy::{ActorError, MlpActor, MlpLayout};
+use cpmx_policy::{Activation, ActorError, MlpActor, MlpLayout};
 use rand::RngExt;
 use rand_chacha::ChaCha20Rng;
 use safetensors::{Dtype, SafeTensors};
@@ -282,7 +282,7 @@ impl Mlp {
         let layers: Vec<(&[f32], &[f32])> = (0..self.layers())
             .map(|l| (self.weight(l), self.bias(l)))
             .collect();
-        MlpActor::from_layers(&self.sizes, &layers)
+        MlpActor::from_layers(&self.sizes, &layers, Activation::Tanh)
     }
 }
 

@@ -267,3 +267,91 @@ fn graphs_that_do_not_fit_are_refused_naming_their_shapes() {
     let e = OnnxActor::from_bytes(b"not a protobuf at all", None, None).unwrap_err();
     assert!(matches!(e, OnnxError::Format(_)), "{e}");
 }
+
+/// Graphs as PyTorch's exporters also write them still run on cpmx's kernels bit for bit: the
+/// weights as `Transpose` of an initializer before `MatMul` (torch.export's `aten::linear`), and
+/// an `Identity` on the chain. A graph that is not a plain chain (the input also read by another
+/// node) runs on tract.
+#[test]
+fn pytorch_style_graphs_are_lowered_and_branching_ones_are_not() {
+    let observations: Vec<f32> = (0..3 * 20).map(|i| (i as f32 * 0.29).cos()).collect();
+    let weights = small_mlp(&[20, 24, 16, 4]);
+    let mlp = MlpActor::from_bytes_any(&weights, Activation::Tanh).unwrap();
+    let bytes = mlp_to_onnx(&weights, Activation::Tanh, LinearStyle::MatMulAdd).unwrap();
+    let model = tract_onnx::pb::ModelProto::decode(&bytes[..]).unwrap();
+
+    // Every MatMul weight [in, out] becomes Transpose(torch's [out, in]); an Identity follows
+    // the first activation.
+    let mut torch_style = model.clone();
+    let graph = torch_style.graph.as_mut().unwrap();
+    let matmuls: Vec<usize> = (0..graph.node.len())
+        .filter(|&i| graph.node[i].op_type == "MatMul")
+        .collect();
+    for &i in matmuls.iter().rev() {
+        let weight_name = graph.node[i].input[1].clone();
+        let init = graph
+            .initializer
+            .iter_mut()
+            .find(|t| t.name == weight_name)
+            .unwrap();
+        let (rows, cols) = (init.dims[0] as usize, init.dims[1] as usize);
+        let values: Vec<f32> = init
+            .raw_data
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        let mut transposed = vec![0.0f32; values.len()];
+        for r in 0..rows {
+            for c in 0..cols {
+                transposed[c * rows + r] = values[r * cols + c];
+            }
+        }
+        init.name = format!("{weight_name}.torch");
+        init.dims = vec![cols as i64, rows as i64];
+        init.raw_data = transposed.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let transpose = tract_onnx::pb::NodeProto {
+            name: format!("{weight_name}.transpose"),
+            op_type: "Transpose".into(),
+            input: vec![init.name.clone()],
+            output: vec![weight_name],
+            ..Default::default()
+        };
+        graph.node.insert(i, transpose);
+    }
+    let tanh = graph.node.iter().position(|n| n.op_type == "Tanh").unwrap();
+    let tanh_out = graph.node[tanh].output[0].clone();
+    for n in graph.node.iter_mut() {
+        for input in n.input.iter_mut().filter(|i| **i == tanh_out) {
+            *input = format!("{tanh_out}.identity");
+        }
+    }
+    graph.node.insert(
+        tanh + 1,
+        tract_onnx::pb::NodeProto {
+            name: "identity".into(),
+            op_type: "Identity".into(),
+            input: vec![tanh_out.clone()],
+            output: vec![format!("{tanh_out}.identity")],
+            ..Default::default()
+        },
+    );
+    let lowered = OnnxActor::from_bytes(&torch_style.encode_to_vec(), None, None).unwrap();
+    assert!(lowered.runs_on_mlp_kernels());
+    assert_eq!(mlp_raw(&mlp, &observations), onnx_raw(&lowered, &observations));
+
+    // The input read twice (a second output that tract drops): not a plain chain.
+    let mut branching = model;
+    let graph = branching.graph.as_mut().unwrap();
+    let input = graph.input[0].name.clone();
+    graph.node.push(tract_onnx::pb::NodeProto {
+        name: "side".into(),
+        op_type: "Relu".into(),
+        input: vec![input],
+        output: vec!["side".into()],
+        ..Default::default()
+    });
+    let on_tract = OnnxActor::from_bytes(&branching.encode_to_vec(), None, None).unwrap();
+    assert!(!on_tract.runs_on_mlp_kernels());
+    let d = max_diff(&mlp_raw(&mlp, &observations), &onnx_raw(&on_tract, &observations));
+    assert!(d < TOLERANCE, "{d}");
+}

@@ -334,9 +334,14 @@ impl MlpActor {
 
     /// An actor from in-memory tensors: `sizes` are the layer widths (input first) and
     /// `layers[i]` is torch's `(weight [out][in] row-major, bias [out])` of layer `i`, named
-    /// `actor.{i}.*` as a trainer writes them; tanh follows every layer but the last. (A
-    /// trainer hands its current weights over this way.)
-    pub fn from_layers(sizes: &[usize], layers: &[(&[f32], &[f32])]) -> Result<Self, ActorError> {
+    /// `actor.{i}.*` as a trainer writes them; `activation` follows every layer but the last.
+    /// (A trainer hands its current weights over this way, and so does an ONNX graph that is a
+    /// plain MLP.)
+    pub fn from_layers(
+        sizes: &[usize],
+        layers: &[(&[f32], &[f32])],
+        activation: Activation,
+    ) -> Result<Self, ActorError> {
         if sizes.len() < 2 || layers.len() != sizes.len() - 1 {
             return Err(ActorError::Buffer {
                 what: "layer list",
@@ -356,12 +361,12 @@ impl MlpActor {
                     expected: inputs * outputs + outputs,
                 });
             }
-            let activation = if i + 1 < n_layers {
-                Activation::Tanh
+            let act = if i + 1 < n_layers {
+                activation
             } else {
                 Activation::Identity
             };
-            dense.push(Dense::new(weight, bias, inputs, outputs, activation));
+            dense.push(Dense::new(weight, bias, inputs, outputs, act));
             weights.push((format!("actor.{i}.weight"), [outputs, inputs]));
         }
         Ok(Self::assemble(dense, weights))

@@ -22,8 +22,18 @@ pub const MAX_GENERIC_PATHS: usize = 1024;
 /// At most this many depth-first steps are spent enumerating.
 pub const MAX_SEARCH_STEPS: usize = 1_000_000;
 
-/// The lanelet sequences of a map's generic reference paths, numbered by position.
-pub fn generic_path_lanelets(lanelets: &[Lanelet]) -> Vec<Vec<LaneletId>> {
+/// A map's generic reference paths as lanelet sequences, numbered by position.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GenericNumbering {
+    /// The lanelets of path `i`, in driving order.
+    pub sequences: Vec<Vec<LaneletId>>,
+    /// The enumeration stopped at [`MAX_GENERIC_PATHS`] or [`MAX_SEARCH_STEPS`]: some chains
+    /// or loops of the map have no number.
+    pub stopped_early: bool,
+}
+
+/// Numbers a map's generic reference paths (see the module's doc).
+pub fn generic_path_lanelets(lanelets: &[Lanelet]) -> GenericNumbering {
     let successors: HashMap<LaneletId, Vec<LaneletId>> = lanelets
         .iter()
         .map(|l| {
@@ -39,6 +49,7 @@ pub fn generic_path_lanelets(lanelets: &[Lanelet]) -> Vec<Vec<LaneletId>> {
         successors: &successors,
         out: Vec::new(),
         steps: 0,
+        stopped_early: false,
     };
 
     // Open chains from lanelets without predecessors.
@@ -54,19 +65,26 @@ pub fn generic_path_lanelets(lanelets: &[Lanelet]) -> Vec<Vec<LaneletId>> {
     for &start in &ids {
         search.cycles(start, &mut vec![start]);
     }
-    search.out
+    GenericNumbering {
+        sequences: search.out,
+        stopped_early: search.stopped_early,
+    }
 }
 
 struct Search<'a> {
     successors: &'a HashMap<LaneletId, Vec<LaneletId>>,
     out: Vec<Vec<LaneletId>>,
     steps: usize,
+    stopped_early: bool,
 }
 
 impl Search<'_> {
     fn exhausted(&mut self) -> bool {
         self.steps += 1;
-        self.out.len() >= MAX_GENERIC_PATHS || self.steps > MAX_SEARCH_STEPS
+        if self.out.len() >= MAX_GENERIC_PATHS || self.steps > MAX_SEARCH_STEPS {
+            self.stopped_early = true;
+        }
+        self.stopped_early
     }
 
     fn chains(&mut self, chain: &mut Vec<LaneletId>) {
@@ -99,6 +117,8 @@ impl Search<'_> {
             if n == start {
                 if self.out.len() < MAX_GENERIC_PATHS {
                     self.out.push(chain.clone());
+                } else {
+                    self.stopped_early = true;
                 }
             } else if n > start && !chain.contains(&n) {
                 chain.push(n);
@@ -143,8 +163,26 @@ mod tests {
             lanelet(5, &[6]),
         ];
         assert_eq!(
-            generic_path_lanelets(&ls),
+            generic_path_lanelets(&ls).sequences,
             vec![vec![1, 2, 3], vec![1, 2, 4], vec![5, 6]]
         );
+        assert!(!generic_path_lanelets(&ls).stopped_early);
+    }
+
+    #[test]
+    fn numbering_stops_at_its_limit_and_says_so() {
+        // Eleven diamonds in a row: 2^11 = 2048 chains from lanelet 0 to the last one.
+        let diamonds = 11;
+        let mut ls = Vec::new();
+        for d in 0..diamonds {
+            let (a, b, c, next) = (3 * d, 3 * d + 1, 3 * d + 2, 3 * d + 3);
+            ls.push(lanelet(a, &[b, c]));
+            ls.push(lanelet(b, &[next]));
+            ls.push(lanelet(c, &[next]));
+        }
+        ls.push(lanelet(3 * diamonds, &[]));
+        let numbering = generic_path_lanelets(&ls);
+        assert!(numbering.stopped_early);
+        assert_eq!(numbering.sequences.len(), MAX_GENERIC_PATHS);
     }
 }

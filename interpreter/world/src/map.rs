@@ -199,6 +199,19 @@ impl Map {
                 }
             }
         };
+        if parts.lanelets.is_empty() {
+            let what = match format {
+                MapFormat::Lanelet2Osm => {
+                    "no relation tagged `type=lanelet` that vehicles may drive on; crosswalks and \
+                     sidewalks do not count"
+                }
+                _ => "no <lanelet> element",
+            };
+            return Err(MapError::Malformed {
+                location: commonroad::loc(&index, root),
+                message: format!("the map has no lanelets ({what})"),
+            });
+        }
         Self::assemble(parts)
     }
 
@@ -234,7 +247,47 @@ impl Map {
             notes: parts.notes,
         };
         map.set_paths(map.number_paths(PathSet::Entire)?);
+        if map.kind == MapKind::Generic {
+            map.note_lanelets_without_path();
+        }
         Ok(map)
+    }
+
+    /// Notes the lanelets on no numbered path, and why: the numbering stopped at its limits,
+    /// or their chains' boundaries do not line up.
+    fn note_lanelets_without_path(&mut self) {
+        let on_paths: std::collections::HashSet<LaneletId> = self
+            .paths
+            .values()
+            .flat_map(|p| p.lanelet_ids.iter().copied())
+            .collect();
+        let mut missing: Vec<LaneletId> = self
+            .all_lanelets
+            .iter()
+            .map(|l| l.id)
+            .filter(|id| !on_paths.contains(id))
+            .collect();
+        if missing.is_empty() {
+            return;
+        }
+        missing.sort_unstable();
+        let shown: Vec<String> = missing.iter().take(10).map(ToString::to_string).collect();
+        let more = if missing.len() > shown.len() { ", ..." } else { "" };
+        let why = if generic::generic_path_lanelets(&self.all_lanelets).stopped_early {
+            format!(
+                "the numbering stopped at its limit ({} paths or {} search steps)",
+                generic::MAX_GENERIC_PATHS,
+                generic::MAX_SEARCH_STEPS
+            )
+        } else {
+            "their chains' boundaries do not line up".to_owned()
+        };
+        self.notes.push(format!(
+            "{} lanelets are on no numbered reference path ({}{more}): {why}; name paths through \
+             them with `ref_paths: [{{id, lanelets}}]`",
+            missing.len(),
+            shown.join(", ")
+        ));
     }
 
     /// The same map with another of SigmaRL's path sets numbered (CPM Lab map only; every map
@@ -259,7 +312,7 @@ impl Map {
             (MapKind::Builtin(_), PathSet::Entire) => {
                 return Ok(self.fixed_paths.clone().unwrap_or_default());
             }
-            (_, PathSet::Entire) => generic::generic_path_lanelets(&self.all_lanelets),
+            (_, PathSet::Entire) => generic::generic_path_lanelets(&self.all_lanelets).sequences,
             (_, set) => {
                 return Err(PathError::SetUnavailable {
                     set: format!("{set:?}"),

@@ -530,6 +530,22 @@ fn broken_maps_give_located_diagnostics() {
     assert_eq!(location(&e).line, line_of(&text, "<lanelet id=\"50195\"", 1));
 }
 
+/// A map with nothing to drive on is refused at its root element: a CommonRoad file without
+/// lanelets, and a lanelet2 file whose only lanelet is a crosswalk.
+#[test]
+fn maps_without_lanelets_are_refused_at_their_root_element() {
+    let commonroad = "<?xml version=\"1.0\"?>\n<commonRoad commonRoadVersion=\"2020a\">\n  <obstacle id=\"1\"/>\n</commonRoad>\n";
+    let e = load(commonroad).expect_err("no lanelets");
+    assert!(e.to_string().contains("no <lanelet> element"), "{e}");
+    assert_eq!((location(&e).line, location(&e).column), (2, 1));
+
+    let crosswalk_only = JOSM.replace("v='road'", "v='crosswalk'");
+    assert_ne!(crosswalk_only, JOSM, "the JOSM map names its lanelets' subtype");
+    let e = load(&crosswalk_only).expect_err("only a crosswalk");
+    assert!(e.to_string().contains("vehicles may drive on"), "{e}");
+    assert_eq!(location(&e).line, line_of(&crosswalk_only, "<osm", 0));
+}
+
 /// A truncated file is reported where it breaks off, naming the element left open: cut at
 /// every byte between the root's start tag and its end tag (inside names, attributes, text,
 /// right after `<` or `</`).
