@@ -112,8 +112,9 @@ fn summary(spec: &Path, file: Option<&Path>, map: &Map) -> String {
         MapKind::Generic => format!(
             "generic numbering: first every chain of successors from a lanelet without \
              predecessors (starts by ascending id, branches by ascending id), then every loop from \
-             its lowest lanelet id; at most {} paths; chains whose boundaries do not line up are \
-             skipped and keep their number unused",
+             its lowest lanelet id (at most {} of these), then a walk from every lanelet on no path \
+             yet over its lowest-id successors; chains whose boundaries do not line up are skipped \
+             and keep their number unused",
             cpmx_world::generic::MAX_GENERIC_PATHS
         ),
     };

@@ -246,16 +246,31 @@ impl Map {
             indexes: BTreeMap::new(),
             notes: parts.notes,
         };
-        map.set_paths(map.number_paths(PathSet::Entire)?);
         if map.kind == MapKind::Generic {
-            map.note_lanelets_without_path();
+            let numbering = generic::generic_path_lanelets(&map.all_lanelets);
+            map.set_paths(map.build_paths(&numbering.sequences)?);
+            map.note_numbering(&numbering);
+        } else {
+            map.set_paths(map.number_paths(PathSet::Entire)?);
         }
         Ok(map)
     }
 
-    /// Notes the lanelets on no numbered path, and why: the numbering stopped at its limits,
-    /// or their chains' boundaries do not line up.
-    fn note_lanelets_without_path(&mut self) {
+    /// Notes how a generic numbering went: where the enumeration stopped at its limits (and
+    /// coverage walks took over), and the lanelets on no path because their chains'
+    /// boundaries do not line up.
+    fn note_numbering(&mut self, numbering: &generic::GenericNumbering) {
+        if numbering.stopped_early {
+            self.notes.push(format!(
+                "the enumeration of chains and loops stopped at its limit ({} paths or {} search \
+                 steps) after {} paths; paths {}.. are coverage walks that put every other \
+                 lanelet on a path",
+                generic::MAX_GENERIC_PATHS,
+                generic::MAX_SEARCH_STEPS,
+                numbering.enumerated,
+                numbering.enumerated
+            ));
+        }
         let on_paths: std::collections::HashSet<LaneletId> = self
             .paths
             .values()
@@ -273,18 +288,10 @@ impl Map {
         missing.sort_unstable();
         let shown: Vec<String> = missing.iter().take(10).map(ToString::to_string).collect();
         let more = if missing.len() > shown.len() { ", ..." } else { "" };
-        let why = if generic::generic_path_lanelets(&self.all_lanelets).stopped_early {
-            format!(
-                "the numbering stopped at its limit ({} paths or {} search steps)",
-                generic::MAX_GENERIC_PATHS,
-                generic::MAX_SEARCH_STEPS
-            )
-        } else {
-            "their chains' boundaries do not line up".to_owned()
-        };
         self.notes.push(format!(
-            "{} lanelets are on no numbered reference path ({}{more}): {why}; name paths through \
-             them with `ref_paths: [{{id, lanelets}}]`",
+            "{} lanelets are on no reference path ({}{more}): the chains through them have \
+             boundaries that do not line up; name paths through them with \
+             `ref_paths: [{{id, lanelets}}]`",
             missing.len(),
             shown.join(", ")
         ));
@@ -319,6 +326,12 @@ impl Map {
                 });
             }
         };
+        self.build_paths(&sequences)
+    }
+
+    /// Builds numbered paths from lanelet sequences; on generic maps a chain whose boundaries
+    /// do not line up is skipped and its id stays unused.
+    fn build_paths(&self, sequences: &[Vec<LaneletId>]) -> Result<Vec<ReferencePath>, PathError> {
         let builder = self.builder();
         let mut paths = Vec::with_capacity(sequences.len());
         for (id, lanelets) in sequences.iter().enumerate() {
