@@ -7,7 +7,8 @@ use std::path::PathBuf;
 
 use crate::diagnostic::{ByteSpan, Problem};
 use crate::model::{
-    ActionMode, Control, Fidelity, InitialConfiguration, MapSpec, OutputHead, SimulatedFidelity, Spec,
+    ActionMode, Control, Distribution, Fidelity, InitialConfiguration, MapSpec, OutputHead, Parameter,
+    SimulatedFidelity, Spec,
 };
 use crate::paths::{DataPath, NotFound};
 use crate::yaml::{NodeSpans, SpannedDocument, escape_pointer};
@@ -133,15 +134,17 @@ fn policy_is_deterministic(policy: &crate::model::PolicySpec) -> bool {
 }
 
 /// Whether a fidelity draws no random number: simulated, without sensing noise or frame
-/// drops. The lab never repeats itself.
+/// drops and without randomised parameters. The lab never repeats itself.
 fn fidelity_is_deterministic(fidelity: &Fidelity) -> bool {
     use crate::model::SensingLayer;
+    let zero = Parameter::Fixed(0.0);
     match fidelity {
         Fidelity::Lab(_) => false,
+        Fidelity::Simulated(stack) if stack.is_randomised() => false,
         Fidelity::Simulated(stack) => match &stack.sensing {
             None | Some(SensingLayer::Ideal(_)) => true,
             Some(SensingLayer::Model(m)) => {
-                m.noise_position_m == 0.0 && m.noise_yaw_rad == 0.0 && m.drop_probability == 0.0
+                m.noise_position_m == zero && m.noise_yaw_rad == zero && m.drop_probability == zero
             }
         },
     }
@@ -547,6 +550,9 @@ fn check_fidelities(spec: &Spec, ctx: &mut CheckContext<'_>) {
                 .with_help("add `planner: {control_horizon: 4, prediction_horizon: 12}`"),
             );
         }
+        if let Fidelity::Simulated(simulated) = fidelity {
+            check_distributions(name, &pointer, simulated, ctx);
+        }
         if let Fidelity::Lab(lab) = fidelity {
             if lab.vehicle_ids.len() != spec.agents as usize {
                 let span = ctx.span(&format!("{pointer}/vehicle_ids"));
@@ -576,6 +582,62 @@ fn check_fidelities(spec: &Spec, ctx: &mut CheckContext<'_>) {
                     ));
                 }
             }
+        }
+    }
+}
+
+/// A layer parameter given as a distribution must be one: a uniform range with `low < high`
+/// inside the parameter's range, a normal with `std > 0` whose mean is in the range.
+fn check_distributions(name: &str, pointer: &str, fidelity: &SimulatedFidelity, ctx: &mut CheckContext<'_>) {
+    for parameter in fidelity.parameters() {
+        let Parameter::Drawn(distribution) = parameter.value else {
+            continue;
+        };
+        let at = format!("{pointer}/{}", parameter.name.replace('.', "/"));
+        let range = parameter.range;
+        let problem = match distribution {
+            Distribution::Uniform([low, high]) if low.is_nan() || high.is_nan() || low >= high => Some((
+                "/uniform".to_owned(),
+                format!(
+                    "`{}` of fidelity `{name}` is drawn from {} range [{low}, {high}]",
+                    parameter.name,
+                    if low == high { "an empty" } else { "a reversed" }
+                ),
+                "low must be below high".to_owned(),
+                "write `{uniform: [LOW, HIGH]}` with LOW < HIGH, or the number itself".to_owned(),
+            )),
+            Distribution::Uniform([low, high]) if !range.contains(low) || !range.contains(high) => Some((
+                "/uniform".to_owned(),
+                format!(
+                    "`{}` of fidelity `{name}` is drawn from [{low}, {high}], outside its range {range}",
+                    parameter.name
+                ),
+                format!("outside {range}"),
+                format!("keep both ends in {range}"),
+            )),
+            Distribution::Normal(n) if n.std.is_nan() || n.std <= 0.0 || n.std.is_infinite() => Some((
+                "/normal/std".to_owned(),
+                format!(
+                    "`{}` of fidelity `{name}` is drawn from a normal with standard deviation {}",
+                    parameter.name, n.std
+                ),
+                "must be above 0".to_owned(),
+                "give a positive `std`, or the number itself".to_owned(),
+            )),
+            Distribution::Normal(n) if !range.contains(n.mean) => Some((
+                "/normal/mean".to_owned(),
+                format!(
+                    "`{}` of fidelity `{name}` is drawn from a normal with mean {}, outside its range {range}",
+                    parameter.name, n.mean
+                ),
+                format!("outside {range}"),
+                format!("draws outside {range} are drawn again, so the mean must lie in it"),
+            )),
+            _ => None,
+        };
+        if let Some((suffix, message, label, help)) = problem {
+            let span = ctx.span(&format!("{at}{suffix}"));
+            ctx.push(Problem::error("cpmx::check::distribution", message, span, label).with_help(help));
         }
     }
 }

@@ -310,16 +310,27 @@ fn best_branch<'a>(
         .iter()
         .enumerate()
         .min_by_key(|(i, errors)| {
-            let rejects_type = errors.iter().any(|e| {
-                e.instance_path().as_str() == pointer
-                    && matches!(
-                        e.kind(),
-                        ValidationErrorKind::Type { .. } | ValidationErrorKind::Enum { .. }
-                    )
-            });
+            let rejects_type = errors.iter().any(|e| rejects_type(e, pointer));
             (rejects_type, errors.len(), *i)
         })
         .map(|(_, errors)| errors.as_slice())
+}
+
+/// Whether `error` says the value at `pointer` has the wrong kind or is not a listed constant
+/// (also through a nested choice all of whose branches say so, as for the keyword `ideal`).
+fn rejects_type(error: &ValidationError<'_>, pointer: &str) -> bool {
+    if error.instance_path().as_str() != pointer {
+        return false;
+    }
+    match error.kind() {
+        ValidationErrorKind::Type { .. }
+        | ValidationErrorKind::Enum { .. }
+        | ValidationErrorKind::Constant { .. } => true,
+        ValidationErrorKind::AnyOf { context } | ValidationErrorKind::OneOfNotValid { context } => context
+            .iter()
+            .all(|branch| branch.iter().any(|e| rejects_type(e, pointer))),
+        _ => false,
+    }
 }
 
 /// The property names the schema allows where an `additionalProperties` error arose.

@@ -368,3 +368,73 @@ fn from_runs_needs_runs_of_that_fidelity() {
     assert_eq!(checked.configurations[1].name, "sim-a-b-rep1");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+// Randomised layer parameters: a distribution must be one, inside the parameter's range.
+case!(
+    reversed_uniform_range,
+    edit(
+        "sim: {control: direct, dynamics: kinematic}",
+        "sim: {control: direct, dynamics: kinematic, actuation: {delay_ms: {uniform: [120, 40]}}}"
+    ),
+    16,
+    70
+);
+case!(
+    empty_uniform_range,
+    edit(
+        "sim: {control: direct, dynamics: kinematic}",
+        "sim: {control: direct, dynamics: kinematic, actuation: {delay_ms: {uniform: [50, 50]}}}"
+    ),
+    16,
+    70
+);
+case!(
+    uniform_range_outside_the_parameter,
+    edit(
+        "sim: {control: direct, dynamics: kinematic}",
+        "sim: {control: direct, dynamics: kinematic, actuation: {delay_ms: {uniform: [-10, 40]}}}"
+    ),
+    16,
+    70
+);
+case!(
+    normal_without_spread,
+    edit(
+        "sim: {control: direct, dynamics: kinematic}",
+        "sim: {control: direct, dynamics: kinematic, actuation: {delay_ms: {normal: {mean: 80, std: 0}}}}"
+    ),
+    16,
+    94
+);
+case!(
+    unknown_distribution,
+    edit(
+        "sim: {control: direct, dynamics: kinematic}",
+        "sim: {control: direct, dynamics: kinematic, actuation: {delay_ms: {gaussian: {mean: 80, std: 5}}}}"
+    ),
+    16,
+    59
+);
+case!(
+    distribution_over_a_parameter_that_does_not_exist,
+    edit(
+        "sim: {control: direct, dynamics: kinematic}",
+        "sim: {control: direct, dynamics: kinematic, actuation: {delay_s: {uniform: [0.04, 0.12]}}}"
+    ),
+    16,
+    59
+);
+
+/// A randomised fidelity is not deterministic: no warning that its repetitions are copies.
+#[test]
+fn a_randomised_fidelity_has_repetitions_worth_running() {
+    let text = edit(
+        "sim: {control: direct, dynamics: kinematic}",
+        "sim: {control: direct, dynamics: kinematic, actuation: {delay_ms: {uniform: [40, 120]}}}",
+    )
+    .replace("repetitions: 1", "repetitions: 3");
+    let checked = check(&text).unwrap();
+    assert!(checked.warnings.is_empty(), "{:?}", checked.warnings);
+    let deterministic = check(&VALID.replace("repetitions: 1", "repetitions: 3")).unwrap();
+    assert!(!deterministic.warnings.is_empty());
+}

@@ -10,6 +10,7 @@ pub mod folder;
 pub mod lab;
 mod onnx;
 mod plants;
+mod randomise;
 mod runner;
 mod sim;
 mod stack;

@@ -129,7 +129,7 @@ pub struct GreyBoxPlant {
 }
 
 impl GreyBoxPlant {
-    pub fn new(spec: &GreyBoxModel, vehicle: VehicleParams) -> Result<Self, String> {
+    pub fn new(spec: &GreyBoxModel<f64>, vehicle: VehicleParams) -> Result<Self, String> {
         let params = GreyBoxParams {
             parameters: spec.parameters,
             euler_step_s: spec.euler_step_s,
@@ -420,7 +420,7 @@ mod tests {
 
     #[test]
     fn the_grey_box_follower_tracks_a_left_turn() {
-        let spec: GreyBoxModel = GreyBoxModel {
+        let spec: GreyBoxModel<f64> = GreyBoxModel {
             parameters: cpmx_vehicle::LAB_GREYBOX_PARAMETERS,
             euler_step_s: 0.02,
             battery_voltage_v: 7.8,

@@ -9,6 +9,7 @@ use std::sync::Mutex;
 use cpmx_metrics::{PathGeometry, RunMetrics, evaluate};
 use cpmx_recording::Recording;
 use cpmx_spec::RunPlan;
+use cpmx_spec::model::Fidelity;
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 
@@ -125,6 +126,13 @@ fn execute_one(
                 seed: plan.seed,
                 inputs_hash: hash,
                 notes: recording.notes.clone(),
+                drawn_parameters: match experiment.spec.fidelities.get(&plan.fidelity) {
+                    Some(Fidelity::Simulated(f)) => crate::randomise::draw_for_run(f, plan.seed)
+                        .1
+                        .into_iter()
+                        .collect(),
+                    _ => Default::default(),
+                },
                 metrics,
             };
             match store_run(out, plan, &recording, &stored) {

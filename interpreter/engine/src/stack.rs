@@ -20,7 +20,7 @@ use cpmx_recording::AgentSample;
 use cpmx_sensing::{ActuationDelay, IpsParams, LocalizationParams, OdometryReading, OnCarSensing, Pose2};
 use cpmx_spec::matrix::stream_key;
 use cpmx_spec::model::{
-    ActuationLayer, DynamicsLayer, FollowerSolver, SensingLayer, SensingModel, SimulatedFidelity,
+    ActuationLayer, DrawnFidelity, DynamicsLayer, FollowerSolver, SensingLayer, SensingModel,
 };
 use cpmx_vehicle::{BicycleState, VehicleParams};
 use std::collections::VecDeque;
@@ -95,7 +95,7 @@ macro_rules! each {
 impl VehicleStack {
     /// A vehicle of `fidelity` standing at `start`; `agent` names its random stream.
     pub fn new(
-        fidelity: &SimulatedFidelity,
+        fidelity: &DrawnFidelity,
         vehicle: VehicleParams,
         start: &InitialState,
         run_seed: u64,
@@ -161,7 +161,7 @@ impl VehicleStack {
 impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
     fn new(
         plant: P,
-        fidelity: &SimulatedFidelity,
+        fidelity: &DrawnFidelity,
         start: &InitialState,
         run_seed: u64,
         agent: usize,
@@ -334,7 +334,7 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
     }
 }
 
-fn on_car_sensing(s: &SensingModel, pose: Pose2, speed_mps: f64) -> Result<OnCarSensing, String> {
+fn on_car_sensing(s: &SensingModel<f64>, pose: Pose2, speed_mps: f64) -> Result<OnCarSensing, String> {
     let ips = IpsParams {
         rate_hz: s.rate_hz,
         latency_ms: s.latency_ms,
@@ -353,9 +353,9 @@ fn on_car_sensing(s: &SensingModel, pose: Pose2, speed_mps: f64) -> Result<OnCar
 mod tests {
     use super::*;
     use cpmx_follower::StopReason;
-    use cpmx_spec::model::{ActuationModel, Control, GreyBoxModel};
+    use cpmx_spec::model::{ActuationModel, Control, GreyBoxModel, SimulatedFidelity};
 
-    fn twin_without_sensing() -> SimulatedFidelity {
+    fn twin_without_sensing() -> DrawnFidelity {
         SimulatedFidelity {
             control: Control::Trajectory,
             dynamics: DynamicsLayer::GreyBox(GreyBoxModel {
@@ -432,7 +432,7 @@ mod tests {
     }
 
     /// The twin with the lab's positioning system, losing every frame with `lost`.
-    fn twin_with_ips(drop_probability: f64) -> SimulatedFidelity {
+    fn twin_with_ips(drop_probability: f64) -> DrawnFidelity {
         SimulatedFidelity {
             sensing: Some(SensingLayer::Model(SensingModel {
                 rate_hz: 50.0,
@@ -464,7 +464,7 @@ mod tests {
 
     /// Drives 4 s along a fresh straight trajectory every 0.1 s; the statuses and the
     /// reported IPS ages of every step.
-    fn drive_straight(fidelity: &SimulatedFidelity) -> (Vec<Status>, Vec<f64>) {
+    fn drive_straight(fidelity: &DrawnFidelity) -> (Vec<Status>, Vec<f64>) {
         let mut stack = VehicleStack::new(fidelity, VehicleParams::MU_CAR, &start(), 9, 0).unwrap();
         let (mut statuses, mut ages) = (Vec::new(), Vec::new());
         for k in 0..200 {

@@ -2,6 +2,7 @@
 //! never leaves something that looks finished. A run counts as finished when its
 //! `metrics.json` exists and names the run's input hash; it is written last, by rename.
 
+use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -20,6 +21,10 @@ pub struct StoredRun {
     /// What the engine noticed without failing (e.g. late lab ticks).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
+    /// The fidelity's randomised parameters as drawn for this run, by name
+    /// (`actuation.delay_ms`).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub drawn_parameters: BTreeMap<String, f64>,
     pub metrics: RunMetrics,
 }
 

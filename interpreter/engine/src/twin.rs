@@ -46,10 +46,11 @@ impl Engine for TwinEngine {
         // Place the vehicles and prepare the planner.
         let starts = inputs.starts;
         let paths = inputs.agent_paths()?;
+        let (fidelity, _) = crate::randomise::draw_for_run(fidelity, inputs.plan.seed);
         let mut vehicles = starts
             .iter()
             .enumerate()
-            .map(|(i, start)| VehicleStack::new(fidelity, experiment.vehicle, start, inputs.plan.seed, i))
+            .map(|(i, start)| VehicleStack::new(&fidelity, experiment.vehicle, start, inputs.plan.seed, i))
             .collect::<Result<Vec<_>, _>>()
             .map_err(&unsupported)?;
         let mut planner = planner(planner_spec, dt_s, experiment.vehicle);

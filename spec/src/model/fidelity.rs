@@ -5,10 +5,14 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use super::PresetOr;
+use super::parameter::Parameter;
 
 /// One fidelity level.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(untagged)]
+// A spec holds a handful of fidelities; boxing the simulated stack would only obscure the
+// patterns that match on its layers.
+#[allow(clippy::large_enum_variant)]
 pub enum Fidelity {
     /// A simulated stack of layers.
     Simulated(SimulatedFidelity),
@@ -16,20 +20,24 @@ pub enum Fidelity {
     Lab(LabFidelity),
 }
 
-/// A simulated fidelity: control × dynamics × sensing × actuation.
+/// A simulated fidelity: control × dynamics × sensing × actuation. Any numeric parameter of
+/// its layers may be a distribution, drawn per run (`cpmx run`) and per episode (`cpmx train`).
+// As written in a spec `P` is `Parameter`; an engine runs a `DrawnFidelity` (`P = f64`), made by
+// `SimulatedFidelity::draw`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct SimulatedFidelity {
+#[serde(deny_unknown_fields, bound(deserialize = "P: Deserialize<'de>"))]
+#[schemars(rename = "SimulatedFidelity")]
+pub struct SimulatedFidelity<P = Parameter> {
     /// How the policy's action reaches the vehicle.
     pub control: Control,
     /// The vehicle model.
-    pub dynamics: DynamicsLayer,
+    pub dynamics: DynamicsLayer<P>,
     /// How the agents' states are measured. Default: `ideal`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub sensing: Option<SensingLayer>,
+    pub sensing: Option<SensingLayer<P>>,
     /// How commands reach the actuators. Default: `ideal`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub actuation: Option<ActuationLayer>,
+    pub actuation: Option<ActuationLayer<P>>,
     /// The vehicles' MPC trajectory follower (`control: trajectory`). Default: the lab's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub follower: Option<FollowerSpec>,
@@ -68,11 +76,12 @@ pub enum Control {
 /// The vehicle model layer.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(untagged)]
-pub enum DynamicsLayer {
+#[schemars(rename = "DynamicsLayer")]
+pub enum DynamicsLayer<P = Parameter> {
     /// `kinematic`: the kinematic bicycle as SigmaRL integrates it.
     Kinematic(KinematicKeyword),
     /// The identified grey-box µCar model (`stdlib:mu-car-greybox`).
-    GreyBox(#[schemars(with = "PresetOr<GreyBoxModel>")] GreyBoxModel),
+    GreyBox(#[schemars(with = "PresetOr<GreyBoxModel>")] GreyBoxModel<P>),
 }
 
 /// The keyword `kinematic`.
@@ -86,25 +95,27 @@ pub enum KinematicKeyword {
 /// The CPM Lab's identified vehicle model (cpm-lab-interface.md §4).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
-pub struct GreyBoxModel {
+#[schemars(rename = "GreyBoxModel")]
+pub struct GreyBoxModel<P = Parameter> {
     /// p1..p10 of the lab's `VehicleModel.cxx`.
-    pub parameters: [f64; 10],
+    pub parameters: [P; 10],
     /// Euler integration step [s] (the lab: 0.02).
     #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 1))]
-    pub euler_step_s: f64,
+    pub euler_step_s: P,
     /// Battery voltage [V] (the lab's simulated vehicles: 7.8).
     #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 20))]
-    pub battery_voltage_v: f64,
+    pub battery_voltage_v: P,
 }
 
 /// The sensing layer.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(untagged)]
-pub enum SensingLayer {
+#[schemars(rename = "SensingLayer")]
+pub enum SensingLayer<P = Parameter> {
     /// `ideal`: exact states, no delay.
     Ideal(IdealKeyword),
     /// An indoor positioning system with latency, noise and drops (`stdlib:cpm-ips`).
-    Model(#[schemars(with = "PresetOr<SensingModel>")] SensingModel),
+    Model(#[schemars(with = "PresetOr<SensingModel>")] SensingModel<P>),
 }
 
 /// The keyword `ideal`.
@@ -118,44 +129,47 @@ pub enum IdealKeyword {
 /// The CPM Lab's indoor positioning system and the on-car fusion (cpm-lab-interface.md §5).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
-pub struct SensingModel {
+#[schemars(rename = "SensingModel")]
+pub struct SensingModel<P = Parameter> {
     /// Frame rate [Hz].
     #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 1000))]
-    pub rate_hz: f64,
+    pub rate_hz: P,
     /// Delay between a frame and its arrival on the car [ms].
-    #[schemars(range(min = 0.0, max = 10000.0))]
-    pub latency_ms: f64,
+    #[schemars(extend("minimum" = 0, "maximum" = 10000))]
+    pub latency_ms: P,
     /// Half-width of the uniform position noise [m].
-    #[schemars(range(min = 0.0))]
-    pub noise_position_m: f64,
+    #[schemars(extend("minimum" = 0))]
+    pub noise_position_m: P,
     /// Half-width of the uniform heading noise [rad].
-    #[schemars(range(min = 0.0))]
-    pub noise_yaw_rad: f64,
+    #[schemars(extend("minimum" = 0))]
+    pub noise_yaw_rad: P,
     /// Probability that a frame is dropped.
-    #[schemars(range(min = 0.0, max = 1.0))]
-    pub drop_probability: f64,
+    #[schemars(extend("minimum" = 0, "maximum" = 1))]
+    pub drop_probability: P,
     /// Gain of the on-car blend toward a positioning fix (the lab: 0.3).
-    #[schemars(range(min = 0.0, max = 1.0))]
-    pub fusion_gain: f64,
+    #[schemars(extend("minimum" = 0, "maximum" = 1))]
+    pub fusion_gain: P,
 }
 
 /// The actuation layer.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(untagged)]
-pub enum ActuationLayer {
+#[schemars(rename = "ActuationLayer")]
+pub enum ActuationLayer<P = Parameter> {
     /// `ideal`: commands act at once.
     Ideal(IdealKeyword),
     /// Commands act after a delay.
-    Model(ActuationModel),
+    Model(ActuationModel<P>),
 }
 
 /// Actuation imperfections.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
-pub struct ActuationModel {
+#[schemars(rename = "ActuationModel")]
+pub struct ActuationModel<P = Parameter> {
     /// Delay of throttle and steering [ms] (the lab's simulated vehicles: 80).
-    #[schemars(range(min = 0.0, max = 10000.0))]
-    pub delay_ms: f64,
+    #[schemars(extend("minimum" = 0, "maximum" = 10000))]
+    pub delay_ms: P,
 }
 
 /// The physical lab, reached through its DDS middleware.

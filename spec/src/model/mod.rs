@@ -8,6 +8,7 @@
 mod experiment;
 mod fidelity;
 mod metrics;
+mod parameter;
 mod policy;
 mod preset;
 mod start;
@@ -25,6 +26,9 @@ pub use fidelity::{
 pub use metrics::{
     AsSpec, Bootstrap, CdSpec, CollisionCount, CollisionGeometry, Compare, CraASpec, CraLSpec, GroupKey,
     Hysteresis, MetricsSpec, PairedTest, ReportSpec, Statistic,
+};
+pub use parameter::{
+    Distribution, DrawnFidelity, NamedParameter, NormalDistribution, Parameter, ParameterRange,
 };
 pub use policy::{
     ActionMode, BuiltinPolicy, LaneFollowParams, MlpActivation, MlpSpec, ObservationDesign, ObservationSpec,

@@ -287,11 +287,12 @@ impl<'a> Emulator<'a> {
         let spec = &self.experiment.spec;
         let vehicle = self.experiment.vehicle;
         let ids = &self.lab.vehicle_ids;
+        let (fidelity, _) = crate::randomise::draw_for_run(self.fidelity, run.seed);
         let mut vehicles = run
             .starts
             .iter()
             .enumerate()
-            .map(|(i, start)| VehicleStack::new(self.fidelity, vehicle, start, run.seed, i))
+            .map(|(i, start)| VehicleStack::new(&fidelity, vehicle, start, run.seed, i))
             .collect::<Result<Vec<_>, _>>()
             .map_err(|reason| EmulateError::Vehicle {
                 fidelity: self.fidelity_name.clone(),
