@@ -136,6 +136,10 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
             return;
         }
         ValidationErrorKind::AnyOf { context } | ValidationErrorKind::OneOfNotValid { context } => {
+            if let Some(problem) = key_no_form_accepts(schema, doc, context, &pointer) {
+                out.push(problem);
+                return;
+            }
             if let Some(branch) = best_branch(context, &pointer) {
                 for e in branch {
                     map_error(schema, doc, e, out);
@@ -314,6 +318,48 @@ fn best_branch<'a>(
             (rejects_type, errors.len(), *i)
         })
         .map(|(_, errors)| errors.as_slice())
+}
+
+/// A mapping whose one key no form of a choice accepts, when every form is a mapping with keys
+/// of its own (`{uniform: ...}` or `{normal: ...}`): one unknown-key problem naming the keys of
+/// all forms, instead of the closest form's complaints.
+fn key_no_form_accepts(
+    schema: &Value,
+    doc: &SpannedDocument,
+    context: &[Vec<ValidationError<'static>>],
+    pointer: &str,
+) -> Option<Problem> {
+    let mut allowed: Vec<String> = Vec::new();
+    let mut unexpected: Option<Vec<String>> = None;
+    for branch in context {
+        let extra = branch.iter().find_map(|e| match e.kind() {
+            ValidationErrorKind::AdditionalProperties { unexpected }
+                if e.instance_path().as_str() == pointer =>
+            {
+                Some((e, unexpected.clone()))
+            }
+            _ => None,
+        });
+        let (error, keys) = extra?;
+        if unexpected.as_ref().is_some_and(|u| *u != keys) {
+            return None;
+        }
+        unexpected = Some(keys);
+        allowed.extend(allowed_properties(schema, error.schema_path().as_str()));
+    }
+    let [key] = &unexpected?[..] else { return None };
+    allowed.dedup();
+    let key_spans = doc.spans_at(&format!("{pointer}/{}", escape_pointer(key)));
+    let problem = Problem::error(
+        "cpmx::schema::unknown-key",
+        format!("unknown key `{key}` in {}", describe(pointer)),
+        key_spans.key.unwrap_or(key_spans.value),
+        "not a key of the language",
+    );
+    Some(match did_you_mean(key, &allowed) {
+        Some(best) => problem.with_help(format!("did you mean `{best}`?")),
+        None => problem.with_help(format!("one of: {}", allowed.join(", "))),
+    })
 }
 
 /// Whether `error` says the value at `pointer` has the wrong kind or is not a listed constant

@@ -413,7 +413,7 @@ case!(
         "sim: {control: direct, dynamics: kinematic, actuation: {delay_ms: {gaussian: {mean: 80, std: 5}}}}"
     ),
     16,
-    59
+    70
 );
 case!(
     distribution_over_a_parameter_that_does_not_exist,
