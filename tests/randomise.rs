@@ -82,6 +82,20 @@ fn drawn_parameters_are_recorded_per_run_and_do_not_depend_on_threads() {
             })
             .collect()
     };
+    // per_run.csv has a column per drawn parameter, empty for the fidelities that draw none.
+    let per_run = std::fs::read_to_string(dir.join("one/per_run.csv")).unwrap();
+    let mut lines = per_run.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let delay = header
+        .iter()
+        .position(|c| *c == "actuation.delay_ms")
+        .expect("a delay column");
+    assert!(header.contains(&"sensing.latency_ms"), "{header:?}");
+    for line in lines {
+        let fields: Vec<&str> = line.split(',').collect();
+        assert_eq!(fields[1] == "twin", !fields[delay].is_empty(), "{line}");
+    }
+
     let one = runs(&dir.join("one"));
     assert_eq!(one.len(), 3 * 2 * 2 * 2);
     assert_eq!(one, runs(&dir.join("two")));

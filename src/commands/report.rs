@@ -157,6 +157,7 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
             plan: plan.clone(),
             metrics,
             recording_sha256: folder::sha256_hex(&bytes),
+            drawn_parameters: stored.drawn_parameters.clone(),
         });
     }
     if !missing.is_empty() {

@@ -370,6 +370,7 @@ pub fn read_records(dir: &Path, plans: &[RunPlan], context_hash: &str) -> Folder
                 plan: plan.clone(),
                 metrics: stored.metrics,
                 recording_sha256: sha256_hex(&trajectory),
+                drawn_parameters: stored.drawn_parameters,
             }),
             _ => runs.missing.push(plan.key.clone()),
         }

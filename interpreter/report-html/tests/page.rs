@@ -67,6 +67,7 @@ fn record(map: &Map, fidelity: &str, recording: &Recording) -> RunRecord {
         },
         metrics,
         recording_sha256: format!("digest of {fidelity}"),
+        drawn_parameters: Default::default(),
     }
 }
 

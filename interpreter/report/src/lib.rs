@@ -32,6 +32,7 @@ pub use units::distinct_units;
 
 use cpmx_metrics::RunMetrics;
 use cpmx_spec::RunPlan;
+use std::collections::BTreeMap;
 
 /// One finished run: where it sits in the matrix, its metrics, and the digest of its
 /// recording.
@@ -44,4 +45,7 @@ pub struct RunRecord {
     /// SHA-256 of its `trajectory.csv`: two repetitions with the same digest are one
     /// independent unit, not two (see `units`).
     pub recording_sha256: String,
+    /// The fidelity's randomised parameters as drawn for the run, by name (empty when its
+    /// fidelity has none).
+    pub drawn_parameters: BTreeMap<String, f64>,
 }

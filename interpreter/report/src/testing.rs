@@ -32,6 +32,7 @@ pub fn record(fidelity: &str, policy: &str, init: &str, repetition: u32, values:
             agents: vec![],
         },
         recording_sha256: format!("recording of {fidelity}/{policy}/{init}/rep{repetition}"),
+        drawn_parameters: Default::default(),
     }
 }
 

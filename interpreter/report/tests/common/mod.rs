@@ -80,6 +80,7 @@ pub fn record(
             agents: vec![],
         },
         recording_sha256: format!("recording of {fidelity}/{policy}/{init}/rep{repetition}"),
+        drawn_parameters: Default::default(),
     }
 }
 
