@@ -6,36 +6,7 @@
 
 mod support;
 
-use support::{cpmx_in as cpmx, root, temp, walk};
-
-use std::path::Path;
-
-/// A safetensors file of an MLP with layer `sizes` (`actor.N.weight` / `actor.N.bias`).
-fn write_mlp(path: &Path, sizes: &[usize]) {
-    let mut header = Vec::new();
-    let mut data: Vec<u8> = Vec::new();
-    for (l, pair) in sizes.windows(2).enumerate() {
-        let (inputs, outputs) = (pair[0], pair[1]);
-        let w = (0..inputs * outputs).map(|i| ((i * 7 + l) as f32 * 0.37).sin() / (inputs as f32).sqrt());
-        let b = (0..outputs).map(|j| (j as f32 * 0.21).cos() * 0.05);
-        for (kind, values, shape) in [
-            ("weight", w.collect::<Vec<f32>>(), format!("[{outputs},{inputs}]")),
-            ("bias", b.collect::<Vec<f32>>(), format!("[{outputs}]")),
-        ] {
-            let start = data.len();
-            data.extend(values.iter().flat_map(|v| v.to_le_bytes()));
-            header.push(format!(
-                "\"actor.{l}.{kind}\":{{\"dtype\":\"F32\",\"shape\":{shape},\"data_offsets\":[{start},{}]}}",
-                data.len()
-            ));
-        }
-    }
-    let header = format!("{{{}}}", header.join(","));
-    let mut bytes = (header.len() as u64).to_le_bytes().to_vec();
-    bytes.extend(header.as_bytes());
-    bytes.extend(data);
-    std::fs::write(path, bytes).unwrap();
-}
+use support::{cpmx_in as cpmx, root, temp, walk, write_mlp};
 
 const QUICKSTART_SIZED: &str = "cpmx: 1
 name: bring

@@ -6,7 +6,7 @@
 
 mod support;
 
-use support::{cpmx_in as cpmx, root, temp};
+use support::{cpmx_in as cpmx, root, temp, write_mlp};
 
 use std::path::{Path, PathBuf};
 
@@ -98,35 +98,6 @@ fn the_reference_actors_as_onnx_give_the_same_at25_sim_table() {
     let sha = cpmx_spec::sha256_hex(&std::fs::read(dir.join("seed1.onnx")).unwrap());
     assert!(resolved.contains(&sha), "{resolved}");
     std::fs::remove_dir_all(&dir).ok();
-}
-
-/// A small MLP as safetensors (`net.N.weight`, `net.N.bias`) of layer `sizes`.
-fn write_mlp(path: &Path, sizes: &[usize]) {
-    let mut header = Vec::new();
-    let mut data: Vec<u8> = Vec::new();
-    for (l, pair) in sizes.windows(2).enumerate() {
-        let (inputs, outputs) = (pair[0], pair[1]);
-        let w: Vec<f32> = (0..inputs * outputs)
-            .map(|i| (i as f32 * 0.37).sin() * 0.1)
-            .collect();
-        let b: Vec<f32> = vec![0.01; outputs];
-        for (kind, values, shape) in [
-            ("weight", w, format!("[{outputs},{inputs}]")),
-            ("bias", b, format!("[{outputs}]")),
-        ] {
-            let start = data.len();
-            data.extend(values.iter().flat_map(|v| v.to_le_bytes()));
-            header.push(format!(
-                "\"net.{l}.{kind}\":{{\"dtype\":\"F32\",\"shape\":{shape},\"data_offsets\":[{start},{}]}}",
-                data.len()
-            ));
-        }
-    }
-    let header = format!("{{{}}}", header.join(","));
-    let mut bytes = (header.len() as u64).to_le_bytes().to_vec();
-    bytes.extend(header.as_bytes());
-    bytes.extend(data);
-    std::fs::write(path, bytes).unwrap();
 }
 
 #[test]

@@ -61,6 +61,7 @@ fn cpmx_reproduces_sigmarls_rollout() {
             experiment: &experiment,
             plan,
             starts,
+            fidelity: None,
         })
         .unwrap();
 

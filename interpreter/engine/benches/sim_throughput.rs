@@ -73,6 +73,7 @@ fn run(experiment: &Experiment, plan: &RunPlan) -> usize {
             experiment,
             plan,
             starts,
+            fidelity: None,
         })
         .expect("the sim run");
     recording.samples.len()

@@ -7,7 +7,7 @@ use cpmx_policy::{
 use cpmx_recording::Recording;
 use cpmx_spec::RunPlan;
 use cpmx_spec::matrix::stream_key;
-use cpmx_spec::model::{Control, Fidelity, SimulatedFidelity};
+use cpmx_spec::model::{Control, DrawnFidelity, Fidelity, SimulatedFidelity};
 use rand::SeedableRng;
 use rand_chacha::ChaCha20Rng;
 
@@ -55,6 +55,9 @@ pub struct RunInputs<'a> {
     pub experiment: &'a Experiment,
     pub plan: &'a RunPlan,
     pub starts: &'a [InitialState],
+    /// The run's simulated fidelity with its randomised parameters drawn for this run
+    /// (`None` for the lab, and where an engine reads nothing from its layers).
+    pub fidelity: Option<&'a DrawnFidelity>,
 }
 
 impl RunInputs<'_> {

@@ -276,16 +276,26 @@ pub fn prepare_policy(policy: &PolicySpec, weights: Option<&Path>) -> Result<Pre
     if let Some(onnx) = &policy.onnx {
         let observation = observation(policy.observation.as_ref().expect("defaulted to stdlib:sigmarl"));
         let path = weights.unwrap_or(Path::new(&onnx.file));
-        let network =
+        let loaded =
             crate::onnx::load(onnx, observation.size(), path).map_err(|source| PrepareError::Onnx {
                 policy: policy.name.clone(),
                 source,
             })?;
-        return Ok(PreparedPolicy::Onnx {
-            network,
-            observation,
-            output: crate::onnx::head(onnx),
-            sample,
+        let output = crate::onnx::head(onnx);
+        // A plain MLP runs as `mlp:` weights do: same kernels, same bits.
+        return Ok(match loaded {
+            crate::onnx::LoadedOnnx::Mlp(actor) => PreparedPolicy::Mlp {
+                actor: Arc::new(actor),
+                observation,
+                output,
+                sample,
+            },
+            crate::onnx::LoadedOnnx::Graph(network) => PreparedPolicy::Onnx {
+                network,
+                observation,
+                output,
+                sample,
+            },
         });
     }
     match (&policy.mlp, weights) {

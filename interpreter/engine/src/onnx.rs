@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use cpmx_policy::{Network, OutputHead};
+use cpmx_policy::{MlpActor, Network, OutputHead};
 use cpmx_spec::model::OnnxSpec;
 
 /// Why an ONNX policy cannot be used.
@@ -30,9 +30,17 @@ pub fn head(onnx: &OnnxSpec) -> OutputHead {
     crate::experiment::output_head(onnx.output)
 }
 
+/// A loaded ONNX graph: a plain MLP, run on cpmx's kernels like `mlp:` weights, or any other
+/// graph, run by the ONNX runtime.
+#[derive(Debug)]
+pub enum LoadedOnnx {
+    Mlp(MlpActor),
+    Graph(Arc<dyn Network>),
+}
+
 /// Loads the graph at `path` and checks it fits `observation` values in and the head out.
 #[cfg(feature = "onnx")]
-pub fn load(onnx: &OnnxSpec, observation: usize, path: &Path) -> Result<Arc<dyn Network>, OnnxLoadError> {
+pub fn load(onnx: &OnnxSpec, observation: usize, path: &Path) -> Result<LoadedOnnx, OnnxLoadError> {
     use cpmx_onnx::{OnnxActor, OnnxError};
     let classify = |e: OnnxError| match e {
         OnnxError::InputSize { .. } => OnnxLoadError::InputSize(e.to_string()),
@@ -42,11 +50,14 @@ pub fn load(onnx: &OnnxSpec, observation: usize, path: &Path) -> Result<Arc<dyn 
     let actor =
         OnnxActor::load(path, onnx.input_name.as_deref(), onnx.output_name.as_deref()).map_err(classify)?;
     actor.check_fits(observation, head(onnx)).map_err(classify)?;
-    Ok(Arc::new(actor))
+    Ok(match actor.as_mlp() {
+        Some(mlp) => LoadedOnnx::Mlp(mlp.clone()),
+        None => LoadedOnnx::Graph(Arc::new(actor)),
+    })
 }
 
 /// Without the `onnx` feature no graph loads.
 #[cfg(not(feature = "onnx"))]
-pub fn load(_onnx: &OnnxSpec, _observation: usize, _path: &Path) -> Result<Arc<dyn Network>, OnnxLoadError> {
+pub fn load(_onnx: &OnnxSpec, _observation: usize, _path: &Path) -> Result<LoadedOnnx, OnnxLoadError> {
     Err(OnnxLoadError::NotBuilt)
 }

@@ -1,7 +1,8 @@
 //! Domain randomisation in `cpmx run`: a fidelity's parameters given as distributions are drawn
 //! once per run from the run's `randomisation` stream, in the order of
-//! [`SimulatedFidelity::parameters`], and the run records what was drawn (`metrics.json`'s
-//! `drawn_parameters`). Runs that differ only in fidelity share their seed, so a parameter
+//! [`SimulatedFidelity::parameters`]. The runner draws, hands the drawn fidelity to the engine
+//! (`RunInputs::fidelity`) and records what was drawn (`metrics.json`'s `drawn_parameters`);
+//! the lab emulator draws the same way for the runs it plays. Runs that differ only in fidelity share their seed, so a parameter
 //! randomised alike in two fidelities takes the same value in paired runs.
 
 use cpmx_spec::matrix::stream_key;

@@ -2,14 +2,14 @@
 //! engine run followed by its metrics and stored at once, finished runs skipped on `--resume`.
 //! Results come back in matrix order whatever the thread count, so tables are identical.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 use std::sync::Mutex;
 
 use cpmx_metrics::{PathGeometry, RunMetrics, evaluate};
 use cpmx_recording::Recording;
 use cpmx_spec::RunPlan;
-use cpmx_spec::model::Fidelity;
+use cpmx_spec::model::{DrawnFidelity, Fidelity};
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 
@@ -116,7 +116,8 @@ fn execute_one(
     if resume && let Some(stored) = finished_run(out, plan, &hash) {
         return RunOutcome::Resumed(Box::new(stored));
     }
-    match run_engine(experiment, plan).and_then(|recording| {
+    let (fidelity, drawn_parameters) = drawn_fidelity(experiment, plan);
+    match run_engine(experiment, plan, fidelity.as_ref()).and_then(|recording| {
         let metrics = measure(experiment, &recording)?;
         Ok((recording, metrics))
     }) {
@@ -126,13 +127,7 @@ fn execute_one(
                 seed: plan.seed,
                 inputs_hash: hash,
                 notes: recording.notes.clone(),
-                drawn_parameters: match experiment.spec.fidelities.get(&plan.fidelity) {
-                    Some(Fidelity::Simulated(f)) => crate::randomise::draw_for_run(f, plan.seed)
-                        .1
-                        .into_iter()
-                        .collect(),
-                    _ => Default::default(),
-                },
+                drawn_parameters,
                 metrics,
             };
             match store_run(out, plan, &recording, &stored) {
@@ -211,13 +206,30 @@ fn store_partial(out: &Path, plan: &RunPlan, recording: &Recording) -> std::io::
 
 /// Runs the engine of the plan's fidelity and measures the recording.
 pub fn simulate(experiment: &Experiment, plan: &RunPlan) -> Result<(Recording, RunMetrics), String> {
-    let recording = run_engine(experiment, plan).map_err(RunFailure::reason)?;
+    let (fidelity, _) = drawn_fidelity(experiment, plan);
+    let recording = run_engine(experiment, plan, fidelity.as_ref()).map_err(RunFailure::reason)?;
     let metrics = measure(experiment, &recording)?;
     Ok((recording, metrics))
 }
 
-/// Runs the engine of the plan's fidelity.
-fn run_engine(experiment: &Experiment, plan: &RunPlan) -> Result<Recording, RunFailure> {
+/// The plan's fidelity as its engine runs it, with its randomised parameters drawn for this
+/// run (simulated fidelities only), and the values drawn by name.
+fn drawn_fidelity(experiment: &Experiment, plan: &RunPlan) -> (Option<DrawnFidelity>, BTreeMap<String, f64>) {
+    match experiment.spec.fidelities.get(&plan.fidelity) {
+        Some(Fidelity::Simulated(f)) => {
+            let (fidelity, drawn) = crate::randomise::draw_for_run(f, plan.seed);
+            (Some(fidelity), drawn.into_iter().collect())
+        }
+        _ => (None, BTreeMap::new()),
+    }
+}
+
+/// Runs the engine of the plan's fidelity (`drawn`: its layers as drawn for this run).
+fn run_engine(
+    experiment: &Experiment,
+    plan: &RunPlan,
+    drawn: Option<&DrawnFidelity>,
+) -> Result<Recording, RunFailure> {
     let fidelity = experiment
         .spec
         .fidelities
@@ -231,6 +243,7 @@ fn run_engine(experiment: &Experiment, plan: &RunPlan) -> Result<Recording, RunF
         experiment,
         plan,
         starts,
+        fidelity: drawn,
     })?)
 }
 

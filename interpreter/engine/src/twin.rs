@@ -14,7 +14,7 @@
 use cpmx_follower::TrajectoryPoint;
 use cpmx_planner::{PlannedTrajectory, Planner, PlannerParams, SteeringAfterHc};
 use cpmx_recording::Recording;
-use cpmx_spec::model::{Fidelity, OnCollision, Planner as PlannerSpec};
+use cpmx_spec::model::{OnCollision, Planner as PlannerSpec};
 use cpmx_vehicle::{BicycleState, VehicleParams};
 
 use crate::engine::{Engine, RunError, RunInputs};
@@ -29,7 +29,7 @@ impl Engine for TwinEngine {
         let experiment = inputs.experiment;
         let spec = &experiment.spec;
         let unsupported = |reason: String| RunError::Unsupported(inputs.plan.fidelity.clone(), reason);
-        let Some(Fidelity::Simulated(fidelity)) = spec.fidelities.get(&inputs.plan.fidelity) else {
+        let Some(fidelity) = inputs.fidelity else {
             return Err(unsupported("not a simulated stack".into()));
         };
         let dt_s = spec.timing.dt;
@@ -46,11 +46,10 @@ impl Engine for TwinEngine {
         // Place the vehicles and prepare the planner.
         let starts = inputs.starts;
         let paths = inputs.agent_paths()?;
-        let (fidelity, _) = crate::randomise::draw_for_run(fidelity, inputs.plan.seed);
         let mut vehicles = starts
             .iter()
             .enumerate()
-            .map(|(i, start)| VehicleStack::new(&fidelity, experiment.vehicle, start, inputs.plan.seed, i))
+            .map(|(i, start)| VehicleStack::new(fidelity, experiment.vehicle, start, inputs.plan.seed, i))
             .collect::<Result<Vec<_>, _>>()
             .map_err(&unsupported)?;
         let mut planner = planner(planner_spec, dt_s, experiment.vehicle);

@@ -1,8 +1,9 @@
 //! Actor networks exported to ONNX (`onnx: {file: ...}`), run by tract, a pure Rust ONNX
 //! runtime: loaded once per experiment, their input and output checked against the
 //! observation and the output head, then run once per policy step for all agents at once
-//! ([`OnnxActor`], a [`cpmx_policy::Network`]). A graph that is a plain MLP runs on cpmx's
-//! MLP kernels instead, bit for bit as the same weights as safetensors (`lower`). [`export`] writes an MLP's safetensors as an
+//! ([`OnnxActor`], a [`cpmx_policy::Network`]). A graph that is a plain MLP is also read as
+//! one ([`OnnxActor::as_mlp`], `lower`), so that the engine runs it on cpmx's MLP kernels, bit
+//! for bit as the same weights from safetensors. [`export`] writes an MLP's safetensors as an
 //! ONNX graph (Gemm or MatMul + Add, and the activation), for other runtimes and the tests.
 //!
 //! This crate owns reading, checking and running ONNX graphs. It knows nothing of specs,
@@ -88,8 +89,8 @@ pub struct OnnxActor {
     input_size: usize,
     output_size: usize,
     batch: Batch,
-    /// The graph as an MLP on cpmx's kernels, when it is one.
-    mlp: Option<Arc<cpmx_policy::MlpActor>>,
+    /// The graph as an MLP for cpmx's kernels, when it is one.
+    mlp: Option<cpmx_policy::MlpActor>,
 }
 
 impl OnnxActor {
@@ -194,8 +195,7 @@ impl OnnxActor {
             .and_then(|m| m.into_runnable())
             .map_err(format)?;
         let mlp = lower::as_mlp(bytes, &input, &output)
-            .filter(|m| m.input_size() == input_size && m.output_size() == output_size)
-            .map(Arc::new);
+            .filter(|m| m.input_size() == input_size && m.output_size() == output_size);
         Ok(OnnxActor {
             mlp,
             plan,
@@ -247,15 +247,10 @@ impl OnnxActor {
         self.batch
     }
 
-    /// Whether the graph runs on cpmx's MLP kernels (it is a plain MLP) rather than on tract.
-    pub fn runs_on_mlp_kernels(&self) -> bool {
-        self.mlp.is_some()
-    }
-
-    /// The same graph always run by tract (for comparing the two runtimes).
-    pub fn on_tract(mut self) -> Self {
-        self.mlp = None;
-        self
+    /// The graph as an MLP for cpmx's kernels, when it is a plain MLP (see `lower`); the
+    /// [`cpmx_policy::Network`] implementation always runs the graph on tract.
+    pub fn as_mlp(&self) -> Option<&cpmx_policy::MlpActor> {
+        self.mlp.as_ref()
     }
 
     /// Runs the graph on `rows` observations stacked in `data` into `out`.
@@ -301,12 +296,6 @@ impl cpmx_policy::Network for OnnxActor {
                 self.input_size,
                 self.output_size
             ));
-        }
-        if let Some(mlp) = &self.mlp {
-            let mut workspace = mlp.workspace(agents);
-            return mlp
-                .forward(observations, &mut workspace, raw)
-                .map_err(|e| e.to_string());
         }
         let result = match self.batch {
             Batch::Symbolic => self.run(agents, observations, raw),

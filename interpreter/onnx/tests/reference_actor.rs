@@ -1,6 +1,6 @@
 //! SigmaRL's reference actor (`shared/reference/policy/actor.safetensors`) written as ONNX by
-//! the test (Gemm and MatMul + Add graphs) runs on cpmx's MLP kernels bit for bit as the
-//! safetensors actor, and run by tract agrees with it on every reference observation (697
+//! the test (Gemm and MatMul + Add graphs) is read as an MLP that gives bit for bit the
+//! safetensors actor's outputs on cpmx's kernels, and run by tract agrees with it on every reference observation (697
 //! agent-steps and the 36 test vectors), raw outputs and actions; graphs that do not fit are
 //! refused naming their shapes.
 
@@ -109,15 +109,16 @@ fn the_reference_actor_as_onnx_agrees_with_the_safetensors_actor() {
 
     for style in [LinearStyle::Gemm, LinearStyle::MatMulAdd] {
         let bytes = mlp_to_onnx(&weights, Activation::Tanh, style).unwrap();
-        let lowered = OnnxActor::from_bytes(&bytes, None, None).unwrap();
-        assert!(lowered.runs_on_mlp_kernels(), "{style:?}");
+        let onnx = OnnxActor::from_bytes(&bytes, None, None).unwrap();
+        let lowered = onnx
+            .as_mlp()
+            .unwrap_or_else(|| panic!("{style:?} is a plain MLP"));
         let all: Vec<f32> = groups.concat();
         assert_eq!(
             mlp_raw(&mlp, &all),
-            onnx_raw(&lowered, &all),
+            mlp_raw(lowered, &all),
             "{style:?}: bit for bit"
         );
-        let onnx = lowered.on_tract();
         assert_eq!(onnx.batch(), Batch::Symbolic);
         assert_eq!(onnx.input().1.to_string(), "[batch, 32]");
         assert_eq!(onnx.output().1.to_string(), "[batch, 4]");
@@ -195,9 +196,8 @@ fn relu_and_elu_networks_of_other_sizes_agree_and_a_unit_batch_runs_agent_by_age
         let mlp = MlpActor::from_bytes_any(&weights, activation).unwrap();
         let bytes = mlp_to_onnx(&weights, activation, LinearStyle::Gemm).unwrap();
         let onnx = OnnxActor::from_bytes(&bytes, Some("observation"), Some("raw")).unwrap();
-        assert!(onnx.runs_on_mlp_kernels());
-        assert_eq!(mlp_raw(&mlp, &observations), onnx_raw(&onnx, &observations));
-        let onnx = onnx.on_tract();
+        let lowered = onnx.as_mlp().expect("a plain MLP");
+        assert_eq!(mlp_raw(&mlp, &observations), mlp_raw(lowered, &observations));
         onnx.check_fits(20, OutputHead::DeterministicTanh).unwrap();
         let d = max_diff(&mlp_raw(&mlp, &observations), &onnx_raw(&onnx, &observations));
         assert!(d < TOLERANCE, "{activation:?}: {d}");
@@ -208,9 +208,7 @@ fn relu_and_elu_networks_of_other_sizes_agree_and_a_unit_batch_runs_agent_by_age
         for value in graph.input.iter_mut().chain(graph.output.iter_mut()) {
             set_first_dim(value, 1);
         }
-        let unit = OnnxActor::from_bytes(&model.encode_to_vec(), None, None)
-            .unwrap()
-            .on_tract();
+        let unit = OnnxActor::from_bytes(&model.encode_to_vec(), None, None).unwrap();
         assert_eq!(unit.batch(), Batch::One);
         let d = max_diff(&onnx_raw(&onnx, &observations), &onnx_raw(&unit, &observations));
         assert!(d < TOLERANCE, "{activation:?} unit batch: {d}");
@@ -335,9 +333,9 @@ fn pytorch_style_graphs_are_lowered_and_branching_ones_are_not() {
             ..Default::default()
         },
     );
-    let lowered = OnnxActor::from_bytes(&torch_style.encode_to_vec(), None, None).unwrap();
-    assert!(lowered.runs_on_mlp_kernels());
-    assert_eq!(mlp_raw(&mlp, &observations), onnx_raw(&lowered, &observations));
+    let torch_style = OnnxActor::from_bytes(&torch_style.encode_to_vec(), None, None).unwrap();
+    let lowered = torch_style.as_mlp().expect("lowered");
+    assert_eq!(mlp_raw(&mlp, &observations), mlp_raw(lowered, &observations));
 
     // The input read twice (a second output that tract drops): not a plain chain.
     let mut branching = model;
@@ -351,7 +349,7 @@ fn pytorch_style_graphs_are_lowered_and_branching_ones_are_not() {
         ..Default::default()
     });
     let on_tract = OnnxActor::from_bytes(&branching.encode_to_vec(), None, None).unwrap();
-    assert!(!on_tract.runs_on_mlp_kernels());
+    assert!(on_tract.as_mlp().is_none());
     let d = max_diff(&mlp_raw(&mlp, &observations), &onnx_raw(&on_tract, &observations));
     assert!(d < TOLERANCE, "{d}");
 }
