@@ -101,6 +101,11 @@ pub const PRESETS: &[Preset] = &[
         yaml: include_str!("../presets/training/sigmarl-reward.yaml"),
     },
     Preset {
+        kind: PresetKind::Reward,
+        name: "sigmarl-shaped",
+        yaml: include_str!("../presets/training/sigmarl-shaped-reward.yaml"),
+    },
+    Preset {
         kind: PresetKind::Algorithm,
         name: "mappo-sigmarl",
         yaml: include_str!("../presets/training/mappo-sigmarl.yaml"),

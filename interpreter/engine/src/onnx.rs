@@ -33,6 +33,8 @@ pub fn head(onnx: &OnnxSpec) -> OutputHead {
 /// A loaded ONNX graph: a plain MLP, run on cpmx's kernels like `mlp:` weights, or any other
 /// graph, run by the ONNX runtime.
 #[derive(Debug)]
+// Without the `onnx` feature nothing loads a graph; the policy preparation still matches on it.
+#[cfg_attr(not(feature = "onnx"), allow(dead_code))]
 pub enum LoadedOnnx {
     Mlp(MlpActor),
     Graph(Arc<dyn Network>),

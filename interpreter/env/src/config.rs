@@ -129,6 +129,10 @@ pub struct RewardConfig {
     pub near_boundary: Option<NearBoundaryTerm>,
     /// Time-to-collision penalty for nearby agents.
     pub near_agents_ttc: Option<TtcTerm>,
+    /// Reward for speed along the path (none in SigmaRL's `ttc_sparse` reward).
+    pub speed: Option<SpeedTerm>,
+    /// Penalty for the distance to the centre line (none in SigmaRL's `ttc_sparse` reward).
+    pub centre_line: Option<CentreLineTerm>,
     /// Added when the agent's rectangle crosses another agent's (SigmaRL adds its -1 twice: -2).
     pub collide_agents: f64,
     /// Added when the agent's rectangle crosses its shared road boundary (SigmaRL: -2).
@@ -143,6 +147,8 @@ impl Default for RewardConfig {
             progress: Some(ProgressTerm::default()),
             near_boundary: Some(NearBoundaryTerm::default()),
             near_agents_ttc: Some(TtcTerm::default()),
+            speed: None,
+            centre_line: None,
             collide_agents: -2.0,
             collide_boundary: -2.0,
             clamp: Some((-1.0, 1.0)),
@@ -238,6 +244,30 @@ impl Default for TtcTerm {
     }
 }
 
+/// `weight * v_along / max_speed`, times `against_path_factor` when `v_along < 0`: `v_along`
+/// is the velocity after the step projected on the direction of the centre-line segment
+/// nearest to the agent. The speed reward of the paper's `r_speed` (SigmaRL's "high velocity"
+/// and "time" shaping of `rew_method = "default"`, which project on unnormalised vectors to
+/// the short-term points instead of a unit direction).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpeedTerm {
+    /// Weight.
+    pub weight: f64,
+    /// Multiplies the term when the agent moves against its path (SigmaRL: 2).
+    pub against_path_factor: f64,
+}
+
+/// `penalty * d / scale_m`, `d` the distance of the agent's centre to its path's centre line
+/// (SigmaRL's "deviating from reference path" shaping: penalty -0.02, scale
+/// `(lane width - vehicle width) / 2`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CentreLineTerm {
+    /// Penalty at a distance of `scale_m`.
+    pub penalty: f64,
+    /// Distance normaliser [m].
+    pub scale_m: f64,
+}
+
 /// A configuration the environment cannot run.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ConfigError {
@@ -289,6 +319,9 @@ impl EnvConfig {
         }
         if let Some(t) = &self.reward.near_agents_ttc {
             positive("near_agents_ttc.horizon_s", t.horizon_s)?;
+        }
+        if let Some(c) = &self.reward.centre_line {
+            positive("centre_line.scale_m", c.scale_m)?;
         }
         if let Some((low, high)) = self.reward.clamp
             && !matches!(

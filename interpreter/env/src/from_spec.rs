@@ -8,8 +8,8 @@ use cpmx_vehicle::VehicleParams;
 use cpmx_world::{Map, MapError, PathSet, ReferencePath};
 
 use crate::config::{
-    EnvConfig, NearBoundaryTerm, ProgressTerm, ResetRule, ResetScope, RewardConfig, ScenarioConfig,
-    StartRule, TtcTerm,
+    CentreLineTerm, EnvConfig, NearBoundaryTerm, ProgressTerm, ResetRule, ResetScope, RewardConfig,
+    ScenarioConfig, SpeedTerm, StartRule, TtcTerm,
 };
 
 /// The environment configuration a `training:` section declares.
@@ -60,6 +60,14 @@ pub fn config_from_training(
                 within_m: t.within_m,
                 horizon_s: t.horizon_s,
                 safe_distance_m: t.safe_distance_m,
+            }),
+            speed: r.speed.as_ref().map(|v| SpeedTerm {
+                weight: v.weight,
+                against_path_factor: v.against_path_factor,
+            }),
+            centre_line: r.centre_line.as_ref().map(|c| CentreLineTerm {
+                penalty: c.penalty,
+                scale_m: c.scale_m,
             }),
             collide_agents: r.collide_agents.unwrap_or(0.0),
             collide_boundary: r.collide_boundary.unwrap_or(0.0),

@@ -35,8 +35,8 @@ use cpmx_world::{Map, MapError, PathSet, ReferencePath};
 
 pub use collision::{Walls, cross_properly, rectangle_crosses_segment, rectangles_cross};
 pub use config::{
-    ConfigError, EnvConfig, NearBoundaryTerm, ProgressTerm, ResetRule, ResetScope, RewardConfig,
-    ScenarioConfig, StartRule, TtcTerm,
+    CentreLineTerm, ConfigError, EnvConfig, NearBoundaryTerm, ProgressTerm, ResetRule, ResetScope,
+    RewardConfig, ScenarioConfig, SpeedTerm, StartRule, TtcTerm,
 };
 pub use from_spec::{config_from_training, training_paths};
 pub use paths::{TrainingPath, prepare_paths};

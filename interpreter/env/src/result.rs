@@ -52,6 +52,8 @@ pub struct RewardTermMeans {
     pub near_agents_ttc: f64,
     pub collide_agents: f64,
     pub collide_boundary: f64,
+    pub speed: f64,
+    pub centre_line: f64,
     /// Mean of the (clamped) reward.
     pub total: f64,
 }
@@ -130,6 +132,8 @@ impl StepResult {
             near_agents_ttc: t.terms.near_agents_ttc / k,
             collide_agents: t.terms.collide_agents / k,
             collide_boundary: t.terms.collide_boundary / k,
+            speed: t.terms.speed / k,
+            centre_line: t.terms.centre_line / k,
             total: t.terms.total / k,
         };
         self.collisions = CollisionCounts {

@@ -1,10 +1,11 @@
 //! The reward of one agent at one step, term by term, as SigmaRL's `ScenarioRoadTraffic.reward`
-//! computes it for `rew_method = "ttc_sparse"` in training mode (`road_traffic.py:925-1332`).
-//! Pure functions of the inputs the environment hands in.
+//! computes it for `rew_method = "ttc_sparse"` in training mode (`road_traffic.py:925-1332`),
+//! plus the speed and centre-line terms of the paper's reward (`r_speed`, `r_track`), which
+//! that method leaves out. Pure functions of the inputs the environment hands in.
 
 use cpmx_world::Point;
 
-use crate::config::{NearBoundaryTerm, ProgressTerm, RewardConfig, TtcTerm};
+use crate::config::{CentreLineTerm, NearBoundaryTerm, ProgressTerm, RewardConfig, SpeedTerm, TtcTerm};
 
 /// The terms of one agent's reward at one step (each already weighted), and their clamped sum.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -15,6 +16,10 @@ pub struct RewardTerms {
     pub near_boundary: f64,
     /// Time-to-collision penalty.
     pub near_agents_ttc: f64,
+    /// Speed along the path.
+    pub speed: f64,
+    /// Centre-line distance penalty.
+    pub centre_line: f64,
     /// Agent-agent collision penalty.
     pub collide_agents: f64,
     /// Boundary collision penalty.
@@ -31,6 +36,8 @@ impl std::ops::AddAssign<&RewardTerms> for RewardTerms {
         self.progress += t.progress;
         self.near_boundary += t.near_boundary;
         self.near_agents_ttc += t.near_agents_ttc;
+        self.speed += t.speed;
+        self.centre_line += t.centre_line;
         self.collide_agents += t.collide_agents;
         self.collide_boundary += t.collide_boundary;
         self.total += t.total;
@@ -46,6 +53,10 @@ pub struct RewardInput<'a> {
     pub prev_pos: Point,
     /// Short-term reference points computed at the end of the previous step (or the reset).
     pub short_term: &'a [Point],
+    /// Unit direction of the centre-line segment nearest to `pos`.
+    pub path_direction: [f64; 2],
+    /// Distance of `pos` to the centre line [m].
+    pub centre_line_distance_m: f64,
     /// Smallest boundary distance (centre minus half width, and corners) [m].
     pub boundary_distance_m: f64,
     /// Index of this agent.
@@ -60,6 +71,8 @@ pub struct RewardInput<'a> {
     pub collides_with_boundary: bool,
     /// Progress normaliser: maximum speed × dt [m].
     pub max_step_m: f64,
+    /// Speed normaliser: the maximum speed [m/s].
+    pub max_speed_mps: f64,
 }
 
 /// The linear ramp of SigmaRL's `decreasing_fcn`: 1 at `x0`, 0 at `x1`, `x` clamped to `[x0, x1]`.
@@ -83,6 +96,24 @@ pub fn progress(term: &ProgressTerm, input: &RewardInput<'_>) -> f64 {
 /// The near-boundary term.
 pub fn near_boundary(term: &NearBoundaryTerm, distance_m: f64) -> f64 {
     decreasing(distance_m, 0.0, term.within_m) * term.penalty
+}
+
+/// The speed term: the agent's velocity along its path, over the maximum speed.
+pub fn speed(term: &SpeedTerm, input: &RewardInput<'_>) -> f64 {
+    let v = input.velocities[input.agent];
+    let d = input.path_direction;
+    let along_mps = v[0] * d[0] + v[1] * d[1];
+    let factor = if along_mps < 0.0 {
+        term.against_path_factor
+    } else {
+        1.0
+    };
+    factor * along_mps / input.max_speed_mps * term.weight
+}
+
+/// The centre-line term.
+pub fn centre_line(term: &CentreLineTerm, distance_m: f64) -> f64 {
+    distance_m / term.scale_m * term.penalty
 }
 
 /// The TTC term, in float32 with SigmaRL's operation order (`_apply_ttc_near_agent_penalty`),
@@ -132,6 +163,14 @@ pub fn reward(config: &RewardConfig, input: &RewardInput<'_>) -> RewardTerms {
         near_agents_ttc: config.near_agents_ttc.as_ref().map_or(0.0, |t| {
             near_agents_ttc(t, input.agent, input.positions, input.velocities)
         }),
+        speed: config
+            .speed
+            .as_ref()
+            .map_or(0.0, |s| speed(s, input)),
+        centre_line: config
+            .centre_line
+            .as_ref()
+            .map_or(0.0, |c| centre_line(c, input.centre_line_distance_m)),
         collide_agents: if input.collides_with_agents {
             config.collide_agents
         } else {
@@ -144,8 +183,13 @@ pub fn reward(config: &RewardConfig, input: &RewardInput<'_>) -> RewardTerms {
         },
         ..RewardTerms::default()
     };
-    t.sum_unclamped =
-        t.progress + t.near_agents_ttc + t.near_boundary + t.collide_agents + t.collide_boundary;
+    t.sum_unclamped = t.progress
+        + t.near_agents_ttc
+        + t.near_boundary
+        + t.collide_agents
+        + t.collide_boundary
+        + t.speed
+        + t.centre_line;
     t.total = match config.clamp {
         Some((low, high)) => t.sum_unclamped.clamp(low, high),
         None => t.sum_unclamped,

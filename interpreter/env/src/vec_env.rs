@@ -448,12 +448,16 @@ impl Env {
                 })
                 .fold(f64::INFINITY, f64::min);
             let a = &self.agents[i];
+            let nearest = path.center.nearest(pos);
+            let yaw_rad = nearest.map_or(0.0, |n| paths[a.placement.path].center_yaw_rad[n.segment]);
             let terms = reward(
                 &config.reward,
                 &RewardInput {
                     pos,
                     prev_pos: a.prev_pos,
                     short_term: &a.short_term,
+                    path_direction: [yaw_rad.cos(), yaw_rad.sin()],
+                    centre_line_distance_m: nearest.map_or(0.0, |n| n.distance_m),
                     boundary_distance_m,
                     agent: i,
                     positions: &s.positions,
@@ -461,10 +465,10 @@ impl Env {
                     collides_with_agents: s.with_agents[i],
                     collides_with_boundary: s.with_boundary[i],
                     max_step_m,
+                    max_speed_mps: config.vehicle.max_speed_mps,
                 },
             );
-            s.closest
-                .push(path.center.nearest(pos).map_or(0, |n| n.segment + 1));
+            s.closest.push(nearest.map_or(0, |n| n.segment + 1));
             let r = terms.total as f32;
             rewards[i] = r;
             self.episode_reward[i] += r;

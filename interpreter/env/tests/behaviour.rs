@@ -1,9 +1,11 @@
 //! Properties of the environments that do not need SigmaRL's recordings: starts keep the
-//! minimum gap and the admissible ranges, and results are identical on any number of threads.
+//! minimum gap and the admissible ranges, results are identical on any number of threads, and
+//! the shaping terms SigmaRL's training reward lacks (speed, centre line) follow their
+//! definitions.
 
 use std::path::PathBuf;
 
-use cpmx_env::{EnvConfig, StepResult, VecEnv, sigmarl_intersection_paths};
+use cpmx_env::{CentreLineTerm, EnvConfig, SpeedTerm, StepResult, VecEnv, sigmarl_intersection_paths};
 use cpmx_world::ReferencePath;
 use proptest::prelude::*;
 use rand::{RngExt, SeedableRng};
@@ -82,6 +84,80 @@ fn returns_accumulate_until_done_and_means_match_the_agents() {
         assert_eq!(crashes, r.collisions.with_boundary);
         assert!(r.rewards.iter().all(|x| (-1.0..=1.0).contains(x)));
     }
+}
+
+/// The speed and centre-line terms, recomputed from the agents' states after the step with the
+/// world crate's float64 segment search, agree with the environment's; adding them changes no
+/// other term (the reward does not steer the dynamics).
+#[test]
+fn shaping_terms_follow_their_definitions_and_leave_the_others_alone() {
+    let paths = paths();
+    let mut shaped_config = config(4);
+    shaped_config.reward.speed = Some(SpeedTerm {
+        weight: 0.1,
+        against_path_factor: 1.5,
+    });
+    shaped_config.reward.centre_line = Some(CentreLineTerm {
+        penalty: -0.02,
+        scale_m: 0.0215,
+    });
+    let mut shaped = VecEnv::new(shaped_config, &paths, 7).unwrap();
+    let mut plain = VecEnv::new(config(4), &paths, 7).unwrap();
+    let mut rng = ChaCha20Rng::seed_from_u64(11);
+    let (mut checked, mut backwards, mut off_centre) = (0, 0, 0);
+    for _ in 0..80 {
+        let actions = random_actions(&mut rng, 16);
+        let before: Vec<_> = (0..4).map(|e| shaped.placements(e)).collect();
+        let r = shaped.step(&actions);
+        let q = plain.step(&actions);
+        for (a, b) in r.agents.iter().zip(&q.agents) {
+            assert!(a.terms.centre_line <= 0.0);
+            assert_eq!(b.terms.speed, 0.0);
+            assert_eq!(b.terms.centre_line, 0.0);
+            assert_eq!(
+                [a.terms.progress, a.terms.near_boundary, a.terms.collide_agents, a.terms.collide_boundary],
+                [b.terms.progress, b.terms.near_boundary, b.terms.collide_agents, b.terms.collide_boundary]
+            );
+            let sum = a.terms.progress
+                + a.terms.near_boundary
+                + a.terms.near_agents_ttc
+                + a.terms.collide_agents
+                + a.terms.collide_boundary
+                + a.terms.speed
+                + a.terms.centre_line;
+            assert!((a.terms.total - sum.clamp(-1.0, 1.0)).abs() < 1e-12);
+        }
+        for (e, before) in before.iter().enumerate() {
+            if r.done[e] {
+                continue;
+            }
+            let after = shaped.placements(e);
+            for k in 0..4 {
+                let info = &r.agents[e * 4 + k];
+                if info.reset {
+                    continue;
+                }
+                let placed = &after[k];
+                assert_eq!(placed.path, before[k].path);
+                let path = &paths[placed.path];
+                let p = [placed.state.x_m, placed.state.y_m];
+                let nearest = path.center_line.nearest_segment(p).unwrap();
+                let yaw = path.center_line_yaw_rad[nearest.segment];
+                let v = placed.velocity_mps;
+                let along = v[0] * yaw.cos() + v[1] * yaw.sin();
+                let factor = if along < 0.0 { 1.5 } else { 1.0 };
+                let speed = 0.1 * factor * along / 1.0;
+                assert!((info.terms.speed - speed).abs() < 1e-5, "speed {} vs {speed}", info.terms.speed);
+                let centre = -0.02 * nearest.distance_m / 0.0215;
+                assert!((info.terms.centre_line - centre).abs() < 1e-5, "centre {} vs {centre}", info.terms.centre_line);
+                checked += 1;
+                backwards += usize::from(along < 0.0);
+                off_centre += usize::from(nearest.distance_m > 0.01);
+            }
+        }
+    }
+    // Random commands drive backwards and off the centre line: both branches were exercised.
+    assert!(checked > 500 && backwards > 50 && off_centre > 50, "{checked} {backwards} {off_centre}");
 }
 
 proptest! {

@@ -14,12 +14,11 @@ use std::fmt::Write as _;
 
 use cpmx_learn::IterationRecord;
 
-use crate::environment::REWARD_TERMS;
-
-/// The CSV header line (without newline).
-pub fn header() -> String {
+/// The CSV header line (without newline) for the reward terms `terms`
+/// ([`crate::reward_term_names`]).
+pub fn header(terms: &[&str]) -> String {
     let mut h = String::from("iteration,samples,episode_reward_mean,episodes");
-    for term in REWARD_TERMS {
+    for term in terms {
         let _ = write!(h, ",reward_{term}");
     }
     h.push_str(
@@ -61,8 +60,8 @@ pub fn row(r: &IterationRecord) -> String {
 /// The rows of a learning curve file up to and including iteration `last` (what a checkpoint
 /// of iteration `last` continues from), header first. Rows after it (written before a kill
 /// that came before their checkpoint) are dropped.
-pub fn rows_through(text: &str, last: u64) -> Vec<String> {
-    let mut lines = vec![header()];
+pub fn rows_through(text: &str, last: u64, header: String) -> Vec<String> {
+    let mut lines = vec![header];
     lines.extend(
         text.lines()
             .skip(1)
@@ -254,10 +253,11 @@ mod tests {
 
     #[test]
     fn rows_have_the_headers_columns_and_read_back() {
-        let columns = header().split(',').count();
+        let terms = ["progress", "near_boundary", "near_agents_ttc", "collide_agents", "collide_boundary", "total"];
+        let columns = header(&terms).split(',').count();
         let text = format!(
             "{}\n{}\n{}\n",
-            header(),
+            header(&terms),
             row(&record(1, -0.25)),
             row(&record(2, f64::NAN))
         );
@@ -266,8 +266,8 @@ mod tests {
         }
         assert_eq!(reward_points(&text), vec![(1.0, -0.25)]);
         assert_eq!(last_best(&text), Some((1, -0.25)));
-        assert_eq!(rows_through(&text, 1).len(), 2);
-        assert_eq!(rows_through(&text, 5).len(), 3);
+        assert_eq!(rows_through(&text, 1, header(&terms)).len(), 2);
+        assert_eq!(rows_through(&text, 5, header(&terms)).len(), 3);
     }
 
     #[test]

@@ -3,25 +3,51 @@
 //! of each reward term and the collision and reset counts; the environment's state goes into
 //! the learner's checkpoints.
 
-use cpmx_env::{EnvConfig, StepResult, VecEnv};
+use cpmx_env::{EnvConfig, RewardConfig, RewardTermMeans, StepResult, VecEnv};
 use cpmx_learn::Environment;
 use cpmx_world::ReferencePath;
 
-/// The reward terms as `learning_curve.csv` names them (`reward_<term>`), in the order of
-/// [`cpmx_learn::StepResult::reward_term_means`]; `total` is the clamped reward.
-pub const REWARD_TERMS: [&str; 6] = [
-    "progress",
-    "near_boundary",
-    "near_agents_ttc",
-    "collide_agents",
-    "collide_boundary",
-    "total",
-];
+/// The reward terms `learning_curve.csv` has a column for (`reward_<term>`), in the order of
+/// [`cpmx_learn::StepResult::reward_term_means`]: SigmaRL's five always (so a SigmaRL reward's
+/// curve keeps its columns), the speed and centre-line terms when the reward has them, and
+/// `total`, the clamped reward, last.
+pub fn reward_term_names(reward: &RewardConfig) -> Vec<&'static str> {
+    let mut names = vec![
+        "progress",
+        "near_boundary",
+        "near_agents_ttc",
+        "collide_agents",
+        "collide_boundary",
+    ];
+    if reward.speed.is_some() {
+        names.push("speed");
+    }
+    if reward.centre_line.is_some() {
+        names.push("centre_line");
+    }
+    names.push("total");
+    names
+}
+
+fn term_mean(means: &RewardTermMeans, name: &str) -> f64 {
+    match name {
+        "progress" => means.progress,
+        "near_boundary" => means.near_boundary,
+        "near_agents_ttc" => means.near_agents_ttc,
+        "collide_agents" => means.collide_agents,
+        "collide_boundary" => means.collide_boundary,
+        "speed" => means.speed,
+        "centre_line" => means.centre_line,
+        _ => means.total,
+    }
+}
 
 /// SigmaRL's training scenario stepped for the learner.
 #[derive(Debug, Clone)]
 pub struct TrainingEnv {
     env: VecEnv,
+    /// The terms reported, from [`reward_term_names`].
+    terms: Vec<&'static str>,
     /// Reused between steps.
     result: StepResult,
 }
@@ -30,6 +56,7 @@ impl TrainingEnv {
     /// `config.scenario.envs` environments on `paths` with the random streams of `seed`.
     pub fn new(config: EnvConfig, paths: &[ReferencePath], seed: u64) -> Result<Self, cpmx_env::ConfigError> {
         Ok(TrainingEnv {
+            terms: reward_term_names(&config.reward),
             env: VecEnv::new(config, paths, seed)?,
             result: StepResult::default(),
         })
@@ -50,7 +77,7 @@ impl Environment for TrainingEnv {
     }
 
     fn reward_terms(&self) -> Vec<String> {
-        REWARD_TERMS.iter().map(|t| (*t).to_owned()).collect()
+        self.terms.iter().map(|t| (*t).to_owned()).collect()
     }
 
     fn reset_all(&mut self) -> Vec<f32> {
@@ -65,14 +92,7 @@ impl Environment for TrainingEnv {
             observations: r.observations.clone(),
             rewards: r.rewards.clone(),
             done: r.done.clone(),
-            reward_term_means: vec![
-                t.progress,
-                t.near_boundary,
-                t.near_agents_ttc,
-                t.collide_agents,
-                t.collide_boundary,
-                t.total,
-            ],
+            reward_term_means: self.terms.iter().map(|name| term_mean(t, name)).collect(),
             collisions: r.collisions.with_agents + r.collisions.with_boundary,
             env_resets: r.resets.environments,
             agent_resets: r.resets.agents,

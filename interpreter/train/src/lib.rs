@@ -23,6 +23,6 @@ mod environment;
 mod seed_run;
 mod setup;
 
-pub use environment::{REWARD_TERMS, TrainingEnv};
+pub use environment::{TrainingEnv, reward_term_names};
 pub use seed_run::{RunError, RunInfo, SeedRun, Start, write_overview};
 pub use setup::{SetupError, TrainingSetup};

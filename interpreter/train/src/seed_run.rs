@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 use cpmx_learn::{IterationRecord, TrainError, Trainer};
 
 use crate::curve;
-use crate::environment::TrainingEnv;
+use crate::environment::{TrainingEnv, reward_term_names};
 use crate::setup::TrainingSetup;
 
 /// Errors of a seed's run; none of them removes or damages a file of the folder.
@@ -152,7 +152,7 @@ impl SeedRun {
             })?;
             let done = trainer.iteration();
             let old_curve = fs::read_to_string(dir.join("learning_curve.csv")).unwrap_or_default();
-            let mut curve_text = curve::rows_through(&old_curve, done).join("\n");
+            let mut curve_text = curve::rows_through(&old_curve, done, curve::header(&reward_term_names(&setup.env.reward))).join("\n");
             curve_text.push('\n');
             info.iterations_done = done;
             info.iterations_planned = planned;
@@ -184,7 +184,7 @@ impl SeedRun {
             trainer,
             dir,
             info,
-            curve_text: format!("{}\n", curve::header()),
+            curve_text: format!("{}\n", curve::header(&reward_term_names(&setup.env.reward))),
         };
         // run.json first: a checkpoint is never without it.
         run.write_info()?;

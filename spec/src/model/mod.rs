@@ -40,7 +40,7 @@ pub use start::{
     SampledStarts,
 };
 pub use training::{
-    Activation, AlgorithmSpec, MappoSpec, NearBoundarySpec, NetworkSpec, PathSetName, ProgressSpec,
-    ResetScopeName, RewardSpec, TrainingReset, TrainingScenario, TrainingSpec, TrainingStart, TtcSpec,
-    ValueLoss,
+    Activation, AlgorithmSpec, CentreLineSpec, MappoSpec, NearBoundarySpec, NetworkSpec, PathSetName,
+    ProgressSpec, ResetScopeName, RewardSpec, SpeedSpec, TrainingReset, TrainingScenario, TrainingSpec,
+    TrainingStart, TtcSpec, ValueLoss,
 };

@@ -20,7 +20,8 @@ pub struct TrainingSpec {
     #[schemars(with = "PresetOr<TrainingScenario>")]
     pub scenario: TrainingScenario,
     /// The reward, term by term; a term that is left out contributes nothing.
-    /// SigmaRL's: `stdlib:sigmarl`.
+    /// SigmaRL's: `stdlib:sigmarl`; with the paper's speed and centre-line terms added:
+    /// `stdlib:sigmarl-shaped`.
     #[schemars(with = "PresetOr<RewardSpec>")]
     pub reward: RewardSpec,
     /// The learning algorithm and its hyperparameters. SigmaRL's: `stdlib:mappo-sigmarl`.
@@ -149,6 +150,14 @@ pub struct RewardSpec {
     /// within `within_m` (SigmaRL's, which is practically always 0: see `safe_distance_m`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub near_agents_ttc: Option<TtcSpec>,
+    /// `weight × v_along / max speed`, times `against_path_factor` when moving against the
+    /// path: the paper's `r_speed` (SigmaRL's `ttc_sparse` reward has none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed: Option<SpeedSpec>,
+    /// `penalty × d / scale_m`, `d` the centre's distance to the centre line: the paper's
+    /// `r_track` (SigmaRL's `ttc_sparse` reward has none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub centre_line: Option<CentreLineSpec>,
     /// Added when the agent's rectangle crosses another agent's (SigmaRL adds its -1 twice: -2).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub collide_agents: Option<f64>,
@@ -181,6 +190,33 @@ pub struct ProgressSpec {
 
 fn default_spacing() -> u32 {
     2
+}
+
+/// The speed reward.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SpeedSpec {
+    /// Weight at the maximum speed along the path.
+    pub weight: f64,
+    /// Multiplies the term when the velocity points against the path (SigmaRL: 2). Default 1.
+    #[serde(default = "default_against_path_factor")]
+    #[schemars(range(min = 0))]
+    pub against_path_factor: f64,
+}
+
+fn default_against_path_factor() -> f64 {
+    1.0
+}
+
+/// The centre-line penalty.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CentreLineSpec {
+    /// Penalty at a distance of `scale_m` (SigmaRL: -0.02).
+    pub penalty: f64,
+    /// Distance normaliser [m] (SigmaRL: (lane width - vehicle width) / 2 = 0.0215 on the CPM map).
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub scale_m: f64,
 }
 
 /// The near-boundary penalty.
