@@ -163,10 +163,7 @@ pub fn reward(config: &RewardConfig, input: &RewardInput<'_>) -> RewardTerms {
         near_agents_ttc: config.near_agents_ttc.as_ref().map_or(0.0, |t| {
             near_agents_ttc(t, input.agent, input.positions, input.velocities)
         }),
-        speed: config
-            .speed
-            .as_ref()
-            .map_or(0.0, |s| speed(s, input)),
+        speed: config.speed.as_ref().map_or(0.0, |s| speed(s, input)),
         centre_line: config
             .centre_line
             .as_ref()

@@ -115,8 +115,18 @@ fn shaping_terms_follow_their_definitions_and_leave_the_others_alone() {
             assert_eq!(b.terms.speed, 0.0);
             assert_eq!(b.terms.centre_line, 0.0);
             assert_eq!(
-                [a.terms.progress, a.terms.near_boundary, a.terms.collide_agents, a.terms.collide_boundary],
-                [b.terms.progress, b.terms.near_boundary, b.terms.collide_agents, b.terms.collide_boundary]
+                [
+                    a.terms.progress,
+                    a.terms.near_boundary,
+                    a.terms.collide_agents,
+                    a.terms.collide_boundary
+                ],
+                [
+                    b.terms.progress,
+                    b.terms.near_boundary,
+                    b.terms.collide_agents,
+                    b.terms.collide_boundary
+                ]
             );
             let sum = a.terms.progress
                 + a.terms.near_boundary
@@ -147,9 +157,17 @@ fn shaping_terms_follow_their_definitions_and_leave_the_others_alone() {
                 let along = v[0] * yaw.cos() + v[1] * yaw.sin();
                 let factor = if along < 0.0 { 1.5 } else { 1.0 };
                 let speed = 0.1 * factor * along / 1.0;
-                assert!((info.terms.speed - speed).abs() < 1e-5, "speed {} vs {speed}", info.terms.speed);
+                assert!(
+                    (info.terms.speed - speed).abs() < 1e-5,
+                    "speed {} vs {speed}",
+                    info.terms.speed
+                );
                 let centre = -0.02 * nearest.distance_m / 0.0215;
-                assert!((info.terms.centre_line - centre).abs() < 1e-5, "centre {} vs {centre}", info.terms.centre_line);
+                assert!(
+                    (info.terms.centre_line - centre).abs() < 1e-5,
+                    "centre {} vs {centre}",
+                    info.terms.centre_line
+                );
                 checked += 1;
                 backwards += usize::from(along < 0.0);
                 off_centre += usize::from(nearest.distance_m > 0.01);
@@ -157,7 +175,10 @@ fn shaping_terms_follow_their_definitions_and_leave_the_others_alone() {
         }
     }
     // Random commands drive backwards and off the centre line: both branches were exercised.
-    assert!(checked > 500 && backwards > 50 && off_centre > 50, "{checked} {backwards} {off_centre}");
+    assert!(
+        checked > 500 && backwards > 50 && off_centre > 50,
+        "{checked} {backwards} {off_centre}"
+    );
 }
 
 proptest! {

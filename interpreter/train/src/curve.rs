@@ -253,7 +253,14 @@ mod tests {
 
     #[test]
     fn rows_have_the_headers_columns_and_read_back() {
-        let terms = ["progress", "near_boundary", "near_agents_ttc", "collide_agents", "collide_boundary", "total"];
+        let terms = [
+            "progress",
+            "near_boundary",
+            "near_agents_ttc",
+            "collide_agents",
+            "collide_boundary",
+            "total",
+        ];
         let columns = header(&terms).split(',').count();
         let text = format!(
             "{}\n{}\n{}\n",

@@ -152,7 +152,12 @@ impl SeedRun {
             })?;
             let done = trainer.iteration();
             let old_curve = fs::read_to_string(dir.join("learning_curve.csv")).unwrap_or_default();
-            let mut curve_text = curve::rows_through(&old_curve, done, curve::header(&reward_term_names(&setup.env.reward))).join("\n");
+            let mut curve_text = curve::rows_through(
+                &old_curve,
+                done,
+                curve::header(&reward_term_names(&setup.env.reward)),
+            )
+            .join("\n");
             curve_text.push('\n');
             info.iterations_done = done;
             info.iterations_planned = planned;
