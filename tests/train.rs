@@ -153,6 +153,37 @@ fn a_small_scenario_learns_and_the_trained_actor_runs() {
     );
 }
 
+/// `stdlib:sigmarl-shaped` adds the paper's speed and centre-line terms: the learning curve
+/// gets their columns after SigmaRL's five, and the agents learn to drive faster along their
+/// paths.
+#[test]
+fn the_shaped_reward_logs_its_terms_and_the_agents_speed_up() {
+    let dir = scratch("train-shaped");
+    let spec = small_spec(&dir, 24);
+    let text = std::fs::read_to_string(&spec)
+        .unwrap()
+        .replace("reward: stdlib:sigmarl\n", "reward: stdlib:sigmarl-shaped\n");
+    std::fs::write(&spec, text).unwrap();
+    ok(&train(&dir, &spec, &["--only", "seed=7"]));
+    let out = dir.join("out");
+    let header = std::fs::read_to_string(out.join("7/learning_curve.csv")).unwrap();
+    assert!(
+        header.starts_with(
+            "iteration,samples,episode_reward_mean,episodes,reward_progress,reward_near_boundary,\
+             reward_near_agents_ttc,reward_collide_agents,reward_collide_boundary,reward_speed,\
+             reward_centre_line,reward_total,"
+        ),
+        "{}",
+        header.lines().next().unwrap()
+    );
+    let speed = column(&out, 7, "reward_speed");
+    let centre = column(&out, 7, "reward_centre_line");
+    assert!(centre.iter().all(|&c| c < 0.0), "{centre:?}");
+    let mean = |r: &[f64]| r.iter().sum::<f64>() / r.len() as f64;
+    let (first, last) = (mean(&speed[..4]), mean(&speed[speed.len() - 4..]));
+    assert!(last > first + 0.01, "speed term per step {first:.4} -> {last:.4}");
+}
+
 #[test]
 fn one_and_two_threads_give_identical_actors() {
     let (one, two) = (scratch("train-jobs1"), scratch("train-jobs2"));
