@@ -9,24 +9,21 @@ mod experiment;
 pub mod folder;
 pub mod lab;
 mod onnx;
-mod plants;
 mod randomise;
 mod runner;
 mod sim;
-mod stack;
 mod starts;
 pub mod store;
 mod twin;
 
 pub use checks::BuildChecks;
+pub use cpmx_stack::{CONTROL_PERIOD_S, GreyBoxMpcModel, VehicleStack};
 pub use engine::{Engine, RunError, RunInputs, engine_for};
 pub use experiment::{
     Experiment, PrepareError, PreparedPolicy, Scoring, load_map, load_map_spec, metrics_config, observation,
     vehicle_params,
 };
-pub use plants::GreyBoxMpcModel;
 pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, measure_recording, simulate};
 pub use sim::SimEngine;
-pub use stack::{CONTROL_PERIOD_S, VehicleStack};
 pub use starts::{InitialState, initial_states};
 pub use twin::{TwinEngine, control_periods, planner, trajectory_points};

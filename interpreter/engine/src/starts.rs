@@ -14,15 +14,7 @@ use rand_chacha::ChaCha20Rng;
 
 use crate::experiment::PrepareError;
 
-/// Where one agent starts.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct InitialState {
-    pub ref_path: usize,
-    pub x_m: f64,
-    pub y_m: f64,
-    pub yaw_rad: f64,
-    pub speed_mps: f64,
-}
+pub use cpmx_stack::InitialState;
 
 /// Initial states of every configuration, by name, in order.
 pub fn initial_states(

@@ -18,7 +18,7 @@ use cpmx_spec::model::{OnCollision, Planner as PlannerSpec};
 use cpmx_vehicle::{BicycleState, VehicleParams};
 
 use crate::engine::{Engine, RunError, RunInputs};
-use crate::stack::{CONTROL_PERIOD_S, StampedState, VehicleStack};
+use cpmx_stack::{CONTROL_PERIOD_S, StampedState, VehicleStack};
 
 /// The lab's control stack around simulated vehicles.
 #[derive(Debug, Clone, Copy, Default)]

@@ -37,8 +37,8 @@ use cpmx_vehicle::{BicycleState, VehicleParams};
 use super::mapping::{policy_state, recorded_sample};
 use super::{MIN_TRAJECTORY_POINTS, VEHICLE_LEAD_S, discovery_config, ns_from_s, s_since, stamp_ns, timeout};
 use crate::engine::{Engine, RunError, RunInputs};
-use crate::stack::STATE_VALID_AFTER_S;
 use crate::twin::{anchor_s, max_state_age_s, plan_anchored, planner};
+use cpmx_stack::STATE_VALID_AFTER_S;
 
 /// How often the driver polls its readers while it waits.
 const POLL_INTERVAL: Duration = Duration::from_millis(1);

@@ -44,9 +44,9 @@ use cpmx_spec::{CheckedSpec, RunPlan};
 use super::mapping::lab_state;
 use super::{discovery_config, hlc_vehicle_id, ns_from_s, s_since, stamp_ns, timeout};
 use crate::experiment::Experiment;
-use crate::stack::{CONTROL_PERIOD_S, StampedState, VehicleStack};
 use crate::starts::InitialState;
 use crate::twin::{anchored_time_s, control_periods};
+use cpmx_stack::{CONTROL_PERIOD_S, StampedState, VehicleStack};
 
 /// How often the emulator polls its readers.
 const POLL_INTERVAL: Duration = Duration::from_millis(1);

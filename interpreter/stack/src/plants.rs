@@ -8,7 +8,7 @@ use cpmx_sensing::Pose2;
 use cpmx_spec::model::GreyBoxModel;
 use cpmx_vehicle::{GreyBoxParams, GreyBoxState, GreyBoxVehicle, KinematicBicycle, VehicleParams};
 
-use crate::starts::InitialState;
+use crate::InitialState;
 
 /// One 20 ms step of a plant.
 #[derive(Debug, Clone, Copy, PartialEq)]

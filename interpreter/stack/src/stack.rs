@@ -28,8 +28,8 @@ use std::collections::VecDeque;
 use rand::SeedableRng;
 use rand_chacha::ChaCha20Rng;
 
+use crate::InitialState;
 use crate::plants::{GreyBoxPlant, KinematicPlant, Plant};
-use crate::starts::InitialState;
 
 /// The period of the vehicle-side loop [s] (the µCar's 50 Hz).
 pub const CONTROL_PERIOD_S: f64 = 0.02;
