@@ -19,7 +19,7 @@ pub(crate) fn check_training(spec: &Spec, ctx: &mut CheckContext<'_>) {
     };
     check_fidelity(spec, training, ctx);
     check_scenario(training, ctx);
-    check_reward(training, ctx);
+    check_reward(spec, training, ctx);
     check_algorithm(training, ctx);
     check_network_and_seeds(training, ctx);
 }
@@ -177,8 +177,62 @@ fn check_scenario(training: &TrainingSpec, ctx: &mut CheckContext<'_>) {
     }
 }
 
-fn check_reward(training: &TrainingSpec, ctx: &mut CheckContext<'_>) {
+fn check_reward(spec: &Spec, training: &TrainingSpec, ctx: &mut CheckContext<'_>) {
     let r = &training.reward;
+    if let Some(a) = &r.near_agents
+        && a.from_m.partial_cmp(&a.to_m) != Some(std::cmp::Ordering::Less)
+    {
+        let span = ctx.span("/training/reward/near_agents/to_m");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::range",
+                format!(
+                    "the near-agents ramp from {} m to {} m is empty",
+                    a.from_m, a.to_m
+                ),
+                span,
+                "not beyond `from_m`",
+            )
+            .with_help("the penalty falls from `from_m` to `to_m`, e.g. `{from_m: 0.16, to_m: 0.33}`"),
+        );
+    }
+    if let Some(c) = &r.steering_change {
+        let limit_rad = spec.vehicle.max_steering_deg.to_radians();
+        if c.threshold_rad >= limit_rad {
+            let span = ctx.span("/training/reward/steering_change/threshold_rad");
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::range",
+                    format!(
+                        "a steering-change threshold of {} rad is not below the vehicle's steering limit ({limit_rad:.5} rad)",
+                        c.threshold_rad
+                    ),
+                    span,
+                    "the penalty divides by 2 (limit - threshold)",
+                )
+                .with_help("e.g. `threshold_rad: 0.17453` (10°, SigmaRL's)"),
+            );
+        }
+    }
+    if (r.velocity_to_points.is_some() || r.time.is_some()) && r.progress.is_none() {
+        let at = if r.velocity_to_points.is_some() {
+            "velocity_to_points"
+        } else {
+            "time"
+        };
+        let span = key_span(ctx, &format!("/training/reward/{at}"));
+        ctx.push(
+            Problem::error(
+                "cpmx::check::reward",
+                format!("`{at}` needs the short-term reference points of `progress`"),
+                span,
+                "towards which points?",
+            )
+            .with_help(
+                "add `progress: {weight: 0, points: 3}` to define the points without rewarding progress",
+            ),
+        );
+    }
     if let Some([low, high]) = r.clamp
         && !matches!(
             low.partial_cmp(&high),
@@ -213,7 +267,13 @@ fn check_reward(training: &TrainingSpec, ctx: &mut CheckContext<'_>) {
     }
     let any = r.progress.is_some()
         || r.near_boundary.is_some()
+        || r.near_agents.is_some()
         || r.near_agents_ttc.is_some()
+        || r.speed.is_some()
+        || r.centre_line.is_some()
+        || r.velocity_to_points.is_some()
+        || r.time.is_some()
+        || r.steering_change.is_some()
         || r.collide_agents.is_some()
         || r.collide_boundary.is_some();
     if !any {

@@ -248,3 +248,59 @@ case!(
     21,
     17
 );
+case!(
+    empty_near_agents_ramp,
+    edit(
+        "  reward: stdlib:sigmarl\n",
+        "  reward: {extends: stdlib:sigmarl, near_agents: {penalty: -0.2, from_m: 0.3, to_m: 0.2}}\n"
+    ),
+    18,
+    85
+);
+case!(
+    steering_change_threshold_beyond_the_limit,
+    edit(
+        "  reward: stdlib:sigmarl\n",
+        "  reward: {extends: stdlib:sigmarl, steering_change: {penalty: -0.02, threshold_rad: 0.6}}\n"
+    ),
+    18,
+    86
+);
+case!(
+    time_without_progress_points,
+    edit(
+        "  reward: stdlib:sigmarl\n",
+        "  reward: {collide_boundary: -1, time: {weight: 0.05}}\n"
+    ),
+    18,
+    34
+);
+
+#[test]
+fn the_at25_presets_are_sigmarls_setup_when_the_papers_policies_were_trained() {
+    let text = edit(
+        "  scenario: stdlib:sigmarl-intersection\n  reward: stdlib:sigmarl\n",
+        "  scenario: stdlib:sigmarl-intersection-at25\n  reward: stdlib:sigmarl-at25\n",
+    );
+    let checked = check(&text).unwrap();
+    let t = checked.spec.training.as_ref().unwrap();
+    let start = &t.scenario.start;
+    assert_eq!(start.first_index, 6);
+    // 1.2 x the µCar's diagonal.
+    assert!((start.min_gap_m - 1.2 * 0.22f64.hypot(0.107)).abs() < 1e-12);
+    let r = &t.reward;
+    assert_eq!((r.collide_agents, r.collide_boundary), (Some(-1.0), Some(-1.0)));
+    assert!(r.near_agents_ttc.is_none() && r.speed.is_none());
+    let boundary = r.near_boundary.as_ref().unwrap();
+    assert_eq!(boundary.shape, cpmx_spec::model::RampShape::Exponential);
+    // SigmaRL's thresholds from the lane width (0.15 m) and the vehicle: 0.9 x (0.15 - W) / 2,
+    // (L + W) / 2 to L + W, (0.15 - W) / 2.
+    assert!((boundary.within_m - 0.9 * (0.15 - 0.107) / 2.0).abs() < 1e-12);
+    let agents = r.near_agents.as_ref().unwrap();
+    assert!((agents.from_m - (0.22 + 0.107) / 2.0).abs() < 1e-12);
+    assert!((agents.to_m - (0.22 + 0.107)).abs() < 1e-12);
+    assert!((r.centre_line.as_ref().unwrap().scale_m - (0.15 - 0.107) / 2.0).abs() < 1e-12);
+    assert_eq!(r.velocity_to_points.as_ref().unwrap().against_path_factor, 2.0);
+    assert_eq!(r.time.as_ref().unwrap().weight, 0.05);
+    assert!((r.steering_change.as_ref().unwrap().threshold_rad - 10f64.to_radians()).abs() < 1e-15);
+}

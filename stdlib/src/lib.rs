@@ -96,9 +96,19 @@ pub const PRESETS: &[Preset] = &[
         yaml: include_str!("../presets/training/sigmarl-intersection.yaml"),
     },
     Preset {
+        kind: PresetKind::TrainingScenario,
+        name: "sigmarl-intersection-at25",
+        yaml: include_str!("../presets/training/sigmarl-intersection-at25.yaml"),
+    },
+    Preset {
         kind: PresetKind::Reward,
         name: "sigmarl",
         yaml: include_str!("../presets/training/sigmarl-reward.yaml"),
+    },
+    Preset {
+        kind: PresetKind::Reward,
+        name: "sigmarl-at25",
+        yaml: include_str!("../presets/training/sigmarl-at25-reward.yaml"),
     },
     Preset {
         kind: PresetKind::Reward,

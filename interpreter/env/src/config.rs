@@ -133,6 +133,14 @@ pub struct RewardConfig {
     pub speed: Option<SpeedTerm>,
     /// Penalty for the distance to the centre line (none in SigmaRL's `ttc_sparse` reward).
     pub centre_line: Option<CentreLineTerm>,
+    /// Penalty for other agents' centres nearby (SigmaRL's before the TTC term).
+    pub near_agents: Option<NearAgentsTerm>,
+    /// Reward for the velocity towards the short-term points (SigmaRL's "high velocity").
+    pub velocity_to_points: Option<VelocityToPointsTerm>,
+    /// Signed speed reward (SigmaRL's "time" reward).
+    pub time: Option<TimeTerm>,
+    /// Penalty for changing the steering command quickly.
+    pub steering_change: Option<SteeringChangeTerm>,
     /// Added when the agent's rectangle crosses another agent's (SigmaRL adds its -1 twice: -2).
     pub collide_agents: f64,
     /// Added when the agent's rectangle crosses its shared road boundary (SigmaRL: -2).
@@ -149,6 +157,10 @@ impl Default for RewardConfig {
             near_agents_ttc: Some(TtcTerm::default()),
             speed: None,
             centre_line: None,
+            near_agents: None,
+            velocity_to_points: None,
+            time: None,
+            steering_change: None,
             collide_agents: -2.0,
             collide_boundary: -2.0,
             clamp: Some((-1.0, 1.0)),
@@ -195,16 +207,18 @@ impl Default for ProgressTerm {
     }
 }
 
-/// `penalty * (1 - clamp(d, 0, within_m) / within_m)` with `d` the smallest of the distances
-/// of the centre (minus half the width) and of the 4 corners to the left and right shared
-/// boundaries. Agent 0's corners are those of the start of the step when the observation
-/// design lags them (SigmaRL's order of updates).
+/// `penalty * ramp(d; 0, within_m)` with `d` the smallest of the distances of the centre
+/// (minus half the width) and of the 4 corners to the left and right shared boundaries.
+/// Agent 0's corners are those of the start of the step when the observation design lags them
+/// (SigmaRL's order of updates).
 #[derive(Debug, Clone, PartialEq)]
 pub struct NearBoundaryTerm {
     /// Penalty at distance 0 (SigmaRL: -0.2).
     pub penalty: f64,
     /// Distance where the penalty reaches 0 [m] (SigmaRL: 0.02).
     pub within_m: f64,
+    /// The ramp (SigmaRL: linear; exponential when the paper's policies were trained).
+    pub shape: Ramp,
 }
 
 impl Default for NearBoundaryTerm {
@@ -212,8 +226,68 @@ impl Default for NearBoundaryTerm {
         NearBoundaryTerm {
             penalty: -0.2,
             within_m: 0.02,
+            shape: Ramp::Linear,
         }
     }
+}
+
+/// How a proximity penalty falls from 1 at `x0` to 0 at `x1`; `x` is clamped to `[x0, x1]`
+/// and scaled to `u = (x - x0) / (x1 - x0)` in [0, 1].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Ramp {
+    /// `1 - u` (SigmaRL's `decreasing_fcn`).
+    #[default]
+    Linear,
+    /// `(e^-u - e^-1) / (1 - e^-1)` (SigmaRL's `exponential_decreasing_fcn`).
+    Exponential,
+}
+
+/// `penalty * sum_{j != i} ramp(|p_j - p_i|; from_m, to_m)`: every other agent whose centre is
+/// nearer than `to_m` adds up to `penalty` (SigmaRL's near-agents penalty before the TTC term,
+/// with centre-to-centre distances).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NearAgentsTerm {
+    /// Penalty per agent at `from_m` or nearer.
+    pub penalty: f64,
+    /// Where the full penalty starts [m].
+    pub from_m: f64,
+    /// Where the penalty reaches 0 [m].
+    pub to_m: f64,
+    /// The ramp.
+    pub shape: Ramp,
+}
+
+/// `weight * f * mean_k <v, q_k - p_prev> / max_speed` with the progress term's short-term
+/// points `q_k` and previous position `p_prev` (unnormalised vectors, so the value also scales
+/// with the points' distance), `f = against_path_factor` when the mean is negative: SigmaRL's
+/// "high velocity" reward of `rew_method = "default"`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VelocityToPointsTerm {
+    /// Weight.
+    pub weight: f64,
+    /// Multiplies the term when it is negative (SigmaRL: 2).
+    pub against_path_factor: f64,
+}
+
+/// `weight * s * |v| / max_speed`, `s = 1` when `mean_k <v, q_k - p_prev> > 0` (moving towards
+/// the short-term points), else `-1`: SigmaRL's "time" reward of `rew_method = "default"`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TimeTerm {
+    /// Weight.
+    pub weight: f64,
+}
+
+/// `penalty * max(|c_t - c_(t-1)| - threshold_rad, 0) / (2 max_steering - 2 threshold_rad)`
+/// with `c` the steering commands (clamped to the steering limit) of this step and of the
+/// agent's previous one, 0 before its first step after a placement. SigmaRL's
+/// `rew_method = "default"` penalty compares the two commands before this one (its buffer is
+/// filled after the reward); this term compares the change the action itself makes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SteeringChangeTerm {
+    /// Penalty per unit of the scaled excess change.
+    pub penalty: f64,
+    /// Free change [rad].
+    pub threshold_rad: f64,
 }
 
 /// `penalty * mean_{j != i} (1 - clamp(ttc_ij, 0, horizon_s) / horizon_s)`; `ttc_ij` is the
@@ -289,6 +363,8 @@ pub enum ConfigError {
     Clamp { low: f64, high: f64 },
     #[error("the progress term has no point weights")]
     NoProgressPoints,
+    #[error("the velocity_to_points and time terms need the progress term's short-term points")]
+    NoShortTermPoints,
     #[error("observation size {found} does not fit the layout ({expected} values expected)")]
     Observation { found: usize, expected: usize },
 }
@@ -322,6 +398,20 @@ impl EnvConfig {
         }
         if let Some(c) = &self.reward.centre_line {
             positive("centre_line.scale_m", c.scale_m)?;
+        }
+        if let Some(a) = &self.reward.near_agents {
+            positive("near_agents.to_m - near_agents.from_m", a.to_m - a.from_m)?;
+        }
+        if let Some(c) = &self.reward.steering_change {
+            positive(
+                "the steering limit - steering_change.threshold_rad",
+                self.vehicle.max_steering_rad - c.threshold_rad,
+            )?;
+        }
+        if (self.reward.velocity_to_points.is_some() || self.reward.time.is_some())
+            && self.reward.progress.is_none()
+        {
+            return Err(ConfigError::NoShortTermPoints);
         }
         if let Some((low, high)) = self.reward.clamp
             && !matches!(

@@ -3,13 +3,14 @@
 //! engine owns those conversions: `cpmx_engine::observation`).
 
 use cpmx_policy::SigmarlObservation;
-use cpmx_spec::model::{PathSetName, ResetScopeName, TrainingSpec};
+use cpmx_spec::model::{PathSetName, RampShape, ResetScopeName, TrainingSpec};
 use cpmx_vehicle::VehicleParams;
 use cpmx_world::{Map, MapError, PathSet, ReferencePath};
 
 use crate::config::{
-    CentreLineTerm, EnvConfig, NearBoundaryTerm, ProgressTerm, ResetRule, ResetScope, RewardConfig,
-    ScenarioConfig, SpeedTerm, StartRule, TtcTerm,
+    CentreLineTerm, EnvConfig, NearAgentsTerm, NearBoundaryTerm, ProgressTerm, Ramp, ResetRule, ResetScope,
+    RewardConfig, ScenarioConfig, SpeedTerm, StartRule, SteeringChangeTerm, TimeTerm, TtcTerm,
+    VelocityToPointsTerm,
 };
 
 /// The environment configuration a `training:` section declares.
@@ -21,6 +22,10 @@ pub fn config_from_training(
 ) -> EnvConfig {
     let s = &training.scenario;
     let r = &training.reward;
+    let ramp = |shape: RampShape| match shape {
+        RampShape::Linear => Ramp::Linear,
+        RampShape::Exponential => Ramp::Exponential,
+    };
     let scope = |n: ResetScopeName| match n {
         ResetScopeName::Environment => ResetScope::Environment,
         ResetScopeName::Agent => ResetScope::Agent,
@@ -54,6 +59,22 @@ pub fn config_from_training(
             near_boundary: r.near_boundary.as_ref().map(|b| NearBoundaryTerm {
                 penalty: b.penalty,
                 within_m: b.within_m,
+                shape: ramp(b.shape),
+            }),
+            near_agents: r.near_agents.as_ref().map(|a| NearAgentsTerm {
+                penalty: a.penalty,
+                from_m: a.from_m,
+                to_m: a.to_m,
+                shape: ramp(a.shape),
+            }),
+            velocity_to_points: r.velocity_to_points.as_ref().map(|v| VelocityToPointsTerm {
+                weight: v.weight,
+                against_path_factor: v.against_path_factor,
+            }),
+            time: r.time.as_ref().map(|t| TimeTerm { weight: t.weight }),
+            steering_change: r.steering_change.as_ref().map(|c| SteeringChangeTerm {
+                penalty: c.penalty,
+                threshold_rad: c.threshold_rad,
             }),
             near_agents_ttc: r.near_agents_ttc.as_ref().map(|t| TtcTerm {
                 penalty: t.penalty,

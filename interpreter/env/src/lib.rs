@@ -35,8 +35,9 @@ use cpmx_world::{Map, MapError, PathSet, ReferencePath};
 
 pub use collision::{Walls, cross_properly, rectangle_crosses_segment, rectangles_cross};
 pub use config::{
-    CentreLineTerm, ConfigError, EnvConfig, NearBoundaryTerm, ProgressTerm, ResetRule, ResetScope,
-    RewardConfig, ScenarioConfig, SpeedTerm, StartRule, TtcTerm,
+    CentreLineTerm, ConfigError, EnvConfig, NearAgentsTerm, NearBoundaryTerm, ProgressTerm, Ramp, ResetRule,
+    ResetScope, RewardConfig, ScenarioConfig, SpeedTerm, StartRule, SteeringChangeTerm, TimeTerm, TtcTerm,
+    VelocityToPointsTerm,
 };
 pub use from_spec::{config_from_training, training_paths};
 pub use paths::{TrainingPath, prepare_paths};

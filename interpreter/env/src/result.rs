@@ -54,6 +54,10 @@ pub struct RewardTermMeans {
     pub collide_boundary: f64,
     pub speed: f64,
     pub centre_line: f64,
+    pub near_agents: f64,
+    pub velocity_to_points: f64,
+    pub time: f64,
+    pub steering_change: f64,
     /// Mean of the (clamped) reward.
     pub total: f64,
 }
@@ -134,6 +138,10 @@ impl StepResult {
             collide_boundary: t.terms.collide_boundary / k,
             speed: t.terms.speed / k,
             centre_line: t.terms.centre_line / k,
+            near_agents: t.terms.near_agents / k,
+            velocity_to_points: t.terms.velocity_to_points / k,
+            time: t.terms.time / k,
+            steering_change: t.terms.steering_change / k,
             total: t.terms.total / k,
         };
         self.collisions = CollisionCounts {

@@ -7,10 +7,12 @@
 //! points come from its path and position, the corners at the start of a step from its
 //! state), so [`VecEnv::load_state`] re-places each agent with them as a reset would.
 //!
-//! Layout (little-endian): the tag `cpmx-env/state/v1`, `E` and `N` as u64, then per
+//! Layout (little-endian): the tag `cpmx-env/state/v2`, `E` and `N` as u64, then per
 //! environment the counter (u32), the stream's seed (32 bytes) and word position (u128), `N`
-//! returns (f32) and `N` placements (path u64, point u64, x, y, yaw, speed, steering and the
-//! two velocity components as f64).
+//! returns (f32) and `N` agents (path u64, point u64, x, y, yaw, speed, steering, the two
+//! velocity components and the previous steering command as f64). States of version 1 (no
+//! previous steering command, written before the steering-change term existed) load with
+//! that command 0, which no other reward term reads.
 
 use cpmx_vehicle::BicycleState;
 use rand::SeedableRng;
@@ -19,10 +21,13 @@ use rand_chacha::ChaCha20Rng;
 use crate::starts::Placement;
 use crate::vec_env::VecEnv;
 
-const TAG: &[u8] = b"cpmx-env/state/v1";
+const TAG: &[u8] = b"cpmx-env/state/v2";
+/// The tag of version 1 (same length).
+const TAG_V1: &[u8] = b"cpmx-env/state/v1";
 
-/// Bytes per agent: path, point, 7 floats, the return.
-const AGENT_BYTES: usize = 8 + 8 + 7 * 8 + 4;
+/// Bytes per agent: path, point, 8 floats (7 in version 1), the return.
+const AGENT_BYTES: usize = 8 + 8 + 8 * 8 + 4;
+const AGENT_BYTES_V1: usize = 8 + 8 + 7 * 8 + 4;
 /// Bytes per environment besides its agents: counter, seed, word position.
 const ENV_BYTES: usize = 4 + 32 + 16;
 
@@ -35,14 +40,14 @@ impl VecEnv {
         out.extend_from_slice(&(e as u64).to_le_bytes());
         out.extend_from_slice(&(n as u64).to_le_bytes());
         for env in 0..e {
-            let (counter, rng, returns, placements) = self.env_parts(env);
+            let (counter, rng, returns, placements, steering) = self.env_parts(env);
             out.extend_from_slice(&counter.to_le_bytes());
             out.extend_from_slice(&rng.get_seed());
             out.extend_from_slice(&rng.get_word_pos().to_le_bytes());
             for r in returns {
                 out.extend_from_slice(&r.to_le_bytes());
             }
-            for p in placements {
+            for (p, prev_steering_cmd_rad) in placements.into_iter().zip(steering) {
                 out.extend_from_slice(&(p.path as u64).to_le_bytes());
                 out.extend_from_slice(&(p.point as u64).to_le_bytes());
                 let s = p.state;
@@ -54,6 +59,7 @@ impl VecEnv {
                     s.steering_rad,
                     p.velocity_mps[0],
                     p.velocity_mps[1],
+                    prev_steering_cmd_rad,
                 ] {
                     out.extend_from_slice(&v.to_bits().to_le_bytes());
                 }
@@ -67,16 +73,23 @@ impl VecEnv {
     pub fn load_state(&mut self, bytes: &[u8]) -> Result<(), String> {
         let (e, n) = (self.num_envs(), self.num_agents());
         let mut r = Reader { bytes, at: 0 };
-        if r.take(TAG.len())? != TAG {
-            return Err("not a cpmx-env state (wrong tag)".into());
-        }
+        let version_1 = match r.take(TAG.len())? {
+            t if t == TAG => false,
+            t if t == TAG_V1 => true,
+            _ => return Err("not a cpmx-env state (wrong tag)".into()),
+        };
+        let (agent_bytes, floats) = if version_1 {
+            (AGENT_BYTES_V1, 7)
+        } else {
+            (AGENT_BYTES, 8)
+        };
         let (se, sn) = (r.u64()?, r.u64()?);
         if (se, sn) != (e as u64, n as u64) {
             return Err(format!(
                 "the state holds {se} environments of {sn} agents, this scenario has {e} of {n}"
             ));
         }
-        let expected = TAG.len() + 16 + e * (ENV_BYTES + n * AGENT_BYTES);
+        let expected = TAG.len() + 16 + e * (ENV_BYTES + n * agent_bytes);
         if bytes.len() != expected {
             return Err(format!(
                 "the state has {} bytes, {expected} expected (truncated or from another version)",
@@ -93,11 +106,12 @@ impl VecEnv {
             rng.set_word_pos(word_pos);
             let returns = (0..n).map(|_| r.f32()).collect::<Result<Vec<f32>, String>>()?;
             let mut placements = Vec::with_capacity(n);
+            let mut steering = Vec::with_capacity(n);
             for _ in 0..n {
                 let path = r.u64()? as usize;
                 let point = r.u64()? as usize;
-                let mut v = [0.0f64; 7];
-                for x in &mut v {
+                let mut v = [0.0f64; 8];
+                for x in &mut v[..floats] {
                     *x = f64::from_bits(r.u64()?);
                 }
                 if path >= paths || v.iter().any(|x| !x.is_finite()) {
@@ -117,11 +131,12 @@ impl VecEnv {
                     },
                     velocity_mps: [v[5], v[6]],
                 });
+                steering.push(v[7]);
             }
-            parsed.push((counter, rng, returns, placements));
+            parsed.push((counter, rng, returns, placements, steering));
         }
-        for (env, (counter, rng, returns, placements)) in parsed.into_iter().enumerate() {
-            self.restore_env(env, counter, rng, &returns, &placements);
+        for (env, (counter, rng, returns, placements, steering)) in parsed.into_iter().enumerate() {
+            self.restore_env(env, counter, rng, &returns, &placements, &steering);
         }
         Ok(())
     }
@@ -159,6 +174,13 @@ mod tests {
     use super::*;
     use crate::config::EnvConfig;
 
+    impl VecEnv {
+        /// Every agent's previous steering command, environment by environment.
+        fn envs_prev_steering(&self) -> Vec<f64> {
+            (0..self.num_envs()).flat_map(|e| self.env_parts(e).4).collect()
+        }
+    }
+
     fn map_paths() -> Vec<cpmx_world::ReferencePath> {
         let map =
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference/maps/cpm.xml");
@@ -168,6 +190,11 @@ mod tests {
     fn small_env(envs: usize, seed: u64) -> VecEnv {
         let mut config = EnvConfig::default();
         config.scenario.envs = envs;
+        // A term that remembers the previous action, so the state must carry it.
+        config.reward.steering_change = Some(crate::config::SteeringChangeTerm {
+            penalty: -0.02,
+            threshold_rad: 0.05,
+        });
         VecEnv::new(config, &map_paths(), seed).expect("environment")
     }
 
@@ -203,6 +230,37 @@ mod tests {
     }
 
     #[test]
+    fn version_1_states_load_with_no_previous_steering_command() {
+        let mut env = small_env(2, 3);
+        let len = env.num_envs() * env.num_agents() * 2;
+        for step in 0..5 {
+            env.step(&actions(step, len));
+        }
+        // Version 2 with every agent's last float cut out is version 1.
+        let v2 = env.save_state();
+        let n = env.num_agents();
+        let mut v1 = TAG_V1.to_vec();
+        let mut at = TAG.len();
+        v1.extend_from_slice(&v2[at..at + 16]);
+        at += 16;
+        for _ in 0..env.num_envs() {
+            let head = ENV_BYTES + 4 * n;
+            v1.extend_from_slice(&v2[at..at + head]);
+            at += head;
+            for _ in 0..n {
+                v1.extend_from_slice(&v2[at..at + AGENT_BYTES_V1 - 4]);
+                at += AGENT_BYTES - 4;
+            }
+        }
+        assert_eq!(at, v2.len());
+        let mut restored = small_env(2, 8);
+        restored.load_state(&v1).expect("version 1 loads");
+        assert!(restored.envs_prev_steering().iter().all(|&c| c == 0.0));
+        assert!(env.envs_prev_steering().iter().any(|&c| c != 0.0));
+        assert_eq!(restored.placements(1), env.placements(1));
+    }
+
+    #[test]
     fn damaged_states_are_refused_and_change_nothing() {
         let mut env = small_env(3, 1);
         let saved = env.save_state();
@@ -210,7 +268,7 @@ mod tests {
         for bad in [
             &saved[..saved.len() - 3],
             &saved[..10],
-            b"cpmx-env/state/v2 and more".as_slice(),
+            b"cpmx-env/state/v9 and more".as_slice(),
         ] {
             assert!(env.load_state(bad).is_err());
             assert_eq!(env.save_state(), before);

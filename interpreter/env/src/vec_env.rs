@@ -38,6 +38,9 @@ struct Agent {
     prev_pos: Point,
     /// Short-term reference points for the next progress reward.
     short_term: Vec<Point>,
+    /// The steering command of the agent's previous step, clamped to the limit (0 after a
+    /// placement) [rad].
+    prev_steering_cmd_rad: f64,
 }
 
 /// One environment.
@@ -66,6 +69,8 @@ struct Scratch {
     on_line: Vec<bool>,
     closest: Vec<usize>,
     avoid: Vec<Point>,
+    /// This step's steering commands, clamped to the limit [rad].
+    steering_cmds: Vec<f64>,
 }
 
 /// E environments of N agents on a set of reference paths. See the crate documentation.
@@ -100,6 +105,7 @@ impl VecEnv {
                         placement: crate::starts::placement_at(&paths[0], 0, paths[0].start_indices.0, 0.0),
                         prev_pos: [0.0; 2],
                         short_term: vec![[0.0; 2]; points],
+                        prev_steering_cmd_rad: 0.0,
                     };
                     n
                 ],
@@ -189,14 +195,22 @@ impl VecEnv {
     }
 
     /// What [`VecEnv::save_state`] stores of environment `env`: counter, random stream,
-    /// running returns and placements.
-    pub(crate) fn env_parts(&self, env: usize) -> (u32, &ChaCha20Rng, &[f32], Vec<Placement>) {
+    /// running returns, placements and the agents' previous steering commands.
+    pub(crate) fn env_parts(&self, env: usize) -> (u32, &ChaCha20Rng, &[f32], Vec<Placement>, Vec<f64>) {
         let e = &self.envs[env];
-        (e.counter, &e.rng, &e.episode_reward, self.placements(env))
+        let steering = e.agents.iter().map(|a| a.prev_steering_cmd_rad).collect();
+        (
+            e.counter,
+            &e.rng,
+            &e.episode_reward,
+            self.placements(env),
+            steering,
+        )
     }
 
     /// Sets environment `env` to a saved state: every agent re-placed (which renews its
-    /// short-term points and start corners), then counter, stream and returns.
+    /// short-term points and start corners), then counter, stream, returns and the previous
+    /// steering commands.
     pub(crate) fn restore_env(
         &mut self,
         env: usize,
@@ -204,11 +218,15 @@ impl VecEnv {
         rng: ChaCha20Rng,
         returns: &[f32],
         placements: &[Placement],
+        prev_steering_cmds_rad: &[f64],
     ) {
         let (config, paths) = (&self.config, &self.paths);
         let e = &mut self.envs[env];
         for (i, &p) in placements.iter().enumerate() {
             e.set(config, paths, i, p);
+        }
+        for (a, &c) in e.agents.iter_mut().zip(prev_steering_cmds_rad) {
+            a.prev_steering_cmd_rad = c;
         }
         e.counter = counter;
         e.rng = rng;
@@ -299,6 +317,7 @@ impl Env {
         let agent = &mut self.agents[i];
         agent.placement = placement;
         agent.prev_pos = pos;
+        agent.prev_steering_cmd_rad = 0.0;
         if let Some(progress) = &config.reward.progress {
             let c = path.prepared.center.nearest(pos).map_or(0, |n| n.segment + 1);
             fill_short_term(path, c, progress.spacing, &mut agent.short_term);
@@ -385,6 +404,7 @@ impl Env {
         s.positions.clear();
         s.velocities.clear();
         s.corners.clear();
+        s.steering_cmds.clear();
 
         // 1. Move.
         for (a, act) in self.agents.iter_mut().zip(actions.chunks_exact(2)) {
@@ -392,6 +412,8 @@ impl Env {
                 speed_mps: f64::from(act[0]),
                 steering_rad: f64::from(act[1]),
             };
+            let limit = config.vehicle.max_steering_rad;
+            s.steering_cmds.push(command.steering_rad.clamp(-limit, limit));
             let out = model.step_with_precision(&a.placement.state, command, config.dt_s, Precision::F32);
             a.placement.state = out.state;
             a.placement.velocity_mps = out.velocity_mps;
@@ -466,6 +488,8 @@ impl Env {
                     collides_with_boundary: s.with_boundary[i],
                     max_step_m,
                     max_speed_mps: config.vehicle.max_speed_mps,
+                    steering_commands_rad: [s.steering_cmds[i], a.prev_steering_cmd_rad],
+                    max_steering_rad: config.vehicle.max_steering_rad,
                 },
             );
             s.closest.push(nearest.map_or(0, |n| n.segment + 1));
@@ -486,6 +510,9 @@ impl Env {
             for (a, &c) in self.agents.iter_mut().zip(&s.closest) {
                 fill_short_term(&paths[a.placement.path], c, progress.spacing, &mut a.short_term);
             }
+        }
+        for (a, &c) in self.agents.iter_mut().zip(&s.steering_cmds) {
+            a.prev_steering_cmd_rad = c;
         }
 
         // 4. Observations of the new states (agent 0 with the corners of the start of the step).

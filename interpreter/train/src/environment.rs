@@ -9,8 +9,8 @@ use cpmx_world::ReferencePath;
 
 /// The reward terms `learning_curve.csv` has a column for (`reward_<term>`), in the order of
 /// [`cpmx_learn::StepResult::reward_term_means`]: SigmaRL's five always (so a SigmaRL reward's
-/// curve keeps its columns), the speed and centre-line terms when the reward has them, and
-/// `total`, the clamped reward, last.
+/// curve keeps its columns), every other term the reward has, and `total`, the clamped
+/// reward, last.
 pub fn reward_term_names(reward: &RewardConfig) -> Vec<&'static str> {
     let mut names = vec![
         "progress",
@@ -25,6 +25,18 @@ pub fn reward_term_names(reward: &RewardConfig) -> Vec<&'static str> {
     if reward.centre_line.is_some() {
         names.push("centre_line");
     }
+    if reward.near_agents.is_some() {
+        names.push("near_agents");
+    }
+    if reward.velocity_to_points.is_some() {
+        names.push("velocity_to_points");
+    }
+    if reward.time.is_some() {
+        names.push("time");
+    }
+    if reward.steering_change.is_some() {
+        names.push("steering_change");
+    }
     names.push("total");
     names
 }
@@ -38,6 +50,10 @@ fn term_mean(means: &RewardTermMeans, name: &str) -> f64 {
         "collide_boundary" => means.collide_boundary,
         "speed" => means.speed,
         "centre_line" => means.centre_line,
+        "near_agents" => means.near_agents,
+        "velocity_to_points" => means.velocity_to_points,
+        "time" => means.time,
+        "steering_change" => means.steering_change,
         _ => means.total,
     }
 }

@@ -40,7 +40,8 @@ pub use start::{
     SampledStarts,
 };
 pub use training::{
-    Activation, AlgorithmSpec, CentreLineSpec, MappoSpec, NearBoundarySpec, NetworkSpec, PathSetName,
-    ProgressSpec, ResetScopeName, RewardSpec, SpeedSpec, TrainingReset, TrainingScenario, TrainingSpec,
-    TrainingStart, TtcSpec, ValueLoss,
+    Activation, AlgorithmSpec, CentreLineSpec, MappoSpec, NearAgentsSpec, NearBoundarySpec, NetworkSpec,
+    PathSetName, ProgressSpec, RampShape, ResetScopeName, RewardSpec, SpeedSpec, SteeringChangeSpec,
+    TimeSpec, TrainingReset, TrainingScenario, TrainingSpec, TrainingStart, TtcSpec, ValueLoss,
+    VelocityToPointsSpec,
 };

@@ -142,10 +142,17 @@ pub struct RewardSpec {
     /// `weight × Σ_k w_k ⟨p − p_prev, q_k − p_prev⟩ / (max speed × dt)`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub progress: Option<ProgressSpec>,
-    /// `penalty × (1 − clamp(d, 0, within_m) / within_m)`, `d` the smallest distance of the
-    /// centre (minus half the width) and the 4 corners to the shared road boundaries.
+    /// `penalty × ramp(d)`, `d` the smallest distance of the centre (minus half the width)
+    /// and the 4 corners to the shared road boundaries; the ramp falls from 1 at 0 to 0 at
+    /// `within_m`, linearly (SigmaRL today) or exponentially (SigmaRL when the paper's
+    /// policies were trained).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub near_boundary: Option<NearBoundarySpec>,
+    /// `penalty × Σ_j ramp(c_ij)` over the other agents, `c_ij` the distance of the centres;
+    /// the ramp falls from 1 at `from_m` to 0 at `to_m` (SigmaRL when the paper's policies were
+    /// trained: exponentially from (L + W) / 2 to L + W).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub near_agents: Option<NearAgentsSpec>,
     /// `penalty × mean_j (1 − clamp(TTC_ij, 0, horizon_s) / horizon_s)` over the other agents
     /// within `within_m` (SigmaRL's, which is practically always 0: see `safe_distance_m`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -158,6 +165,23 @@ pub struct RewardSpec {
     /// `r_track` (SigmaRL's `ttc_sparse` reward has none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub centre_line: Option<CentreLineSpec>,
+    /// `weight × f × mean_k ⟨v, q_k − p_prev⟩ / max speed`, the velocity after the step against
+    /// the (unnormalised) vectors from the previous position to the short-term reference
+    /// points of `progress`, `f = against_path_factor` when that mean is negative: SigmaRL's
+    /// "high velocity" reward when the paper's policies were trained.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity_to_points: Option<VelocityToPointsSpec>,
+    /// `± weight × |v| / max speed`, positive when the velocity points towards the short-term
+    /// reference points (the mean of `velocity_to_points` is positive), negative otherwise:
+    /// SigmaRL's "time" reward when the paper's policies were trained.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time: Option<TimeSpec>,
+    /// `penalty × max(|δ_t − δ_(t−1)| − threshold_rad, 0) / (2 δ_max − 2 threshold_rad)`, the
+    /// change of the steering command from the agent's previous step (0 before its first step
+    /// after a placement): SigmaRL's steering-change penalty when the paper's policies were
+    /// trained.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub steering_change: Option<SteeringChangeSpec>,
     /// Added when the agent's rectangle crosses another agent's (SigmaRL adds its -1 twice: -2).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub collide_agents: Option<f64>,
@@ -228,6 +252,78 @@ pub struct NearBoundarySpec {
     /// Distance where the penalty reaches 0 [m] (SigmaRL: 0.02).
     #[schemars(extend("exclusiveMinimum" = 0))]
     pub within_m: f64,
+    /// How the penalty falls with the distance. Default: `linear` (SigmaRL today).
+    #[serde(default, skip_serializing_if = "RampShape::is_linear")]
+    pub shape: RampShape,
+}
+
+/// How a proximity penalty falls from its full value to 0.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum RampShape {
+    /// `1 − x`, `x` the clamped distance scaled to [0, 1] (SigmaRL's `decreasing_fcn`).
+    #[default]
+    Linear,
+    /// `(e^(−x) − e^(−1)) / (1 − e^(−1))` (SigmaRL's `exponential_decreasing_fcn`).
+    Exponential,
+}
+
+impl RampShape {
+    /// Whether this is the default, `linear`.
+    pub fn is_linear(&self) -> bool {
+        *self == RampShape::Linear
+    }
+}
+
+/// The penalty for other agents' centres nearby.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct NearAgentsSpec {
+    /// Penalty per other agent at a centre distance of `from_m` or less (SigmaRL then: -0.2).
+    pub penalty: f64,
+    /// Centre distance at and below which the full penalty applies [m] (SigmaRL then:
+    /// (L + W) / 2).
+    #[schemars(range(min = 0))]
+    pub from_m: f64,
+    /// Centre distance at and beyond which nothing applies [m], above `from_m` (SigmaRL then:
+    /// L + W).
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub to_m: f64,
+    /// How the penalty falls between the two. Default: `linear`.
+    #[serde(default, skip_serializing_if = "RampShape::is_linear")]
+    pub shape: RampShape,
+}
+
+/// The velocity towards the short-term reference points.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct VelocityToPointsSpec {
+    /// Weight (SigmaRL then: 0.05).
+    pub weight: f64,
+    /// Multiplies the term when it is negative (SigmaRL then: 2). Default 1.
+    #[serde(default = "default_against_path_factor")]
+    #[schemars(range(min = 0))]
+    pub against_path_factor: f64,
+}
+
+/// The time reward.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TimeSpec {
+    /// Weight at the maximum speed (SigmaRL then: 0.05).
+    pub weight: f64,
+}
+
+/// The steering-change penalty.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SteeringChangeSpec {
+    /// Penalty per unit of the normalised excess change (SigmaRL then: -0.02).
+    pub penalty: f64,
+    /// Changes up to this much are free [rad] (SigmaRL then: 10° = 0.17453); below the
+    /// vehicle's steering limit.
+    #[schemars(range(min = 0))]
+    pub threshold_rad: f64,
 }
 
 /// The time-to-collision penalty.
