@@ -1,19 +1,23 @@
-//! The f32 matrix product of training: `C (+)= op(A) op(B)` over strided operands, packed
-//! BLIS-style into panels and multiplied by a 6 x 16 register-blocked micro-kernel with fused
-//! multiply-adds.
+//! The f32 matrix product of training: `C (+)= op(A) op(B)` over strided operands, B packed
+//! BLIS-style into panels of 16 columns and multiplied by register-blocked micro-kernels with
+//! fused multiply-adds: 12 x 16 tiles with AVX-512 (A read in place through its strides: no
+//! packing of A), 6 x 16 with AVX2 and FMA (A packed), and a portable kernel.
 //!
 //! Every element of C is one running sum over `k` in increasing order, one fused
-//! multiply-add per term, starting from C's previous value (or 0). The AVX2+FMA kernel
-//! (chosen at run time) and the portable kernel (`f32::mul_add`, the same correctly rounded
-//! operation) therefore give the same bits, and so does any split of the rows between rayon
-//! threads: results never depend on the path or the thread count.
+//! multiply-add per term, starting from C's previous value (or 0); a value stored between
+//! depth blocks is the exact running sum. The kernels (chosen at run time) and the portable
+//! kernel (`f32::mul_add`, the same correctly rounded operation) therefore give the same bits,
+//! and so does any split of the rows between rayon threads: results never depend on the CPU's
+//! vector extensions, the path or the thread count.
 
 use std::cell::RefCell;
 
 use rayon::prelude::*;
 
-/// Rows of the micro-kernel's tile.
+/// Rows of the AVX2 and portable micro-kernels' tile.
 pub const MR: usize = 6;
+/// Rows of the AVX-512 micro-kernel's tile (12 of the 32 vector registers accumulate).
+pub const MR_WIDE: usize = 12;
 /// Columns of the micro-kernel's tile (two 256-bit vectors; the width of `cpmx-policy`'s
 /// weight panels, so a forward pass packs W^T exactly as the inference actor stores it).
 pub const NR: usize = 16;
@@ -87,13 +91,87 @@ pub fn gemm(
         }
         return;
     }
-    let fma = has_fma();
+    gemm_with(Kernel::detect(), m, n, k, a, b, c, ldc, accumulate);
+}
+
+/// The micro-kernels, fastest first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kernel {
+    /// 12 x 16 tiles in 512-bit registers, A read in place (`avx512f`).
+    Avx512,
+    /// 6 x 16 tiles in 256-bit registers from packed A (`avx2` and `fma`).
+    Avx2Fma,
+    /// `f32::mul_add` over packed A.
+    Portable,
+}
+
+impl Kernel {
+    /// The fastest kernel this CPU runs.
+    pub fn detect() -> Kernel {
+        Self::available().into_iter().next().unwrap_or(Kernel::Portable)
+    }
+
+    /// Every kernel this CPU runs, fastest first (the portable one always).
+    pub fn available() -> Vec<Kernel> {
+        let mut out = Vec::new();
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                out.push(Kernel::Avx512);
+            }
+            if has_fma() {
+                out.push(Kernel::Avx2Fma);
+            }
+        }
+        out.push(Kernel::Portable);
+        out
+    }
+
+    /// Rows of one tile.
+    fn tile_rows(self) -> usize {
+        match self {
+            Kernel::Avx512 => MR_WIDE,
+            Kernel::Avx2Fma | Kernel::Portable => MR,
+        }
+    }
+}
+
+/// [`gemm`] with the given kernel (which the CPU must support; [`Kernel::available`]).
+#[allow(clippy::too_many_arguments)]
+pub fn gemm_with(
+    kernel: Kernel,
+    m: usize,
+    n: usize,
+    k: usize,
+    a: Mat<'_>,
+    b: Mat<'_>,
+    c: &mut [f32],
+    ldc: usize,
+    accumulate: bool,
+) {
+    if m == 0 || n == 0 {
+        return;
+    }
+    assert!(c.len() >= (m - 1) * ldc + n, "C too small");
+    if k == 0 {
+        if !accumulate {
+            for row in c.chunks_mut(ldc).take(m) {
+                row[..n].fill(0.0);
+            }
+        }
+        return;
+    }
+    assert!(
+        a.data.len() > (m - 1) * a.rs + (k - 1) * a.cs && b.data.len() > (k - 1) * b.rs + (n - 1) * b.cs,
+        "A or B too small"
+    );
     let n_panels = n.div_ceil(NR);
     let mut packed_b = vec![0.0f32; n_panels * NR * KC.min(k)];
     // Row blocks: at least two per thread when there are enough rows.
     let threads = rayon::current_num_threads();
-    let blocks = m.div_ceil(MC_MAX).max((2 * threads).min(m.div_ceil(4 * MR)));
-    let mc = m.div_ceil(blocks).div_ceil(MR) * MR;
+    let tile = kernel.tile_rows();
+    let blocks = m.div_ceil(MC_MAX).max((2 * threads).min(m.div_ceil(4 * tile)));
+    let mc = m.div_ceil(blocks).div_ceil(tile) * tile;
     for pc in (0..k).step_by(KC) {
         let kc = KC.min(k - pc);
         // Without `accumulate`, the first depth block starts every tile from zero instead of
@@ -105,9 +183,18 @@ pub fn gemm(
         let work = |(block, c_block): (usize, &mut [f32])| {
             let i0 = block * mc;
             let rows = mc.min(m - i0);
+            if kernel == Kernel::Avx512 {
+                let a_block = Mat {
+                    data: &a.data[i0 * a.rs + pc * a.cs..],
+                    ..a
+                };
+                block_product_in_place(&a_block, packed_b, kc, rows, n, c_block, ldc, load_c);
+                return;
+            }
             PACK_A.with_borrow_mut(|packed_a| {
                 packed_a.resize(rows.div_ceil(MR) * MR * kc, 0.0);
                 pack_a(&a, i0, rows, pc, kc, packed_a);
+                let fma = kernel == Kernel::Avx2Fma;
                 block_product(packed_a, packed_b, kc, rows, n, c_block, ldc, fma, load_c);
             });
         };
@@ -276,6 +363,127 @@ fn micro_kernel(kc: usize, a: &[f32], b: &[f32], c: &mut [f32], ldc: usize, fma:
     micro_kernel_portable(kc, a, b, c, ldc, load_c);
 }
 
+/// All tiles of one row block with the AVX-512 kernel, reading A in place: `a` starts at the
+/// block's first row and depth (element `(i, kk)` at `i * rs + kk * cs`), `c_block` at the
+/// block's first row. Full tiles are updated in place; tiles over the last columns go through
+/// a zero-padded copy.
+#[allow(clippy::too_many_arguments)]
+fn block_product_in_place(
+    a: &Mat<'_>,
+    packed_b: &[f32],
+    kc: usize,
+    rows: usize,
+    n: usize,
+    c_block: &mut [f32],
+    ldc: usize,
+    load_c: bool,
+) {
+    assert!(a.data.len() > (rows - 1) * a.rs + (kc - 1) * a.cs, "A block");
+    let mut tile = [[0.0f32; NR]; MR_WIDE];
+    for (jp, b_panel) in packed_b.chunks_exact(NR * kc).enumerate() {
+        let j0 = jp * NR;
+        let cols = NR.min(n - j0);
+        for i0 in (0..rows).step_by(MR_WIDE) {
+            let valid = MR_WIDE.min(rows - i0);
+            let a_tile = &a.data[i0 * a.rs..];
+            if cols == NR {
+                let c = &mut c_block[i0 * ldc + j0..(i0 + valid - 1) * ldc + j0 + NR];
+                wide_kernel(valid, kc, a_tile, a.rs, a.cs, b_panel, c, ldc, load_c);
+            } else {
+                if load_c {
+                    for (r, t) in tile.iter_mut().enumerate().take(valid) {
+                        t[..cols].copy_from_slice(&c_block[(i0 + r) * ldc + j0..][..cols]);
+                    }
+                }
+                let t = &mut tile.as_flattened_mut()[..valid * NR];
+                wide_kernel(valid, kc, a_tile, a.rs, a.cs, b_panel, t, NR, load_c);
+                for (r, t) in tile.iter().enumerate().take(valid) {
+                    c_block[(i0 + r) * ldc + j0..][..cols].copy_from_slice(&t[..cols]);
+                }
+            }
+        }
+    }
+}
+
+/// The AVX-512 tile of `rows` (1 to [`MR_WIDE`]) rows: `C_tile (+)= A_tile B_panel` over `kc`
+/// terms, A element `(r, kk)` at `a[r * rs + kk * cs]`, C element `(r, j)` at `c[r * ldc + j]`.
+#[allow(clippy::too_many_arguments)]
+fn wide_kernel(
+    rows: usize,
+    kc: usize,
+    a: &[f32],
+    rs: usize,
+    cs: usize,
+    b: &[f32],
+    c: &mut [f32],
+    ldc: usize,
+    load_c: bool,
+) {
+    assert!(
+        (1..=MR_WIDE).contains(&rows)
+            && a.len() > (rows - 1) * rs + (kc - 1) * cs
+            && b.len() >= kc * NR
+            && c.len() > (rows - 1) * ldc + NR - 1
+    );
+    #[cfg(target_arch = "x86_64")]
+    {
+        let (a, b, c) = (a.as_ptr(), b.as_ptr(), c.as_mut_ptr());
+        macro_rules! tile {
+            ($($r:literal)*) => {
+                match rows {
+                    // SAFETY: the kernel is only chosen when the CPU has AVX-512F
+                    // (`Kernel::available`); the operands hold the tile (asserted above).
+                    $($r => unsafe { micro_kernel_avx512::<$r>(kc, a, rs, cs, b, c, ldc, load_c) },)*
+                    _ => unreachable!("1 to 12 rows"),
+                }
+            };
+        }
+        tile!(1 2 3 4 5 6 7 8 9 10 11 12);
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    unreachable!("the AVX-512 kernel is only chosen on x86_64");
+}
+
+/// # Safety
+/// The CPU must support AVX-512F; `a` must be valid at `r * rs + kk * cs` for `r < R`,
+/// `kk < kc`, `b` for `kc * NR` values and `c` at `r * ldc + j`, `r < R`, `j < NR`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn micro_kernel_avx512<const R: usize>(
+    kc: usize,
+    a: *const f32,
+    rs: usize,
+    cs: usize,
+    b: *const f32,
+    c: *mut f32,
+    ldc: usize,
+    load_c: bool,
+) {
+    use std::arch::x86_64::*;
+    let mut acc = [_mm512_setzero_ps(); R];
+    if load_c {
+        for (r, acc_r) in acc.iter_mut().enumerate() {
+            // SAFETY: within the tile (caller's guarantee).
+            *acc_r = unsafe { _mm512_loadu_ps(c.add(r * ldc)) };
+        }
+    }
+    for kk in 0..kc {
+        // SAFETY: `kk < kc`, `r < R`: within the operands (caller's guarantee).
+        unsafe {
+            let b_k = _mm512_loadu_ps(b.add(kk * NR));
+            let a_k = a.add(kk * cs);
+            for (r, acc_r) in acc.iter_mut().enumerate() {
+                *acc_r = _mm512_fmadd_ps(_mm512_set1_ps(*a_k.add(r * rs)), b_k, *acc_r);
+            }
+        }
+    }
+    for (r, acc_r) in acc.iter().enumerate() {
+        // SAFETY: within the tile (caller's guarantee).
+        unsafe { _mm512_storeu_ps(c.add(r * ldc), *acc_r) };
+    }
+}
+
 /// The reference micro-kernel: the same fused operations in the same order as the AVX2 one.
 pub(crate) fn micro_kernel_portable(
     kc: usize,
@@ -418,6 +626,33 @@ mod tests {
                 micro_kernel_portable(kc, &a, &b, fresh.as_flattened_mut(), NR, false);
             }
             assert_eq!(bits(&fresh), bits(&zeroed));
+        }
+    }
+
+    #[test]
+    fn every_kernel_gives_the_same_bits() {
+        let kernels = Kernel::available();
+        for &(m, n, k) in &[
+            (1, 1, 1),
+            (13, 17, 3),
+            (37, 40, 300),
+            (130, 20, 257),
+            (24, 48, 600),
+        ] {
+            let a_rm = data(m * k, 7.0);
+            let b_rm = data(k * n, 8.0);
+            let a_t: Vec<f32> = (0..k * m).map(|x| a_rm[(x % m) * k + x / m]).collect();
+            for (a, accumulate) in [(Mat::rows(&a_rm, k), true), (Mat::transposed(&a_t, m), false)] {
+                let run = |kernel: Kernel| {
+                    let mut c: Vec<f32> = (0..m * (n + 2)).map(|i| i as f32 * 1e-3).collect();
+                    gemm_with(kernel, m, n, k, a, Mat::rows(&b_rm, n), &mut c, n + 2, accumulate);
+                    c.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+                };
+                let want = run(Kernel::Portable);
+                for &kernel in &kernels {
+                    assert_eq!(run(kernel), want, "{kernel:?} {m}x{n}x{k}");
+                }
+            }
         }
     }
 
