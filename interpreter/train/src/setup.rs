@@ -198,7 +198,13 @@ fn describe_paths(training: &TrainingSpec) -> String {
 /// SHA-256 over the resolved training section, vehicle, dt and the map file's bytes.
 fn fingerprint(checked: &CheckedSpec, training: &serde_json::Value) -> Result<String, SetupError> {
     let mut hasher = Sha256::new();
-    hasher.update(b"cpmx/training/v1\0");
+    hasher.update(b"cpmx/training/v2\0");
+    // A seed's run does not depend on which other seeds the spec lists: seeds may be added
+    // (or dropped) without refusing the folders already trained.
+    let mut training = training.clone();
+    if let Some(object) = training.as_object_mut() {
+        object.remove("seeds");
+    }
     hasher.update(training.to_string().as_bytes());
     // The map by content: where its file lies and how it is pinned do not matter.
     let mut map = checked.resolved.get("map").cloned().unwrap_or_default();
