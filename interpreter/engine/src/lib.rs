@@ -18,6 +18,7 @@ mod twin;
 
 pub use checks::BuildChecks;
 pub use cpmx_stack::{CONTROL_PERIOD_S, GreyBoxMpcModel, VehicleStack};
+pub use cpmx_stack::{control_periods, trajectory_points};
 pub use engine::{Engine, RunError, RunInputs, engine_for};
 pub use experiment::{
     Experiment, PrepareError, PreparedPolicy, Scoring, load_map, load_map_spec, metrics_config, observation,
@@ -26,4 +27,4 @@ pub use experiment::{
 pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, measure_recording, simulate};
 pub use sim::SimEngine;
 pub use starts::{InitialState, initial_states};
-pub use twin::{TwinEngine, control_periods, planner, trajectory_points};
+pub use twin::{TwinEngine, planner};

@@ -6,51 +6,24 @@
 //! randomised alike in two fidelities takes the same value in paired runs.
 
 use cpmx_spec::matrix::stream_key;
-use cpmx_spec::model::{Distribution, DrawnFidelity, ParameterRange, SimulatedFidelity};
-use rand::{RngExt, SeedableRng};
+use cpmx_spec::model::{DrawnFidelity, SimulatedFidelity};
+use rand::SeedableRng;
 use rand_chacha::ChaCha20Rng;
-use rand_distr::{Distribution as _, StandardNormal};
-
-/// How often a normal draw outside the parameter's range is drawn again before it is clamped
-/// (`cpmx validate` keeps the mean inside the range, so this is never reached in practice).
-const MAX_REDRAWS: usize = 1000;
 
 /// The fidelity of one run with its distributions drawn, and the drawn values by parameter
-/// name (in drawing order).
+/// name (in drawing order), from the run's `randomisation` stream (the rule:
+/// [`cpmx_stack::draw_fidelity`]).
 pub fn draw_for_run(fidelity: &SimulatedFidelity, run_seed: u64) -> (DrawnFidelity, Vec<(String, f64)>) {
     let mut rng = ChaCha20Rng::from_seed(stream_key(run_seed, "randomisation"));
-    let mut drawn = Vec::new();
-    let fidelity = fidelity.draw(|name, distribution, range| {
-        let value = draw(distribution, range, &mut rng);
-        drawn.push((name.to_owned(), value));
-        value
-    });
-    (fidelity, drawn)
-}
-
-/// One value of `distribution`, inside `range`.
-fn draw(distribution: &Distribution, range: ParameterRange, rng: &mut ChaCha20Rng) -> f64 {
-    match *distribution {
-        Distribution::Uniform([low, high]) => low + (high - low) * rng.random::<f64>(),
-        Distribution::Normal(n) => {
-            for _ in 0..MAX_REDRAWS {
-                let z: f64 = StandardNormal.sample(rng);
-                let value = n.mean + n.std * z;
-                if range.contains(value) {
-                    return value;
-                }
-            }
-            n.mean.clamp(range.min, range.max)
-        }
-    }
+    cpmx_stack::draw_fidelity(fidelity, &mut rng)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use cpmx_spec::model::{
-        ActuationLayer, ActuationModel, Control, DynamicsLayer, KinematicKeyword, NormalDistribution,
-        Parameter,
+        ActuationLayer, ActuationModel, Control, Distribution, DynamicsLayer, KinematicKeyword,
+        NormalDistribution, Parameter,
     };
 
     fn delayed(delay_ms: Parameter) -> SimulatedFidelity {

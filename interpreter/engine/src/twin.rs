@@ -11,14 +11,16 @@
 //! agent's trajectory is at `create + k·dt` ([`anchor_s`], `docs/lab.md`), so the reference
 //! does not fall behind the car by speed × state age.
 
-use cpmx_follower::TrajectoryPoint;
 use cpmx_planner::{PlannedTrajectory, Planner, PlannerParams, SteeringAfterHc};
 use cpmx_recording::Recording;
 use cpmx_spec::model::{OnCollision, Planner as PlannerSpec};
 use cpmx_vehicle::{BicycleState, VehicleParams};
 
 use crate::engine::{Engine, RunError, RunInputs};
-use cpmx_stack::{CONTROL_PERIOD_S, StampedState, VehicleStack};
+use cpmx_stack::{
+    CONTROL_PERIOD_S, StampedState, VehicleStack, anchor_s, anchored_time_s, control_periods,
+    max_state_age_s, trajectory_points,
+};
 
 /// The lab's control stack around simulated vehicles.
 #[derive(Debug, Clone, Copy, Default)]
@@ -102,25 +104,6 @@ impl Engine for TwinEngine {
     }
 }
 
-/// The time a plan from a state created at `create_s` starts at, planned at the tick
-/// `t_now_s`: the state's own time, so that the reference passes where the car was when the
-/// state was measured; a state older than `max_age_s` (a vehicle missing from the lists, whose
-/// last state is used) is taken as the tick's, so the trajectory keeps the lead time the
-/// vehicles need.
-pub fn anchor_s(create_s: f64, t_now_s: f64, max_age_s: f64) -> f64 {
-    if create_s.is_finite() && create_s <= t_now_s && t_now_s - create_s <= max_age_s + 1e-9 {
-        create_s
-    } else {
-        t_now_s
-    }
-}
-
-/// The oldest state a plan of Hp steps of `dt_s` may start from and still cover the
-/// vehicles' reference window until the next tick's command takes over [s].
-pub fn max_state_age_s(prediction_horizon: u32, dt_s: f64) -> f64 {
-    (f64::from(prediction_horizon) * dt_s - dt_s - crate::lab::VEHICLE_LEAD_S).max(0.0)
-}
-
 /// Plans every agent from its state and anchors each agent's trajectory at its own time:
 /// point k is at `anchors[i] + k·dt`.
 pub fn plan_anchored(
@@ -140,18 +123,6 @@ pub fn plan_anchored(
     Ok(trajectories)
 }
 
-/// Time of point `k` of a trajectory anchored at `anchor_s` (one expression for the twin, the
-/// lab driver and the emulator, so that their times agree to the bit).
-pub fn anchored_time_s(anchor_s: f64, k: usize, step_s: f64) -> f64 {
-    anchor_s + k as f64 * step_s
-}
-
-/// Control periods per policy period, if `dt_s` is a whole multiple of the control period.
-pub fn control_periods(dt_s: f64) -> Option<usize> {
-    let n = (dt_s / CONTROL_PERIOD_S).round() as usize;
-    (n > 0 && (n as f64 * CONTROL_PERIOD_S - dt_s).abs() < 1e-9).then_some(n)
-}
-
 /// The planner a spec asks for.
 pub fn planner(spec: &PlannerSpec, dt_s: f64, vehicle: VehicleParams) -> Planner {
     Planner::new(
@@ -166,18 +137,4 @@ pub fn planner(spec: &PlannerSpec, dt_s: f64, vehicle: VehicleParams) -> Planner
         },
         vehicle,
     )
-}
-
-/// A planned trajectory in the lab's form.
-pub fn trajectory_points(trajectory: &PlannedTrajectory) -> Vec<TrajectoryPoint> {
-    trajectory
-        .iter()
-        .map(|p| TrajectoryPoint {
-            t_s: p.t_s,
-            x_m: p.x_m,
-            y_m: p.y_m,
-            vx_mps: p.velocity_mps[0],
-            vy_mps: p.velocity_mps[1],
-        })
-        .collect()
 }

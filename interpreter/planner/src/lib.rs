@@ -48,6 +48,17 @@ pub struct PlannedPoint {
 /// A planned trajectory of one agent: Hp + 1 points, the first at the planning time.
 pub type PlannedTrajectory = Vec<PlannedPoint>;
 
+/// Where the first step's commands come from.
+enum FirstStep<'a> {
+    /// The policy, on the real states (the further steps go to its fork).
+    Policy(&'a mut dyn Policy),
+    /// Given; `lookahead` acts on the predicted states.
+    Commands {
+        first: &'a [Command],
+        lookahead: &'a mut dyn Policy,
+    },
+}
+
 /// Rolls policies out into trajectories.
 #[derive(Debug, Clone)]
 pub struct Planner {
@@ -82,6 +93,30 @@ impl Planner {
         paths: &AgentPaths,
         t_s: f64,
     ) -> Result<Vec<PlannedTrajectory>, PolicyError> {
+        self.roll_out(FirstStep::Policy(policy), states, paths, t_s)
+    }
+
+    /// [`Planner::plan`] with the first step's commands already chosen (a learner's sampled
+    /// actions on the observation of `states`): `lookahead` is called on the predicted states
+    /// of the further Hc - 1 steps only.
+    pub fn plan_from_commands(
+        &mut self,
+        first: &[Command],
+        lookahead: &mut dyn Policy,
+        states: &[BicycleState],
+        paths: &AgentPaths,
+        t_s: f64,
+    ) -> Result<Vec<PlannedTrajectory>, PolicyError> {
+        self.roll_out(FirstStep::Commands { first, lookahead }, states, paths, t_s)
+    }
+
+    fn roll_out(
+        &mut self,
+        mut first_step: FirstStep<'_>,
+        states: &[BicycleState],
+        paths: &AgentPaths,
+        t_s: f64,
+    ) -> Result<Vec<PlannedTrajectory>, PolicyError> {
         let p = self.params;
         let vehicle = self.model.params;
         let mut predicted: Vec<BicycleState> = states.to_vec();
@@ -105,11 +140,26 @@ impl Planner {
             };
             // The real policy sees the real states once per planning time; the predicted
             // steps go to a fork, so they leave its memory (and random stream) untouched.
-            if k == 0 {
-                policy.act(&input, &mut commands)?;
-                fork = Some(policy.fork());
-            } else if let Some(fork) = fork.as_mut() {
-                fork.act(&input, &mut commands)?;
+            match (&mut first_step, k) {
+                (FirstStep::Policy(policy), 0) => {
+                    policy.act(&input, &mut commands)?;
+                    fork = Some(policy.fork());
+                }
+                (FirstStep::Policy(_), _) => {
+                    if let Some(fork) = fork.as_mut() {
+                        fork.act(&input, &mut commands)?;
+                    }
+                }
+                (FirstStep::Commands { first, .. }, 0) => {
+                    if first.len() != commands.len() {
+                        return Err(PolicyError::CommandCount {
+                            found: first.len(),
+                            agents: commands.len(),
+                        });
+                    }
+                    commands.copy_from_slice(first);
+                }
+                (FirstStep::Commands { lookahead, .. }, _) => lookahead.act(&input, &mut commands)?,
             }
             let corners_now: Vec<Footprint> = predicted
                 .iter()
@@ -273,6 +323,42 @@ mod tests {
             },
         );
         assert!((trajectories[0].last().unwrap().steering_rad - 0.2).abs() < 1e-12);
+    }
+
+    #[test]
+    fn given_first_commands_replace_the_policys_first_call() {
+        let map = cpmx_world::Map::builtin("intersection").unwrap();
+        let paths = AgentPaths::new([map.reference_path(1).unwrap()]);
+        let start = BicycleState {
+            speed_mps: 0.5,
+            ..BicycleState::default()
+        };
+        let command = Command {
+            speed_mps: 0.5,
+            steering_rad: 0.2,
+        };
+        let mut policy = Constant { command, calls: 0 };
+        let planned = Planner::new(PAPER, VehicleParams::MU_CAR)
+            .plan(&mut policy, &[start], &paths, 2.0)
+            .unwrap();
+        let mut lookahead = Constant { command, calls: 0 };
+        let given = Planner::new(PAPER, VehicleParams::MU_CAR)
+            .plan_from_commands(&[command], &mut lookahead, &[start], &paths, 2.0)
+            .unwrap();
+        assert_eq!(planned, given, "the same commands give the same plan");
+        assert_eq!(lookahead.calls, 3, "Hc - 1 predicted steps");
+        // The first step follows the given command, not the lookahead's.
+        let mut straight = Constant {
+            command: Command {
+                speed_mps: 0.5,
+                steering_rad: 0.0,
+            },
+            calls: 0,
+        };
+        let turned = Planner::new(PAPER, VehicleParams::MU_CAR)
+            .plan_from_commands(&[command], &mut straight, &[start], &paths, 2.0)
+            .unwrap();
+        assert!(turned[0][1].steering_rad > 0.0 && turned[0][2].steering_rad == 0.0);
     }
 
     #[test]

@@ -2,14 +2,21 @@
 //! (`plants.rs`: the kinematic bicycle of sim-mpc or the lab's grey-box model of the twin), the
 //! actuation delay, on-car sensing and the 50 Hz MPC trajectory follower (`stack.rs`). The twin
 //! engine drives several from the planner, `cpmx lab emulate` from trajectories received over
-//! DDS; neither owns the vehicle, so anything else that needs the lab's vehicles in the loop can
-//! use them too.
+//! DDS, `cpmx train` in a `control: trajectory` fidelity; none owns the vehicle. Also here: how
+//! plans are timed for the vehicles (`timing.rs`) and how a randomised fidelity is drawn
+//! (`randomise.rs`), one rule for every driver of the vehicles.
 
 mod plants;
+mod randomise;
 mod stack;
+mod timing;
 
 pub use plants::GreyBoxMpcModel;
+pub use randomise::{draw_fidelity, draw_value};
 pub use stack::{CONTROL_PERIOD_S, STATE_VALID_AFTER_S, StampedState, VehicleStack};
+pub use timing::{
+    VEHICLE_LEAD_S, anchor_s, anchored_time_s, control_periods, max_state_age_s, trajectory_points,
+};
 
 /// Where one agent starts.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -6,7 +6,7 @@
 //! the planner's bicycle states (`mapping`: position and yaw unchanged, σ = σ_max · servo),
 //! the twin's planner rolls the run's policy out, and every vehicle gets one
 //! `VehicleCommandTrajectory`, created and valid at the tick, whose points start at the
-//! state's `create_stamp` (the lab's states are at least 60 ms old; `twin::anchor_s`) and run
+//! state's `create_stamp` (the lab's states are at least 60 ms old; `cpmx_stack::anchor_s`) and run
 //! Hp·dt from there (checked to cover the vehicles' lead time). Every tick's states are the
 //! run's recording, with times relative to the first tick, each moved by its velocity over its
 //! age to the tick. The run ends after
@@ -37,8 +37,9 @@ use cpmx_vehicle::{BicycleState, VehicleParams};
 use super::mapping::{policy_state, recorded_sample};
 use super::{MIN_TRAJECTORY_POINTS, VEHICLE_LEAD_S, discovery_config, ns_from_s, s_since, stamp_ns, timeout};
 use crate::engine::{Engine, RunError, RunInputs};
-use crate::twin::{anchor_s, max_state_age_s, plan_anchored, planner};
+use crate::twin::{plan_anchored, planner};
 use cpmx_stack::STATE_VALID_AFTER_S;
+use cpmx_stack::{anchor_s, max_state_age_s};
 
 /// How often the driver polls its readers while it waits.
 const POLL_INTERVAL: Duration = Duration::from_millis(1);
@@ -219,7 +220,7 @@ struct Drive<'a> {
     policy: Box<dyn cpmx_policy::Policy>,
     steps: usize,
     dt_s: f64,
-    /// The oldest state a plan may start from (`twin::max_state_age_s`) [s].
+    /// The oldest state a plan may start from (`cpmx_stack::max_state_age_s`) [s].
     max_age_s: f64,
     /// Per agent: the `create_stamp` of its last state (none before the first).
     created_ns: Vec<Option<u64>>,

@@ -45,8 +45,8 @@ use super::mapping::lab_state;
 use super::{discovery_config, hlc_vehicle_id, ns_from_s, s_since, stamp_ns, timeout};
 use crate::experiment::Experiment;
 use crate::starts::InitialState;
-use crate::twin::{anchored_time_s, control_periods};
 use cpmx_stack::{CONTROL_PERIOD_S, StampedState, VehicleStack};
+use cpmx_stack::{anchored_time_s, control_periods};
 
 /// How often the emulator polls its readers.
 const POLL_INTERVAL: Duration = Duration::from_millis(1);
@@ -423,7 +423,7 @@ fn exchange(
 /// A point's time `point_s`, read from whole nanoseconds, as the planner computed it when it
 /// lies on one of the grids `anchor + j·dt` (within a nanosecond; the anchors: the listed
 /// state's time, the tick): the twin engine's follower gets the planner's own times
-/// (`twin::anchored_time_s`), and so do the emulator's vehicles.
+/// (`cpmx_stack::anchored_time_s`), and so do the emulator's vehicles.
 fn on_grid(point_s: f64, anchors_s: &[f64], dt_s: f64) -> f64 {
     for &anchor in anchors_s {
         let j = ((point_s - anchor) / dt_s).round();

@@ -25,9 +25,7 @@ pub use driver::LabEngine;
 pub use emulator::{EmulateError, Emulator, EmulatorEvent};
 pub use mapping::{lab_state, policy_state};
 
-/// The end of the reference window the vehicles' MPC samples, after the vehicle's clock
-/// (cpm-lab-interface.md §3.3/§3.4: points must cover up to `t_now + 360 ms`).
-pub const VEHICLE_LEAD_S: f64 = 0.36;
+pub use cpmx_stack::VEHICLE_LEAD_S;
 
 /// Fewer points than this make the lab's middleware warn (§1.5).
 pub const MIN_TRAJECTORY_POINTS: usize = 3;
