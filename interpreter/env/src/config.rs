@@ -3,6 +3,7 @@
 //! SigmaRL's intersection training setup (`main_training.py` with `config.json`,
 //! `rew_method = "ttc_sparse"`, non-testing mode).
 
+use crate::stack_world::StackPlant;
 use cpmx_policy::SigmarlObservation;
 use cpmx_vehicle::VehicleParams;
 
@@ -19,6 +20,20 @@ pub struct EnvConfig {
     pub vehicle: VehicleParams,
     /// Policy (and simulation) step [s].
     pub dt_s: f64,
+    /// How the agents' actions move them.
+    pub plant: Plant,
+}
+
+/// How the agents' actions move them.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum Plant {
+    /// SigmaRL's simulation (`control: direct`): the action applied to the float32 kinematic
+    /// bicycle for one step.
+    #[default]
+    Direct,
+    /// The lab's control architecture (`control: trajectory`): planner, MPC follower and the
+    /// fidelity's dynamics, sensing and actuation (see `stack_world.rs`).
+    Stack(Box<StackPlant>),
 }
 
 impl Default for EnvConfig {
@@ -29,6 +44,7 @@ impl Default for EnvConfig {
             observation: SigmarlObservation::default(),
             vehicle: VehicleParams::MU_CAR,
             dt_s: 0.1,
+            plant: Plant::Direct,
         }
     }
 }
@@ -365,6 +381,8 @@ pub enum ConfigError {
     NoProgressPoints,
     #[error("the velocity_to_points and time terms need the progress term's short-term points")]
     NoShortTermPoints,
+    #[error("the vehicles cannot run: {0}")]
+    Stack(String),
     #[error("observation size {found} does not fit the layout ({expected} values expected)")]
     Observation { found: usize, expected: usize },
 }
@@ -384,6 +402,9 @@ impl EnvConfig {
             return Err(ConfigError::SpeedRange { low, high });
         }
         positive("dt_s", self.dt_s)?;
+        if let Plant::Stack(plant) = &self.plant {
+            plant.check(self.dt_s).map_err(ConfigError::Stack)?;
+        }
         positive("max_speed_mps", self.vehicle.max_speed_mps)?;
         if let Some(p) = &self.reward.progress
             && p.point_weights.is_empty()

@@ -8,17 +8,19 @@ use cpmx_vehicle::VehicleParams;
 use cpmx_world::{Map, MapError, PathSet, ReferencePath};
 
 use crate::config::{
-    CentreLineTerm, EnvConfig, NearAgentsTerm, NearBoundaryTerm, ProgressTerm, Ramp, ResetRule, ResetScope,
-    RewardConfig, ScenarioConfig, SpeedTerm, StartRule, SteeringChangeTerm, TimeTerm, TtcTerm,
+    CentreLineTerm, EnvConfig, NearAgentsTerm, NearBoundaryTerm, Plant, ProgressTerm, Ramp, ResetRule,
+    ResetScope, RewardConfig, ScenarioConfig, SpeedTerm, StartRule, SteeringChangeTerm, TimeTerm, TtcTerm,
     VelocityToPointsTerm,
 };
 
-/// The environment configuration a `training:` section declares.
+/// The environment configuration a `training:` section declares, with the plant of its
+/// fidelity.
 pub fn config_from_training(
     training: &TrainingSpec,
     observation: SigmarlObservation,
     vehicle: VehicleParams,
     dt_s: f64,
+    plant: Plant,
 ) -> EnvConfig {
     let s = &training.scenario;
     let r = &training.reward;
@@ -97,6 +99,7 @@ pub fn config_from_training(
         observation,
         vehicle,
         dt_s,
+        plant,
     }
 }
 
@@ -149,6 +152,7 @@ mod tests {
             SigmarlObservation::default(),
             VehicleParams::MU_CAR,
             0.1,
+            Plant::Direct,
         );
         let default = EnvConfig::default();
         let (got, want) = (&config.scenario, &default.scenario);

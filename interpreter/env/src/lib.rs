@@ -25,6 +25,7 @@ mod from_spec;
 mod paths;
 mod result;
 mod reward;
+mod stack_world;
 mod starts;
 mod state;
 mod vec_env;
@@ -35,14 +36,15 @@ use cpmx_world::{Map, MapError, PathSet, ReferencePath};
 
 pub use collision::{Walls, cross_properly, rectangle_crosses_segment, rectangles_cross};
 pub use config::{
-    CentreLineTerm, ConfigError, EnvConfig, NearAgentsTerm, NearBoundaryTerm, ProgressTerm, Ramp, ResetRule,
-    ResetScope, RewardConfig, ScenarioConfig, SpeedTerm, StartRule, SteeringChangeTerm, TimeTerm, TtcTerm,
-    VelocityToPointsTerm,
+    CentreLineTerm, ConfigError, EnvConfig, NearAgentsTerm, NearBoundaryTerm, Plant, ProgressTerm, Ramp,
+    ResetRule, ResetScope, RewardConfig, ScenarioConfig, SpeedTerm, StartRule, SteeringChangeTerm, TimeTerm,
+    TtcTerm, VelocityToPointsTerm,
 };
 pub use from_spec::{config_from_training, training_paths};
 pub use paths::{TrainingPath, prepare_paths};
 pub use result::{AgentStepInfo, CollisionCounts, ResetCounts, RewardTermMeans, StepResult};
 pub use reward::{RewardInput, RewardTerms, decreasing, reward};
+pub use stack_world::StackPlant;
 pub use starts::{Placement, draw_placement, placement_at};
 pub use vec_env::VecEnv;
 

@@ -27,6 +27,11 @@ pub struct StepResult {
     pub collisions: CollisionCounts,
     /// Resets done at this step.
     pub resets: ResetCounts,
+    /// Per randomised fidelity parameter (`VecEnv::randomised_parameters`), the sum of the
+    /// values drawn for the episodes that began at this step.
+    pub drawn_parameter_sums: Vec<f64>,
+    /// Episodes whose fidelity was drawn at this step.
+    pub draws: u64,
 }
 
 /// One agent at one step.

@@ -65,6 +65,11 @@ impl VecEnv {
                 }
             }
         }
+        for env in 0..e {
+            if let Some(stack) = self.stack_world(env) {
+                stack.save(&mut out);
+            }
+        }
         out
     }
 
@@ -90,7 +95,8 @@ impl VecEnv {
             ));
         }
         let expected = TAG.len() + 16 + e * (ENV_BYTES + n * agent_bytes);
-        if bytes.len() != expected {
+        let stacks = self.has_stacks();
+        if bytes.len() < expected || (!stacks && bytes.len() != expected) {
             return Err(format!(
                 "the state has {} bytes, {expected} expected (truncated or from another version)",
                 bytes.len()
@@ -101,7 +107,7 @@ impl VecEnv {
         for _ in 0..e {
             let counter = r.u32()?;
             let seed: [u8; 32] = r.take(32)?.try_into().map_err(|_| "seed".to_string())?;
-            let word_pos = u128::from_le_bytes(r.take(16)?.try_into().map_err(|_| "word".to_string())?);
+            let word_pos = r.u128()?;
             let mut rng = ChaCha20Rng::from_seed(seed);
             rng.set_word_pos(word_pos);
             let returns = (0..n).map(|_| r.f32()).collect::<Result<Vec<f32>, String>>()?;
@@ -135,21 +141,37 @@ impl VecEnv {
             }
             parsed.push((counter, rng, returns, placements, steering));
         }
+        // The vehicle stacks, replayed aside (nothing changes on an error).
+        let mut worlds = Vec::new();
+        if stacks {
+            for env in 0..e {
+                worlds.push(self.load_stack_world(env, &mut r)?);
+            }
+            if r.at != bytes.len() {
+                return Err(format!(
+                    "the state has {} bytes after its vehicle stacks (from another version?)",
+                    bytes.len() - r.at
+                ));
+            }
+        }
         for (env, (counter, rng, returns, placements, steering)) in parsed.into_iter().enumerate() {
             self.restore_env(env, counter, rng, &returns, &placements, &steering);
+        }
+        for (env, world) in worlds.into_iter().enumerate() {
+            self.set_stack_world(env, world);
         }
         Ok(())
     }
 }
 
 /// Reads little-endian values off a byte slice.
-struct Reader<'a> {
+pub(crate) struct Reader<'a> {
     bytes: &'a [u8],
     at: usize,
 }
 
 impl<'a> Reader<'a> {
-    fn take(&mut self, len: usize) -> Result<&'a [u8], String> {
+    pub(crate) fn take(&mut self, len: usize) -> Result<&'a [u8], String> {
         let end = self.at + len;
         let slice = self
             .bytes
@@ -158,14 +180,30 @@ impl<'a> Reader<'a> {
         self.at = end;
         Ok(slice)
     }
+    pub(crate) fn u8(&mut self) -> Result<u8, String> {
+        Ok(self.take(1)?[0])
+    }
     fn u32(&mut self) -> Result<u32, String> {
         Ok(u32::from_le_bytes(self.take(4)?.try_into().map_err(|_| "u32")?))
     }
-    fn u64(&mut self) -> Result<u64, String> {
+    pub(crate) fn u64(&mut self) -> Result<u64, String> {
         Ok(u64::from_le_bytes(self.take(8)?.try_into().map_err(|_| "u64")?))
+    }
+    pub(crate) fn u128(&mut self) -> Result<u128, String> {
+        Ok(u128::from_le_bytes(
+            self.take(16)?.try_into().map_err(|_| "u128")?,
+        ))
     }
     fn f32(&mut self) -> Result<f32, String> {
         Ok(f32::from_le_bytes(self.take(4)?.try_into().map_err(|_| "f32")?))
+    }
+    pub(crate) fn f64(&mut self) -> Result<f64, String> {
+        let x = f64::from_bits(self.u64()?);
+        if x.is_finite() {
+            Ok(x)
+        } else {
+            Err("a non-finite value".into())
+        }
     }
 }
 

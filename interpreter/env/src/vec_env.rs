@@ -15,19 +15,22 @@
 //!    otherwise agents on their entry or exit line are re-placed alone, keeping the
 //!    pre-reset observation of this step (SigmaRL's stale observation).
 
-use cpmx_policy::{AgentPaths, AgentState, BoundaryCorners, ObservationInput};
+use cpmx_policy::{
+    ActionMode, AgentPaths, AgentState, BoundaryCorners, MlpActor, MlpPolicy, ObservationInput,
+};
 use cpmx_spec::matrix::stream_key;
-use cpmx_vehicle::{Command, Footprint, KinematicBicycle, Precision, footprint_corners};
+use cpmx_vehicle::{BicycleState, Command, Footprint, KinematicBicycle, Precision, footprint_corners};
 use cpmx_world::{Point, ReferencePath};
 use rand::SeedableRng;
 use rand_chacha::ChaCha20Rng;
 use rayon::prelude::*;
 
 use crate::collision::{rectangle_crosses_segment, rectangles_cross};
-use crate::config::{ConfigError, EnvConfig, ResetScope};
+use crate::config::{ConfigError, EnvConfig, Plant, ResetScope};
 use crate::paths::{TrainingPath, prepare_paths};
 use crate::result::{AgentStepInfo, StepResult, StepTotals};
 use crate::reward::{RewardInput, reward};
+use crate::stack_world::StackWorld;
 use crate::starts::{Placement, draw_placement};
 
 /// One agent of one environment.
@@ -44,7 +47,7 @@ struct Agent {
 }
 
 /// One environment.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 struct Env {
     agents: Vec<Agent>,
     paths: AgentPaths,
@@ -54,6 +57,10 @@ struct Env {
     episode_reward: Vec<f32>,
     /// Corners at the start of the step.
     corners_start: Vec<Footprint>,
+    /// The vehicle stacks, when the plant is the lab's control architecture.
+    stack: Option<StackWorld>,
+    /// The first failure of a vehicle stack (the environment is broken from there on).
+    failure: Option<String>,
     scratch: Scratch,
 }
 
@@ -74,7 +81,7 @@ struct Scratch {
 }
 
 /// E environments of N agents on a set of reference paths. See the crate documentation.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct VecEnv {
     config: EnvConfig,
     paths: Vec<TrainingPath>,
@@ -98,8 +105,22 @@ impl VecEnv {
                 .as_ref()
                 .map_or(0, |p| p.point_weights.len()),
         );
-        let envs = (0..config.scenario.envs)
-            .map(|e| Env {
+        let stack_rng =
+            |e: usize| ChaCha20Rng::from_seed(stream_key(seed, &format!("train/randomisation/{e}")));
+        let mut stacks = Vec::with_capacity(config.scenario.envs);
+        for e in 0..config.scenario.envs {
+            stacks.push(match &config.plant {
+                Plant::Direct => None,
+                Plant::Stack(plant) => Some(
+                    StackWorld::new(plant, config.vehicle, config.dt_s, stack_rng(e))
+                        .map_err(ConfigError::Stack)?,
+                ),
+            });
+        }
+        let envs = stacks
+            .into_iter()
+            .enumerate()
+            .map(|(e, stack)| Env {
                 agents: vec![
                     Agent {
                         placement: crate::starts::placement_at(&paths[0], 0, paths[0].start_indices.0, 0.0),
@@ -114,6 +135,8 @@ impl VecEnv {
                 rng: ChaCha20Rng::from_seed(stream_key(seed, &format!("train/env/{e}"))),
                 episode_reward: vec![0.0; n],
                 corners_start: vec![[[0.0; 2]; 4]; n],
+                stack,
+                failure: None,
                 scratch: Scratch::default(),
             })
             .collect();
@@ -126,7 +149,45 @@ impl VecEnv {
             parallel: true,
         };
         env.reset_all();
+        if let Some(failure) = env.failure() {
+            return Err(ConfigError::Stack(failure.to_owned()));
+        }
         Ok(env)
+    }
+
+    /// Hands the environments the learner's current actor: the planner of a
+    /// `control: trajectory` plant looks ahead with its mean actions (nothing else uses it).
+    pub fn set_actor(&mut self, actor: &MlpActor) -> Result<(), ConfigError> {
+        if !matches!(self.config.plant, Plant::Stack(_)) {
+            return Ok(());
+        }
+        let policy = MlpPolicy::new(
+            actor.clone(),
+            self.config.observation,
+            ActionMode::Mean,
+            ChaCha20Rng::from_seed([0; 32]),
+        )
+        .map_err(|e| ConfigError::Stack(e.to_string()))?;
+        for env in &mut self.envs {
+            if let Some(stack) = &mut env.stack {
+                stack.set_lookahead(policy.clone());
+            }
+        }
+        Ok(())
+    }
+
+    /// Why a vehicle stack failed, if one did (the environments cannot go on).
+    pub fn failure(&self) -> Option<&str> {
+        self.envs.iter().find_map(|e| e.failure.as_deref())
+    }
+
+    /// Names of the fidelity parameters drawn per episode, in the order of
+    /// [`StepResult::drawn_parameter_sums`].
+    pub fn randomised_parameters(&self) -> Vec<String> {
+        match &self.config.plant {
+            Plant::Direct => Vec::new(),
+            Plant::Stack(plant) => plant.randomised_parameters(),
+        }
     }
 
     /// Number of environments E.
@@ -164,6 +225,9 @@ impl VecEnv {
         for (env, out) in self.envs.iter_mut().zip(obs.chunks_mut(chunk)) {
             env.reset_whole(config, paths);
             env.observe(config, None, out);
+            if let Some(stack) = &mut env.stack {
+                stack.take_fresh_draw();
+            }
         }
         obs
     }
@@ -231,6 +295,33 @@ impl VecEnv {
         e.counter = counter;
         e.rng = rng;
         e.episode_reward.copy_from_slice(returns);
+    }
+
+    /// Environment `env`'s vehicle stacks, if its plant has them.
+    pub(crate) fn stack_world(&self, env: usize) -> Option<&StackWorld> {
+        self.envs[env].stack.as_ref()
+    }
+
+    /// Whether the plant runs vehicle stacks (`control: trajectory`).
+    pub fn has_stacks(&self) -> bool {
+        matches!(self.config.plant, Plant::Stack(_))
+    }
+
+    /// Environment `env`'s vehicle stacks as saved in `r` (see `stack_world.rs`).
+    pub(crate) fn load_stack_world(
+        &self,
+        env: usize,
+        r: &mut crate::state::Reader<'_>,
+    ) -> Result<StackWorld, String> {
+        let (Some(world), Plant::Stack(plant)) = (&self.envs[env].stack, &self.config.plant) else {
+            return Err("this environment has no vehicle stacks".into());
+        };
+        world.load(plant, self.config.vehicle, self.num_agents(), r)
+    }
+
+    /// Replaces environment `env`'s vehicle stacks.
+    pub(crate) fn set_stack_world(&mut self, env: usize, world: StackWorld) {
+        self.envs[env].stack = Some(world);
     }
 
     /// The current step counter of environment `env`.
@@ -304,6 +395,18 @@ impl VecEnv {
             totals.add(&t);
         }
         result.set_totals(totals, e * n);
+        // The fidelity parameters of the episodes that began at this step.
+        result.drawn_parameter_sums.clear();
+        result.draws = 0;
+        for env in &mut self.envs {
+            if let Some(drawn) = env.stack.as_mut().and_then(StackWorld::take_fresh_draw) {
+                result.drawn_parameter_sums.resize(drawn.len(), 0.0);
+                for (sum, v) in result.drawn_parameter_sums.iter_mut().zip(drawn) {
+                    *sum += v;
+                }
+                result.draws += 1;
+            }
+        }
     }
 }
 
@@ -340,6 +443,12 @@ impl Env {
         self.scratch.avoid = avoid;
         self.counter = 0;
         self.episode_reward.fill(0.0);
+        if let (Some(stack), Plant::Stack(plant)) = (&mut self.stack, &config.plant) {
+            let placements: Vec<Placement> = self.agents.iter().map(|a| a.placement).collect();
+            if let Err(e) = stack.reset_whole(plant, config.vehicle, &placements) {
+                self.failure.get_or_insert(e);
+            }
+        }
         relaxed
     }
 
@@ -357,6 +466,11 @@ impl Env {
         let (p, relaxed) = draw_placement(&mut self.rng, paths, &config.scenario.start, &avoid);
         self.scratch.avoid = avoid;
         self.set(config, paths, i, p);
+        if let Some(stack) = &mut self.stack
+            && let Err(e) = stack.reset_agent(config.vehicle, i, &p)
+        {
+            self.failure.get_or_insert(e);
+        }
         relaxed
     }
 
@@ -370,8 +484,14 @@ impl Env {
         );
     }
 
-    /// Observations of the current states into `out` (`previous` corners for the lag).
+    /// Observations of the current states into `out` (`previous` corners for the lag); with
+    /// vehicle stacks, of the states the vehicles report and their previous tick's corners.
     fn observe(&mut self, config: &EnvConfig, previous: Option<&[Footprint]>, out: &mut [f32]) {
+        if let Some(stack) = &self.stack {
+            let states = stack.observed_states(&KinematicBicycle::new(config.vehicle));
+            observe_into(config, &states, &self.paths, stack.previous_corners(), out);
+            return;
+        }
         self.collect_states();
         observe_into(config, &self.scratch.states, &self.paths, previous, out);
     }
@@ -406,24 +526,49 @@ impl Env {
         s.corners.clear();
         s.steering_cmds.clear();
 
-        // 1. Move.
-        for (a, act) in self.agents.iter_mut().zip(actions.chunks_exact(2)) {
-            let command = Command {
+        // 1. Move: one bicycle step, or a planning period of the vehicle stacks.
+        let commands: Vec<Command> = actions
+            .chunks_exact(2)
+            .map(|act| Command {
                 speed_mps: f64::from(act[0]),
                 steering_rad: f64::from(act[1]),
-            };
-            let limit = config.vehicle.max_steering_rad;
-            s.steering_cmds.push(command.steering_rad.clamp(-limit, limit));
-            let out = model.step_with_precision(&a.placement.state, command, config.dt_s, Precision::F32);
-            a.placement.state = out.state;
-            a.placement.velocity_mps = out.velocity_mps;
-            s.positions.push([out.state.x_m, out.state.y_m]);
-            s.velocities.push(out.velocity_mps);
+            })
+            .collect();
+        let limit = config.vehicle.max_steering_rad;
+        s.steering_cmds
+            .extend(commands.iter().map(|c| c.steering_rad.clamp(-limit, limit)));
+        let moved: Vec<(BicycleState, [f64; 2])> = match &mut self.stack {
+            None => self
+                .agents
+                .iter()
+                .zip(&commands)
+                .map(|(a, &command)| {
+                    let out =
+                        model.step_with_precision(&a.placement.state, command, config.dt_s, Precision::F32);
+                    (out.state, out.velocity_mps)
+                })
+                .collect(),
+            Some(stack) => match stack.advance(&commands, &self.paths, &config.vehicle) {
+                Ok(moved) => moved,
+                Err(e) => {
+                    self.failure.get_or_insert(e);
+                    self.agents
+                        .iter()
+                        .map(|a| (a.placement.state, a.placement.velocity_mps))
+                        .collect()
+                }
+            },
+        };
+        for (a, (state, velocity_mps)) in self.agents.iter_mut().zip(moved) {
+            a.placement.state = state;
+            a.placement.velocity_mps = velocity_mps;
+            s.positions.push([state.x_m, state.y_m]);
+            s.velocities.push(velocity_mps);
             s.corners.push(footprint_corners(
                 &config.vehicle,
-                out.state.x_m,
-                out.state.y_m,
-                out.state.yaw_rad,
+                state.x_m,
+                state.y_m,
+                state.yaw_rad,
             ));
         }
         self.counter += 1;
@@ -515,10 +660,12 @@ impl Env {
             a.prev_steering_cmd_rad = c;
         }
 
-        // 4. Observations of the new states (agent 0 with the corners of the start of the step).
-        self.collect_states();
+        // 4. Observations of the new states (agent 0 with the corners of the start of the step);
+        // with vehicle stacks, of what the vehicles report.
+        let corners_start = std::mem::take(&mut self.corners_start);
+        self.observe(config, Some(&corners_start), obs);
+        self.corners_start = corners_start;
         let s = &self.scratch;
-        observe_into(config, &s.states, &self.paths, Some(&self.corners_start), obs);
 
         // 5. Done and resets.
         let rules = config.scenario.reset;

@@ -21,6 +21,11 @@ pub struct StepResult {
     pub env_resets: u64,
     /// Single-agent resets this step (agents re-spawned without ending the episode).
     pub agent_resets: u64,
+    /// Per randomised parameter ([`Environment::randomised_parameters`]), the sum of the values
+    /// drawn for the episodes that began this step.
+    pub drawn_parameter_sums: Vec<f64>,
+    /// Episodes whose parameters were drawn this step.
+    pub draws: u64,
 }
 
 /// A batch of `E` environments with `N` agents each that share one policy.
@@ -35,8 +40,19 @@ pub trait Environment {
     fn reward_terms(&self) -> Vec<String>;
     /// Reset every environment; the observations `[E][N][obs_dim]`.
     fn reset_all(&mut self) -> Vec<f32>;
-    /// Apply `actions` (`[E][N][2]`: speed m/s, steering rad) to every environment.
-    fn step(&mut self, actions: &[f32]) -> StepResult;
+    /// Apply `actions` (`[E][N][2]`: speed m/s, steering rad) to every environment; an error
+    /// message if the environments cannot go on.
+    fn step(&mut self, actions: &[f32]) -> Result<StepResult, String>;
+    /// The learner's current actor, handed over before every collection (an environment
+    /// whose plant plans ahead with the policy uses it; by default nothing does).
+    fn set_actor(&mut self, actor: &crate::Mlp) -> Result<(), String> {
+        let _ = actor;
+        Ok(())
+    }
+    /// Names of the parameters drawn per episode (none by default).
+    fn randomised_parameters(&self) -> Vec<String> {
+        Vec::new()
+    }
     /// Everything needed to continue exactly (states, counters, random stream positions).
     fn save_state(&self) -> Vec<u8>;
     /// Restore a [`Environment::save_state`]; an error message if the bytes do not fit.

@@ -58,6 +58,10 @@ pub struct IterationRecord {
     pub env_resets: u64,
     /// Single-agent resets.
     pub agent_resets: u64,
+    /// Episodes whose randomised parameters were drawn in this batch.
+    pub draws: u64,
+    /// Per randomised parameter, the mean of the values drawn in this batch (NaN without draws).
+    pub drawn_parameter_means: Vec<f64>,
     /// Mean over the minibatch steps of the clipped objective.
     pub policy_loss: f64,
     /// ... of the value loss.
@@ -318,6 +322,8 @@ impl<E: Environment> Trainer<E> {
             collisions: 0,
             env_resets: 0,
             agent_resets: 0,
+            draws: 0,
+            drawn_parameter_means: vec![0.0; self.env.randomised_parameters().len()],
             policy_loss: 0.0,
             value_loss: 0.0,
             entropy_loss: 0.0,
@@ -328,6 +334,7 @@ impl<E: Environment> Trainer<E> {
             collect_seconds: 0.0,
             update_seconds: 0.0,
         };
+        self.env.set_actor(&self.actor).map_err(TrainError::Environment)?;
         let (mut ended_sum, mut ended_count) = (0.0f64, 0u64);
         let mut actions = vec![0.0f32; envs * agents * 2];
         let mut log_probs = vec![0.0f32; envs * agents];
@@ -348,7 +355,7 @@ impl<E: Environment> Trainer<E> {
                 actions[2 * i..2 * i + 2].copy_from_slice(&a);
                 log_probs[i] = tanh_normal::log_prob(&p, a, high).log_prob as f32;
             }
-            let result = self.env.step(&actions);
+            let result = self.env.step(&actions).map_err(TrainError::Environment)?;
             check_len("step observations", result.observations.len(), envs * nd)?;
             check_len("step rewards", result.rewards.len(), envs * agents)?;
             check_len("step done flags", result.done.len(), envs)?;
@@ -380,6 +387,21 @@ impl<E: Environment> Trainer<E> {
             record.collisions += result.collisions;
             record.env_resets += result.env_resets;
             record.agent_resets += result.agent_resets;
+            if result.draws > 0 {
+                check_len(
+                    "drawn parameters",
+                    result.drawn_parameter_sums.len(),
+                    record.drawn_parameter_means.len(),
+                )?;
+                for (sum, v) in record
+                    .drawn_parameter_means
+                    .iter_mut()
+                    .zip(&result.drawn_parameter_sums)
+                {
+                    *sum += v;
+                }
+                record.draws += result.draws;
+            }
             self.observations = result.observations;
         }
         for e in 0..envs {
@@ -388,6 +410,9 @@ impl<E: Environment> Trainer<E> {
         }
         if ended_count > 0 {
             record.episode_reward_mean = round2(ended_sum / ended_count as f64);
+        }
+        for mean in &mut record.drawn_parameter_means {
+            *mean /= record.draws as f64;
         }
         Ok(record)
     }

@@ -66,7 +66,7 @@ impl Environment for Line {
         }
         self.observations()
     }
-    fn step(&mut self, actions: &[f32]) -> StepResult {
+    fn step(&mut self, actions: &[f32]) -> Result<StepResult, String> {
         let mut result = StepResult::default();
         let mut progress = 0.0f64;
         for e in 0..self.envs {
@@ -88,7 +88,7 @@ impl Environment for Line {
         }
         result.reward_term_means = vec![progress / (self.envs * AGENTS) as f64];
         result.observations = self.observations();
-        result
+        Ok(result)
     }
     fn save_state(&self) -> Vec<u8> {
         let mut bytes: Vec<u8> = self.x.iter().flat_map(|v| v.to_le_bytes()).collect();

@@ -4,8 +4,10 @@
 //! episodes that ended in the iteration's batch, rounded to 2 decimals; empty when none
 //! ended), `episodes`, `reward_<term>` (the mean of each reward term over the batch's
 //! agent-steps, `reward_total` the clamped reward), `collisions` (agent-steps crossing another
-//! agent or the road boundary, each counted per crossing), `env_resets`, `agent_resets`, the
-//! update's means over its minibatch steps (`policy_loss, value_loss, entropy_loss,
+//! agent or the road boundary, each counted per crossing), `env_resets`, `agent_resets`, for a
+//! randomised fidelity `draws` (episodes whose parameters were drawn in the batch) and
+//! `drawn_<parameter>` (the mean drawn value), the update's means over its minibatch steps
+//! (`policy_loss, value_loss, entropy_loss,
 //! grad_norm, clip_fraction`), `lr`, `best` (1 when the actor became the best one), and wall
 //! time `collect_s, update_s`. Everything but the last two columns is the same on any machine
 //! and thread count.
@@ -15,16 +17,21 @@ use std::fmt::Write as _;
 use cpmx_learn::IterationRecord;
 
 /// The CSV header line (without newline) for the reward terms `terms`
-/// ([`crate::reward_term_names`]).
-pub fn header(terms: &[&str]) -> String {
+/// ([`crate::reward_term_names`]) and the fidelity parameters drawn per episode `drawn` (none
+/// unless the fidelity is randomised).
+pub fn header(terms: &[&str], drawn: &[String]) -> String {
     let mut h = String::from("iteration,samples,episode_reward_mean,episodes");
     for term in terms {
         let _ = write!(h, ",reward_{term}");
     }
-    h.push_str(
-        ",collisions,env_resets,agent_resets,policy_loss,value_loss,entropy_loss,grad_norm,clip_fraction,lr,best,\
-         collect_s,update_s",
-    );
+    h.push_str(",collisions,env_resets,agent_resets");
+    if !drawn.is_empty() {
+        h.push_str(",draws");
+        for name in drawn {
+            let _ = write!(h, ",drawn_{name}");
+        }
+    }
+    h.push_str(",policy_loss,value_loss,entropy_loss,grad_norm,clip_fraction,lr,best,collect_s,update_s");
     h
 }
 
@@ -38,12 +45,19 @@ pub fn row(r: &IterationRecord) -> String {
     for v in &r.reward_term_means {
         let _ = write!(s, ",{v}");
     }
+    let _ = write!(s, ",{},{},{}", r.collisions, r.env_resets, r.agent_resets);
+    if !r.drawn_parameter_means.is_empty() {
+        let _ = write!(s, ",{}", r.draws);
+        for mean in &r.drawn_parameter_means {
+            s.push(',');
+            if mean.is_finite() {
+                let _ = write!(s, "{mean}");
+            }
+        }
+    }
     let _ = write!(
         s,
-        ",{},{},{},{},{},{},{},{},{},{},{:.3},{:.3}",
-        r.collisions,
-        r.env_resets,
-        r.agent_resets,
+        ",{},{},{},{},{},{},{},{:.3},{:.3}",
         r.policy_loss,
         r.value_loss,
         r.entropy_loss,
@@ -239,6 +253,8 @@ mod tests {
             collisions: 3,
             env_resets: 2,
             agent_resets: 1,
+            draws: 0,
+            drawn_parameter_means: Vec::new(),
             policy_loss: -0.01,
             value_loss: 0.2,
             entropy_loss: -0.001,
@@ -261,10 +277,10 @@ mod tests {
             "collide_boundary",
             "total",
         ];
-        let columns = header(&terms).split(',').count();
+        let columns = header(&terms, &[]).split(',').count();
         let text = format!(
             "{}\n{}\n{}\n",
-            header(&terms),
+            header(&terms, &[]),
             row(&record(1, -0.25)),
             row(&record(2, f64::NAN))
         );
@@ -273,8 +289,22 @@ mod tests {
         }
         assert_eq!(reward_points(&text), vec![(1.0, -0.25)]);
         assert_eq!(last_best(&text), Some((1, -0.25)));
-        assert_eq!(rows_through(&text, 1, header(&terms)).len(), 2);
-        assert_eq!(rows_through(&text, 5, header(&terms)).len(), 3);
+        assert_eq!(rows_through(&text, 1, header(&terms, &[])).len(), 2);
+        assert_eq!(rows_through(&text, 5, header(&terms, &[])).len(), 3);
+        // A randomised fidelity adds the draws and a column per drawn parameter.
+        let drawn = ["actuation.delay_ms".to_owned()];
+        let randomised = IterationRecord {
+            draws: 4,
+            drawn_parameter_means: vec![81.5],
+            ..record(3, 0.5)
+        };
+        let (h, r) = (header(&terms, &drawn), row(&randomised));
+        assert!(
+            h.contains(",agent_resets,draws,drawn_actuation.delay_ms,policy_loss,"),
+            "{h}"
+        );
+        assert!(r.contains(",2,1,4,81.5,-0.01,"), "{r}");
+        assert_eq!(h.split(',').count(), r.split(',').count());
     }
 
     #[test]

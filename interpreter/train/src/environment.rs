@@ -59,7 +59,7 @@ fn term_mean(means: &RewardTermMeans, name: &str) -> f64 {
 }
 
 /// SigmaRL's training scenario stepped for the learner.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct TrainingEnv {
     env: VecEnv,
     /// The terms reported, from [`reward_term_names`].
@@ -100,11 +100,14 @@ impl Environment for TrainingEnv {
         self.env.reset_all()
     }
 
-    fn step(&mut self, actions: &[f32]) -> cpmx_learn::StepResult {
+    fn step(&mut self, actions: &[f32]) -> Result<cpmx_learn::StepResult, String> {
         self.env.step_into(actions, &mut self.result);
+        if let Some(failure) = self.env.failure() {
+            return Err(failure.to_owned());
+        }
         let r = &self.result;
         let t = &r.reward_terms;
-        cpmx_learn::StepResult {
+        Ok(cpmx_learn::StepResult {
             observations: r.observations.clone(),
             rewards: r.rewards.clone(),
             done: r.done.clone(),
@@ -112,7 +115,21 @@ impl Environment for TrainingEnv {
             collisions: r.collisions.with_agents + r.collisions.with_boundary,
             env_resets: r.resets.environments,
             agent_resets: r.resets.agents,
+            drawn_parameter_sums: r.drawn_parameter_sums.clone(),
+            draws: r.draws,
+        })
+    }
+
+    fn set_actor(&mut self, actor: &cpmx_learn::Mlp) -> Result<(), String> {
+        if !self.env.has_stacks() {
+            return Ok(());
         }
+        let actor = actor.to_actor().map_err(|e| e.to_string())?;
+        self.env.set_actor(&actor).map_err(|e| e.to_string())
+    }
+
+    fn randomised_parameters(&self) -> Vec<String> {
+        self.env.randomised_parameters()
     }
 
     fn save_state(&self) -> Vec<u8> {

@@ -155,7 +155,10 @@ impl SeedRun {
             let mut curve_text = curve::rows_through(
                 &old_curve,
                 done,
-                curve::header(&reward_term_names(&setup.env.reward)),
+                curve::header(
+                    &reward_term_names(&setup.env.reward),
+                    &setup.randomised_parameters(),
+                ),
             )
             .join("\n");
             curve_text.push('\n');
@@ -189,7 +192,13 @@ impl SeedRun {
             trainer,
             dir,
             info,
-            curve_text: format!("{}\n", curve::header(&reward_term_names(&setup.env.reward))),
+            curve_text: format!(
+                "{}\n",
+                curve::header(
+                    &reward_term_names(&setup.env.reward),
+                    &setup.randomised_parameters()
+                )
+            ),
         };
         // run.json first: a checkpoint is never without it.
         run.write_info()?;

@@ -3,7 +3,7 @@
 //! hyperparameters (`cpmx-learn`), the seeds, and a fingerprint of everything that shapes the
 //! weights, so that `--resume` never continues a run with changed inputs.
 
-use cpmx_env::{EnvConfig, config_from_training, training_paths};
+use cpmx_env::{EnvConfig, Plant, StackPlant, config_from_training, training_paths};
 use cpmx_learn::Hyperparameters;
 use cpmx_spec::CheckedSpec;
 use cpmx_spec::model::{
@@ -56,11 +56,20 @@ pub struct TrainingSetup {
 }
 
 impl TrainingSetup {
+    /// Names of the fidelity parameters drawn per episode (the learning curve's `drawn_`
+    /// columns); none unless the fidelity to train in is randomised.
+    pub fn randomised_parameters(&self) -> Vec<String> {
+        match &self.env.plant {
+            Plant::Direct => Vec::new(),
+            Plant::Stack(plant) => plant.randomised_parameters(),
+        }
+    }
+
     /// Reads the spec's training section and loads its map.
     pub fn prepare(checked: &CheckedSpec) -> Result<TrainingSetup, SetupError> {
         let spec = &checked.spec;
         let training = spec.training.as_ref().ok_or(SetupError::NoTraining)?;
-        check_fidelity(checked, training)?;
+        let plant = plant_of(checked, training)?;
         check_learner_choices(training)?;
         let map = cpmx_engine::load_map(spec, checked.resources.map_file.as_deref())?;
         let paths = training_paths(&map, training).map_err(cpmx_engine::PrepareError::Map)?;
@@ -89,7 +98,7 @@ impl TrainingSetup {
         }
         let vehicle = cpmx_engine::vehicle_params(&spec.vehicle);
         let observation = cpmx_engine::observation(&training.observation);
-        let env = config_from_training(training, observation, vehicle, spec.timing.dt);
+        let env = config_from_training(training, observation, vehicle, spec.timing.dt, plant);
         env.check().map_err(|e| SetupError::Invalid(e.to_string()))?;
         let hyperparameters = hyperparameters(training, &vehicle);
         let resolved = checked
@@ -97,7 +106,7 @@ impl TrainingSetup {
             .get("training")
             .cloned()
             .unwrap_or(serde_json::Value::Null);
-        let fingerprint = fingerprint(checked, &resolved)?;
+        let fingerprint = fingerprint(checked, &resolved, &env.plant)?;
         Ok(TrainingSetup {
             spec_name: spec.name.clone(),
             env,
@@ -134,9 +143,11 @@ fn hyperparameters(training: &TrainingSpec, vehicle: &cpmx_vehicle::VehicleParam
     }
 }
 
-/// Today's trainer steps the kinematic bicycle directly with exact states (SigmaRL's
-/// simulation); any other layer would be silently ignored, so it is refused.
-fn check_fidelity(checked: &CheckedSpec, training: &TrainingSpec) -> Result<(), SetupError> {
+/// The plant of the fidelity to train in: SigmaRL's simulation for `control: direct` (the
+/// kinematic bicycle with exact states; any other layer needs `control: trajectory`, as in
+/// `cpmx run`), the lab's control architecture with the fidelity's layers and the spec's
+/// planner for `control: trajectory`; a lab driver is refused.
+fn plant_of(checked: &CheckedSpec, training: &TrainingSpec) -> Result<Plant, SetupError> {
     let name = &training.fidelity;
     let refuse = |reason: &str| {
         Err(SetupError::Fidelity {
@@ -147,25 +158,40 @@ fn check_fidelity(checked: &CheckedSpec, training: &TrainingSpec) -> Result<(), 
     match checked.spec.fidelities.get(name) {
         None => refuse("the spec defines no such fidelity"),
         Some(Fidelity::Lab(_)) => refuse("it drives the lab; policies train in simulation only"),
-        Some(Fidelity::Simulated(f)) => {
-            if f.control != Control::Direct {
+        Some(Fidelity::Simulated(f)) if f.control == Control::Trajectory => {
+            let Some(planner) = &checked.spec.planner else {
                 return refuse(
-                    "it plans trajectories for an MPC follower (`control: trajectory`); the trainer steps \
-                     `control: direct` fidelities so far",
+                    "it plans trajectories (`control: trajectory`), and the spec has no `planner`",
                 );
-            }
+            };
+            Ok(Plant::Stack(Box::new(StackPlant {
+                fidelity: f.clone(),
+                planner: cpmx_engine::planner(
+                    planner,
+                    checked.spec.timing.dt,
+                    cpmx_engine::vehicle_params(&checked.spec.vehicle),
+                )
+                .params()
+                .to_owned(),
+            })))
+        }
+        Some(Fidelity::Simulated(f)) => {
             if !matches!(f.dynamics, DynamicsLayer::Kinematic(_)) {
                 return refuse(
-                    "its dynamics are the grey-box model; the trainer steps the kinematic bicycle so far",
+                    "`control: direct` applies actions to the kinematic bicycle; grey-box dynamics need `control: trajectory`",
                 );
             }
             if !matches!(f.sensing, None | Some(SensingLayer::Ideal(_))) {
-                return refuse("it has a sensing model; the trainer observes exact states so far");
+                return refuse(
+                    "`control: direct` observes exact states; a sensing model needs `control: trajectory`",
+                );
             }
             if !matches!(f.actuation, None | Some(ActuationLayer::Ideal(_))) {
-                return refuse("it has an actuation model; the trainer applies actions exactly so far");
+                return refuse(
+                    "`control: direct` applies actions exactly; an actuation model needs `control: trajectory`",
+                );
             }
-            Ok(())
+            Ok(Plant::Direct)
         }
     }
 }
@@ -196,7 +222,11 @@ fn describe_paths(training: &TrainingSpec) -> String {
 }
 
 /// SHA-256 over the resolved training section, vehicle, dt and the map file's bytes.
-fn fingerprint(checked: &CheckedSpec, training: &serde_json::Value) -> Result<String, SetupError> {
+fn fingerprint(
+    checked: &CheckedSpec,
+    training: &serde_json::Value,
+    plant: &Plant,
+) -> Result<String, SetupError> {
     let mut hasher = Sha256::new();
     hasher.update(b"cpmx/training/v2\0");
     // A seed's run does not depend on which other seeds the spec lists: seeds may be added
@@ -219,6 +249,23 @@ fn fingerprint(checked: &CheckedSpec, training: &serde_json::Value) -> Result<St
     }
     hasher.update([0u8]);
     hasher.update(checked.spec.timing.dt.to_bits().to_le_bytes());
+    // The vehicles' stack: the fidelity's layers and the planner (SigmaRL's simulation has no
+    // parameters beyond the vehicle and `dt`).
+    if matches!(plant, Plant::Stack(_)) {
+        let name = training
+            .get("fidelity")
+            .and_then(|v| v.as_str())
+            .unwrap_or_default();
+        let resolved = &checked.resolved;
+        let fidelity = resolved.get("fidelities").and_then(|f| f.get(name)).cloned();
+        for value in [
+            fidelity.unwrap_or_default(),
+            resolved.get("planner").cloned().unwrap_or_default(),
+        ] {
+            hasher.update([1u8]);
+            hasher.update(value.to_string().as_bytes());
+        }
+    }
     if let Some(file) = &checked.resources.map_file {
         let bytes = std::fs::read(file).map_err(|e| {
             SetupError::Map(cpmx_engine::PrepareError::Map(cpmx_world::MapError::Io {
