@@ -140,3 +140,89 @@ impl Environment for TrainingEnv {
         self.env.load_state(state)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cpmx_env::{Plant, StackPlant, sigmarl_intersection_paths};
+    use cpmx_learn::{Hyperparameters, Trainer};
+    use cpmx_spec::model::{
+        ActuationLayer, ActuationModel, Control, Distribution, DynamicsLayer, KinematicKeyword, Parameter,
+        SimulatedFidelity,
+    };
+
+    /// sim-mpc with an actuation delay drawn per episode, 3 environments of 2 agents.
+    fn stacked_env(seed: u64) -> TrainingEnv {
+        let map =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference/maps/cpm.xml");
+        let paths = sigmarl_intersection_paths(&map).expect("the CPM Lab map of ../shared/reference");
+        let mut config = EnvConfig::default();
+        config.scenario.envs = 3;
+        config.scenario.agents = 2;
+        config.scenario.episode_steps = 24;
+        config.plant = Plant::Stack(Box::new(StackPlant {
+            fidelity: SimulatedFidelity {
+                control: Control::Trajectory,
+                dynamics: DynamicsLayer::Kinematic(KinematicKeyword::Kinematic),
+                sensing: None,
+                actuation: Some(ActuationLayer::Model(ActuationModel {
+                    delay_ms: Parameter::Drawn(Distribution::Uniform([20.0, 100.0])),
+                })),
+                follower: None,
+            },
+            planner: cpmx_planner::PlannerParams {
+                control_horizon: 4,
+                prediction_horizon: 12,
+                step_s: 0.1,
+                steering_after: cpmx_planner::SteeringAfterHc::LinearToZero,
+            },
+        }));
+        TrainingEnv::new(config, &paths, seed).expect("environment")
+    }
+
+    fn hyperparameters() -> Hyperparameters {
+        Hyperparameters {
+            frames_per_batch: 3 * 20,
+            minibatch_size: 30,
+            num_epochs: 2,
+            actor_hidden: vec![16],
+            critic_hidden: vec![16],
+            ..Hyperparameters::sigmarl(5)
+        }
+    }
+
+    /// A trainer restored from a checkpoint mid-episode (the vehicle stacks replayed, the
+    /// planner's lookahead handed the restored actor) continues to the same weights, curve rows
+    /// and checkpoint as one that never stopped.
+    #[test]
+    fn a_stacked_run_resumes_exactly_through_the_learner() {
+        let mut whole = Trainer::new(stacked_env(4), hyperparameters(), 4).unwrap();
+        let mut records = Vec::new();
+        for _ in 0..2 {
+            records.push(whole.iterate().unwrap());
+        }
+        let saved = whole.checkpoint();
+        let mut resumed = Trainer::resume(stacked_env(99), hyperparameters(), &saved).unwrap();
+        for _ in 0..2 {
+            let (mut a, mut b) = (whole.iterate().unwrap(), resumed.iterate().unwrap());
+            for r in [&mut a, &mut b] {
+                (r.collect_seconds, r.update_seconds) = (0.0, 0.0);
+            }
+            assert_eq!(a, b);
+            records.push(a);
+        }
+        assert_eq!(whole.actor().params, resumed.actor().params);
+        assert_eq!(whole.checkpoint(), resumed.checkpoint());
+        // Episodes of 23 steps end within each iteration's 20 steps per environment: the
+        // delay was drawn anew, in its range.
+        let drawn: Vec<f64> = records
+            .iter()
+            .filter(|r| r.draws > 0)
+            .map(|r| r.drawn_parameter_means[0])
+            .collect();
+        assert!(
+            !drawn.is_empty() && drawn.iter().all(|d| (20.0..100.0).contains(d)),
+            "{drawn:?}"
+        );
+    }
+}
