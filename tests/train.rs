@@ -112,7 +112,7 @@ fn a_small_scenario_learns_and_the_trained_actor_runs() {
     let dir = scratch("train-learns");
     let spec = small_spec(&dir, 24);
     let table = ok(&train(&dir, &spec, &["--only", "seed=7"]));
-    assert!(table.contains("| 7 | 24 |"), "{table}");
+    assert!(table.contains("| seed 7 | 24 |"), "{table}");
     let out = dir.join("out");
     for file in [
         "actor.safetensors",
@@ -342,7 +342,7 @@ fn a_spec_that_only_trains_trains_and_has_nothing_to_run() {
     )
     .unwrap();
     let table = ok(&train(&dir, &spec, &[]));
-    assert!(table.contains("| 3 | 1 |"), "{table}");
+    assert!(table.contains("| seed 3 | 1 |"), "{table}");
     let run = Command::new(env!("CARGO_BIN_EXE_cpmx"))
         .arg("run")
         .arg(&spec)
@@ -365,8 +365,8 @@ map: {file: maps/cpm.xml}
 timing: {dt: 0.1, steps: 30}
 agents: 2
 policies:
-  - {name: from-sim-mpc, mlp: {trained: {seed: 3, dir: OUT/sim-mpc}}}
-  - {name: from-twin, mlp: {trained: {seed: 3, dir: OUT/twin-random}}}
+  - {name: from-sim-mpc, mlp: {trained: {seed: 3, fidelity: sim-mpc, dir: OUT}}}
+  - {name: from-twin, mlp: {trained: {seed: 3, fidelity: twin-random, dir: OUT}}}
 initial_configurations:
   - name: crossing
     agents:
@@ -384,7 +384,7 @@ fidelities:
     actuation: {delay_ms: {uniform: [40, 120]}}
 planner: {control_horizon: 4, prediction_horizon: 12}
 training:
-  fidelity: FIDELITY
+  fidelity: [sim-mpc, twin-random]
   scenario: {extends: stdlib:sigmarl-intersection, envs: 4, agents: 2, episode_steps: 32}
   reward: stdlib:sigmarl-at25
   algorithm:
@@ -396,34 +396,20 @@ training:
   seeds: [3]
 ";
 
-/// Training through the planner and the MPC follower, and in a twin randomised per episode:
-/// 3 iterations each give the same actors and curves with one thread and two, the curve of
-/// the randomised twin says what was drawn, and both actors run in every fidelity.
+/// Training through the planner and the MPC follower, and in a twin randomised per episode,
+/// from one spec that lists both fidelities: 3 iterations each give the same actors and curves
+/// with one thread and two, the curve of the randomised twin says what was drawn, and both
+/// actors run in every fidelity.
 #[test]
 fn training_in_the_labs_control_architecture_is_deterministic_and_its_actors_run_everywhere() {
     let mut trained = Vec::new();
     for jobs in ["1", "2"] {
         let dir = scratch(&format!("train-stacked-{jobs}"));
         let out = dir.join("out");
-        for fidelity in ["sim-mpc", "twin-random"] {
-            let spec = dir.join(format!("{fidelity}.yaml"));
-            let text = STACKED
-                .replace("FIDELITY", fidelity)
-                .replace("OUT", out.to_str().unwrap());
-            std::fs::write(&spec, text).unwrap();
-            let output = Command::new(env!("CARGO_BIN_EXE_cpmx"))
-                .arg("train")
-                .arg(&spec)
-                .arg("--out")
-                .arg(out.join(fidelity))
-                .arg("--data")
-                .arg(reference())
-                .args(["--jobs", jobs])
-                .env_remove("CPMX_DATA")
-                .output()
-                .expect("cpmx runs");
-            ok(&output);
-        }
+        let spec = dir.join("stacked.yaml");
+        std::fs::write(&spec, STACKED.replace("OUT", out.to_str().unwrap())).unwrap();
+        let table = ok(&train(&dir, &spec, &["--jobs", jobs]));
+        assert!(table.contains("| twin-random seed 3 | 3 |"), "{table}");
         trained.push((dir, weights_and_curves(&out)));
     }
     assert_same_files(&trained[0].1, &trained[1].1);
@@ -452,7 +438,7 @@ fn training_in_the_labs_control_architecture_is_deterministic_and_its_actors_run
     ok(&Command::new(env!("CARGO_BIN_EXE_cpmx"))
         .args([
             "run",
-            dir.join("sim-mpc.yaml").to_str().unwrap(),
+            dir.join("stacked.yaml").to_str().unwrap(),
             "--out",
             run_out.to_str().unwrap(),
         ])

@@ -85,10 +85,69 @@ fn check_trained_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
                         .with_help(format!("training seeds: {}", seeds.join(", "))),
                     );
                 }
-                Some(_) => {}
+                Some(t) => check_trained_fidelity(spec, t, i, trained, ctx),
             },
             (Some(_), None) => {}
         }
+    }
+}
+
+/// `trained.fidelity`: one of the fidelities the spec trains in (any of its fidelities for
+/// an actor in another folder, `dir`), and needed when it trains in several.
+fn check_trained_fidelity(
+    spec: &Spec,
+    training: &TrainingSpec,
+    i: usize,
+    trained: &TrainedActor,
+    ctx: &mut CheckContext<'_>,
+) {
+    let base = format!("/policies/{i}/mlp/trained");
+    let listed = training.fidelity.names();
+    match &trained.fidelity {
+        None if trained.dir.is_none() && training.fidelity.several() => {
+            let span = key_span(ctx, &base);
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::trained",
+                    format!(
+                        "policy `{}` names seed {}, and the spec trains in {} fidelities",
+                        spec.policies[i].name,
+                        trained.seed,
+                        listed.len()
+                    ),
+                    span,
+                    "trained in which?",
+                )
+                .with_help(format!("add `fidelity: NAME`, one of: {}", listed.join(", "))),
+            );
+        }
+        Some(name)
+            if !listed.contains(name) && (trained.dir.is_none() || !spec.fidelities.contains_key(name)) =>
+        {
+            let span = ctx.span(&format!("{base}/fidelity"));
+            let (what, names): (&str, Vec<String>) = if trained.dir.is_none() {
+                ("`training.fidelity` does not list", listed.to_vec())
+            } else {
+                (
+                    "the spec does not define",
+                    spec.fidelities.keys().cloned().collect(),
+                )
+            };
+            let p = Problem::error(
+                "cpmx::check::trained",
+                format!(
+                    "policy `{}` was trained in fidelity `{name}`, which {what}",
+                    spec.policies[i].name
+                ),
+                span,
+                "unknown training fidelity",
+            );
+            ctx.push(match crate::schema::did_you_mean(name, &names) {
+                Some(best) => p.with_help(format!("did you mean `{best}`?")),
+                None => p.with_help(format!("one of: {}", names.join(", "))),
+            });
+        }
+        _ => {}
     }
 }
 
@@ -99,35 +158,60 @@ fn key_span(ctx: &CheckContext<'_>, pointer: &str) -> crate::diagnostic::ByteSpa
 }
 
 fn check_fidelity(spec: &Spec, training: &TrainingSpec, ctx: &mut CheckContext<'_>) {
-    let name = &training.fidelity;
-    match spec.fidelities.get(name) {
-        None => {
-            let names: Vec<String> = spec.fidelities.keys().cloned().collect();
-            let span = ctx.span("/training/fidelity");
-            let p = Problem::error(
-                "cpmx::check::training-fidelity",
-                format!("`training.fidelity` names fidelity `{name}`, which the spec does not define"),
-                span,
-                "unknown fidelity",
-            );
-            ctx.push(match crate::schema::did_you_mean(name, &names) {
-                Some(best) => p.with_help(format!("did you mean `{best}`?")),
-                None => p.with_help(format!("fidelities: {} (the default is `sim`)", names.join(", "))),
-            });
+    let names = training.fidelity.names();
+    let pointer = |i: usize| {
+        if training.fidelity.single().is_some() {
+            "/training/fidelity".to_owned()
+        } else {
+            format!("/training/fidelity/{i}")
         }
-        Some(Fidelity::Lab(_)) => {
-            let span = ctx.span("/training/fidelity");
+    };
+    for (i, name) in names.iter().enumerate() {
+        if names[..i].contains(name) {
+            let span = ctx.span(&pointer(i));
             ctx.push(
                 Problem::error(
                     "cpmx::check::training-fidelity",
-                    format!("fidelity `{name}` drives the lab; policies train in simulation only"),
+                    format!("`training.fidelity` lists `{name}` twice"),
                     span,
-                    "a lab driver",
+                    "listed before",
                 )
-                .with_help("name a simulated fidelity of this spec (e.g. `sim`)"),
+                .with_help("each fidelity trains its policies once; drop the second"),
             );
+            continue;
         }
-        Some(Fidelity::Simulated(_)) => {}
+        match spec.fidelities.get(name) {
+            None => {
+                let defined: Vec<String> = spec.fidelities.keys().cloned().collect();
+                let span = ctx.span(&pointer(i));
+                let p = Problem::error(
+                    "cpmx::check::training-fidelity",
+                    format!("`training.fidelity` names fidelity `{name}`, which the spec does not define"),
+                    span,
+                    "unknown fidelity",
+                );
+                ctx.push(match crate::schema::did_you_mean(name, &defined) {
+                    Some(best) => p.with_help(format!("did you mean `{best}`?")),
+                    None => p.with_help(format!(
+                        "fidelities: {} (the default is `sim`)",
+                        defined.join(", ")
+                    )),
+                });
+            }
+            Some(Fidelity::Lab(_)) => {
+                let span = ctx.span(&pointer(i));
+                ctx.push(
+                    Problem::error(
+                        "cpmx::check::training-fidelity",
+                        format!("fidelity `{name}` drives the lab; policies train in simulation only"),
+                        span,
+                        "a lab driver",
+                    )
+                    .with_help("name a simulated fidelity of this spec (e.g. `sim`)"),
+                );
+            }
+            Some(Fidelity::Simulated(_)) => {}
+        }
     }
 }
 
@@ -378,7 +462,7 @@ pub(crate) fn find_trained(
     data: &DataPath,
     ctx: &mut CheckContext<'_>,
 ) -> Option<PathBuf> {
-    let file = trained.relative_file(&spec.name);
+    let file = trained.relative_file(&spec.name, spec.training.as_ref());
     match data.find(&file) {
         Ok(path) => Some(path),
         Err(_) if PathBuf::from(&file).is_file() => Some(PathBuf::from(&file)),

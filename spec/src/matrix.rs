@@ -34,10 +34,12 @@ pub struct RunPlan {
     pub seed: u64,
 }
 
-/// One training run of `cpmx train`: one seed of `training.seeds`.
+/// One training run of `cpmx train`: one seed of `training.seeds` in one fidelity of
+/// `training.fidelity`.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct TrainingPlan {
-    /// `train/<seed>`; the run writes to `<out>/<seed>/`.
+    /// `train/<seed>` (one fidelity; the run writes to `<out>/<seed>/`) or
+    /// `train/<fidelity>/<seed>` (several; `<out>/<fidelity>/<seed>/`).
     pub key: String,
     /// The fidelity it trains in.
     pub fidelity: String,
@@ -50,21 +52,30 @@ pub struct TrainingPlan {
     pub frames_per_iteration: u32,
 }
 
-/// The training runs of a spec, in the order of `training.seeds` (none without `training:`).
+/// The training runs of a spec: every seed of `training.seeds` in every fidelity of
+/// `training.fidelity`, fidelity-major (none without `training:`).
 pub fn training_runs(spec: &Spec) -> Vec<TrainingPlan> {
     let Some(t) = &spec.training else {
         return vec![];
     };
-    t.seeds
+    let several = t.fidelity.several();
+    t.fidelity
+        .names()
         .iter()
-        .map(|&seed| TrainingPlan {
-            key: format!("train/{seed}"),
-            fidelity: t.fidelity.clone(),
-            seed,
-            iterations: t.iterations,
-            envs: t.scenario.envs,
-            agents: t.scenario.agents,
-            frames_per_iteration: t.algorithm.mappo.frames_per_iteration,
+        .flat_map(|fidelity| {
+            t.seeds.iter().map(move |&seed| TrainingPlan {
+                key: if several {
+                    format!("train/{fidelity}/{seed}")
+                } else {
+                    format!("train/{seed}")
+                },
+                fidelity: fidelity.clone(),
+                seed,
+                iterations: t.iterations,
+                envs: t.scenario.envs,
+                agents: t.scenario.agents,
+                frames_per_iteration: t.algorithm.mappo.frames_per_iteration,
+            })
         })
         .collect()
 }

@@ -103,7 +103,7 @@ fn a_spec_may_only_train_in_sigmarls_simulation() {
 fn the_presets_are_sigmarls_setup_and_the_plan_has_one_run_per_seed() {
     let checked = check(VALID).unwrap();
     let t = checked.spec.training.as_ref().unwrap();
-    assert_eq!(t.fidelity, "sim");
+    assert_eq!(t.fidelity.single(), Some("sim"));
     let s = &t.scenario;
     assert_eq!(s.path_set, Some(PathSetName::Intersection));
     assert_eq!((s.agents, s.envs, s.episode_steps), (4, 32, 128));
@@ -171,7 +171,7 @@ fn overrides_and_trained_policies() {
         .as_ref()
         .unwrap();
     assert_eq!(
-        trained.relative_file("demo"),
+        trained.relative_file("demo", checked.spec.training.as_ref()),
         "out/demo-train/2/actor.safetensors"
     );
 }
@@ -303,4 +303,81 @@ fn the_at25_presets_are_sigmarls_setup_when_the_papers_policies_were_trained() {
     assert_eq!(r.velocity_to_points.as_ref().unwrap().against_path_factor, 2.0);
     assert_eq!(r.time.as_ref().unwrap().weight, 0.05);
     assert!((r.steering_change.as_ref().unwrap().threshold_rad - 10f64.to_radians()).abs() < 1e-15);
+}
+case!(
+    training_fidelity_listed_twice,
+    edit("training:\n", "training:\n  fidelity: [sim, sim]\n"),
+    17,
+    19
+);
+case!(
+    trained_policy_of_a_spec_that_trains_in_several_fidelities,
+    edit("training:\n", "training:\n  fidelity: [sim, mpc]\n")
+        .replace("  sim: {control: direct, dynamics: kinematic}\n", "  sim: {control: direct, dynamics: kinematic}\n  mpc: {control: trajectory, dynamics: kinematic}\n")
+        .replace(
+            "  - {name: base, builtin: lane-follow}\n",
+            "  - {name: base, builtin: lane-follow}\n  - {name: s2, mlp: {trained: {seed: 2}}}\n"
+        ),
+    8,
+    22
+);
+case!(
+    trained_in_a_fidelity_that_is_not_trained,
+    edit(
+        "  - {name: base, builtin: lane-follow}\n",
+        "  - {name: base, builtin: lane-follow}\n  - {name: s2, mlp: {trained: {seed: 2, fidelity: lab}}}\n"
+    ),
+    8,
+    51
+);
+case!(
+    training_in_a_trajectory_fidelity_without_a_planner,
+    edit("training:\n", "training:\n  fidelity: mpc\n")
+        .replace("  sim: {control: direct, dynamics: kinematic}\n", "  sim: {control: direct, dynamics: kinematic}\n  mpc: {control: trajectory, dynamics: kinematic}\n")
+        .replace("planner: {control_horizon: 4, prediction_horizon: 12}\n", ""),
+    14,
+    3
+);
+
+#[test]
+fn a_spec_trains_in_several_fidelities_one_folder_each() {
+    let text = edit("training:\n", "training:\n  fidelity: [sim, mpc]\n")
+        .replace(
+            "  sim: {control: direct, dynamics: kinematic}\n",
+            "  sim: {control: direct, dynamics: kinematic}\n  mpc: {control: trajectory, dynamics: kinematic}\n",
+        )
+        .replace(
+            "  - {name: base, builtin: lane-follow}\n",
+            "  - {name: base, builtin: lane-follow}\n  - {name: s2, mlp: {trained: {seed: 2, fidelity: mpc}}}\n",
+        );
+    let checked = check(&text).unwrap();
+    let plan = checked.training_plan();
+    let keys: Vec<(&str, &str)> = plan
+        .iter()
+        .map(|p| (p.key.as_str(), p.fidelity.as_str()))
+        .collect();
+    assert_eq!(
+        keys,
+        [
+            ("train/sim/1", "sim"),
+            ("train/sim/2", "sim"),
+            ("train/sim/3", "sim"),
+            ("train/mpc/1", "mpc"),
+            ("train/mpc/2", "mpc"),
+            ("train/mpc/3", "mpc")
+        ]
+    );
+    let training = checked.spec.training.as_ref();
+    let trained = checked.spec.policies[1]
+        .mlp
+        .as_ref()
+        .unwrap()
+        .trained
+        .as_ref()
+        .unwrap();
+    assert_eq!(
+        trained.relative_file("demo", training),
+        "out/demo-train/mpc/2/actor.safetensors"
+    );
+    assert_eq!(trained.trained_in(training), Some("mpc"));
 }

@@ -1,5 +1,6 @@
-//! `cpmx train SPEC`: one policy per seed of the spec's `training:` section, into
-//! `<out>/<seed>/` (see `cpmx-train`), with a progress bar on a terminal and a summary table.
+//! `cpmx train SPEC`: one policy per seed (and per fidelity) of the spec's `training:`
+//! section, into `<out>/<seed>/` (`<out>/<fidelity>/<seed>/` when it trains in several
+//! fidelities; see `cpmx-train`), with a progress bar on a terminal and a summary table.
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -19,9 +20,10 @@ pub struct TrainArgs {
     /// The training folder. Default: `out/<name>-train`.
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Train only some seeds, e.g. `seed=1,3`.
-    #[arg(long, value_name = "seed=SEEDS")]
-    pub only: Option<String>,
+    /// Train only some seeds or fidelities, e.g. `seed=1,3` or `fidelity=sim-mpc`
+    /// (repeatable: `--only fidelity=twin --only seed=2`).
+    #[arg(long, value_name = "AXIS=NAMES")]
+    pub only: Vec<String>,
     /// Worker threads (default: all cores). The weights do not depend on it.
     #[arg(long)]
     pub jobs: Option<usize>,
@@ -43,34 +45,50 @@ fn made_by() -> String {
     }
 }
 
-/// The seeds `--only seed=...` keeps, checked against the spec's.
-fn selected_seeds(only: Option<&str>, seeds: &[u64]) -> Result<Vec<u64>, Failure> {
-    let Some(only) = only else {
-        return Ok(seeds.to_vec());
-    };
-    let listed: Vec<String> = seeds.iter().map(u64::to_string).collect();
-    let Some(("seed", values)) = only.split_once('=') else {
-        eprintln!("error: `--only {only}`: expected seed=..., e.g. `--only seed=1,3`");
-        return Err(Failure::Usage);
-    };
+/// What `--only` keeps of an axis (`seed` or `fidelity`): every value listed for it, checked
+/// against the spec's (all of them when the axis is not named).
+fn selected<T: Clone + PartialEq + std::fmt::Display>(
+    only: &[String],
+    axis: &str,
+    values: &[T],
+    parse: impl Fn(&str) -> Option<T>,
+) -> Result<Vec<T>, Failure> {
+    let listed: Vec<String> = values.iter().map(T::to_string).collect();
     let mut chosen = Vec::new();
-    for value in values.split(',') {
-        match value.trim().parse::<u64>() {
-            Ok(seed) if seeds.contains(&seed) => {
-                if !chosen.contains(&seed) {
-                    chosen.push(seed);
+    let mut named = false;
+    for filter in only {
+        let Some((name, list)) = filter.split_once('=') else {
+            eprintln!(
+                "error: `--only {filter}`: expected AXIS=NAMES, e.g. `--only seed=1,3` or `--only fidelity=sim`"
+            );
+            return Err(Failure::Usage);
+        };
+        if !["seed", "fidelity"].contains(&name) {
+            eprintln!("error: `--only {filter}`: `cpmx train` selects by `seed` or `fidelity`");
+            return Err(Failure::Usage);
+        }
+        if name != axis {
+            continue;
+        }
+        named = true;
+        for value in list.split(',') {
+            match parse(value.trim()) {
+                Some(v) if values.contains(&v) => {
+                    if !chosen.contains(&v) {
+                        chosen.push(v);
+                    }
                 }
-            }
-            _ => {
-                eprintln!(
-                    "error: `--only seed={values}`: the spec trains no seed `{value}`\nhelp: the spec's seeds: {}",
-                    listed.join(", ")
-                );
-                return Err(Failure::Usage);
+                _ => {
+                    eprintln!(
+                        "error: `--only {axis}={list}`: the spec trains no {axis} `{value}`\nhelp: the spec's {axis}s: {}",
+                        listed.join(", ")
+                    );
+                    return Err(Failure::Usage);
+                }
             }
         }
     }
-    Ok(chosen)
+    Ok(if named { chosen } else { values.to_vec() })
 }
 
 pub fn run(args: &TrainArgs) -> Result<(), Failure> {
@@ -86,15 +104,31 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
             "cpmx::check::deterministic-repetitions",
         ],
     )?;
-    let setup = TrainingSetup::prepare(&checked).map_err(|e| {
+    let setup_error = |e: cpmx_train::SetupError| {
         eprintln!("error: {e}");
         Failure::InvalidInput
-    })?;
-    let seeds = selected_seeds(args.only.as_deref(), &setup.seeds)?;
+    };
+    let all_fidelities = TrainingSetup::fidelities(&checked).map_err(setup_error)?;
+    let several = all_fidelities.len() > 1;
+    let fidelities = selected(&args.only, "fidelity", &all_fidelities, |v| Some(v.to_owned()))?;
+    let mut setups = Vec::new();
+    for fidelity in &fidelities {
+        setups.push((
+            fidelity.clone(),
+            TrainingSetup::prepare(&checked, fidelity).map_err(setup_error)?,
+        ));
+    }
+    let Some((_, first_setup)) = setups.first() else {
+        return Ok(());
+    };
+    let seeds = selected(&args.only, "seed", &first_setup.seeds, |v| v.parse().ok())?;
+    let spec_name = first_setup.spec_name.clone();
     let out = args
         .out
         .clone()
-        .unwrap_or_else(|| Path::new("out").join(format!("{}-train", setup.spec_name)));
+        .unwrap_or_else(|| Path::new("out").join(format!("{spec_name}-train")));
+    // One folder per fidelity when the spec trains in several.
+    let folder = |fidelity: &str| if several { out.join(fidelity) } else { out.clone() };
     let jobs = args
         .jobs
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
@@ -113,10 +147,12 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
     // Open every seed's folder before training any, so that a refusal (a run that exists
     // without --resume, changed inputs, a damaged checkpoint) stops before work is done.
     let mut runs = Vec::new();
-    for &seed in &seeds {
-        match SeedRun::open(&setup, &out, seed, args.resume, &made_by()) {
-            Ok(run) => runs.push(run),
-            Err(e) => return Err(report_open_error(&e)),
+    for (fidelity, setup) in &setups {
+        for &seed in &seeds {
+            match SeedRun::open(setup, &folder(fidelity), seed, args.resume, &made_by()) {
+                Ok((run, start)) => runs.push((fidelity.clone(), run, start)),
+                Err(e) => return Err(report_open_error(&e)),
+            }
         }
     }
     if let Ok(text) = std::fs::read(&args.spec) {
@@ -124,39 +160,40 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
     }
 
     let mut summary = Vec::new();
-    for (mut run, start) in runs {
+    for (fidelity, mut run, start) in runs {
         let seed_started = Instant::now();
         let first = run.done();
+        let label = if several {
+            format!("{fidelity} seed {}", run_seed(&run))
+        } else {
+            format!("seed {}", run_seed(&run))
+        };
         match start {
             Start::Fresh => eprintln!(
-                "seed {}: training {} iterations into {}",
-                run_seed(&run),
+                "{label}: training {} iterations into {}",
                 run.planned(),
                 run.dir().display()
             ),
             Start::Resumed { done } if done >= run.planned() => {
-                eprintln!("seed {}: already trained ({done} iterations)", run_seed(&run))
+                eprintln!("{label}: already trained ({done} iterations)")
             }
-            Start::Resumed { done } => eprintln!(
-                "seed {}: resuming after iteration {done} of {}",
-                run_seed(&run),
-                run.planned()
-            ),
+            Start::Resumed { done } => {
+                eprintln!("{label}: resuming after iteration {done} of {}", run.planned())
+            }
         }
         let bar = progress_bar(run.planned(), first);
         let mut last_rewards: Vec<f64> = Vec::new();
         while run.done() < run.planned() {
             let record = pool.install(|| run.iterate()).map_err(|e| {
                 bar.abandon();
-                eprintln!("error: seed {}: {e}", run_seed(&run));
+                eprintln!("error: {label}: {e}");
                 Failure::InvalidInput
             })?;
             if record.episode_reward_mean.is_finite() {
                 last_rewards.push(record.episode_reward_mean);
             }
             let message = format!(
-                "seed {}  reward {}  best {:.2}",
-                run_seed(&run),
+                "{label}  reward {}  best {:.2}",
                 show(record.episode_reward_mean),
                 run.best_reward()
             );
@@ -179,7 +216,7 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
         let trained = run.done() - first;
         let seconds = seed_started.elapsed().as_secs_f64();
         summary.push((
-            run_seed(&run),
+            label,
             run.done(),
             run.best_reward(),
             last_rewards,
@@ -187,15 +224,17 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
             run.dir().to_owned(),
         ));
     }
-    write_overview(&out, &setup.spec_name, &setup.seeds).map_err(|e| report_io(&e))?;
+    for (fidelity, setup) in &setups {
+        write_overview(&folder(fidelity), &spec_name, &setup.seeds).map_err(|e| report_io(&e))?;
+    }
 
-    println!("| seed | iterations | best episode_reward_mean | mean of the last 10 | s/iteration | actor |");
+    println!("| run | iterations | best episode_reward_mean | mean of the last 10 | s/iteration | actor |");
     println!("|---:|---:|---:|---:|---:|---|");
-    for (seed, done, best, rewards, per_iteration, dir) in summary {
+    for (label, done, best, rewards, per_iteration, dir) in summary {
         let tail = &rewards[rewards.len().saturating_sub(10)..];
         let tail_mean = (!tail.is_empty()).then(|| tail.iter().sum::<f64>() / tail.len() as f64);
         println!(
-            "| {seed} | {done} | {} | {} | {} | {} |",
+            "| {label} | {done} | {} | {} | {} | {} |",
             show(best),
             tail_mean.map_or("–".into(), |m| format!("{m:.3}")),
             per_iteration.map_or("–".into(), |s| format!("{s:.2}")),

@@ -8,7 +8,7 @@
 //! the crates below; the command line (progress bar, `--jobs`, `--only`) lives in `cpmx`.
 //!
 //! ```text
-//! let setup = TrainingSetup::prepare(&checked)?;
+//! let setup = TrainingSetup::prepare(&checked, "sim")?;         // one of its fidelities
 //! for &seed in &setup.seeds {
 //!     let (mut run, _start) = SeedRun::open(&setup, out, seed, resume, "cpmx 0.1.0")?;
 //!     while run.done() < run.planned() {

@@ -65,11 +65,18 @@ impl TrainingSetup {
         }
     }
 
-    /// Reads the spec's training section and loads its map.
-    pub fn prepare(checked: &CheckedSpec) -> Result<TrainingSetup, SetupError> {
+    /// The fidelities the spec trains in (`training.fidelity`), in order.
+    pub fn fidelities(checked: &CheckedSpec) -> Result<Vec<String>, SetupError> {
+        let training = checked.spec.training.as_ref().ok_or(SetupError::NoTraining)?;
+        Ok(training.fidelity.names().to_vec())
+    }
+
+    /// Reads the spec's training section for training in `fidelity` (one of
+    /// [`TrainingSetup::fidelities`]) and loads its map.
+    pub fn prepare(checked: &CheckedSpec, fidelity: &str) -> Result<TrainingSetup, SetupError> {
         let spec = &checked.spec;
         let training = spec.training.as_ref().ok_or(SetupError::NoTraining)?;
-        let plant = plant_of(checked, training)?;
+        let plant = plant_of(checked, fidelity)?;
         check_learner_choices(training)?;
         let map = cpmx_engine::load_map(spec, checked.resources.map_file.as_deref())?;
         let paths = training_paths(&map, training).map_err(cpmx_engine::PrepareError::Map)?;
@@ -101,11 +108,15 @@ impl TrainingSetup {
         let env = config_from_training(training, observation, vehicle, spec.timing.dt, plant);
         env.check().map_err(|e| SetupError::Invalid(e.to_string()))?;
         let hyperparameters = hyperparameters(training, &vehicle);
-        let resolved = checked
+        // The section as it trains this fidelity: the same as a spec that names it alone.
+        let mut resolved = checked
             .resolved
             .get("training")
             .cloned()
             .unwrap_or(serde_json::Value::Null);
+        if let Some(object) = resolved.as_object_mut() {
+            object.insert("fidelity".to_owned(), serde_json::Value::from(fidelity));
+        }
         let fingerprint = fingerprint(checked, &resolved, &env.plant)?;
         Ok(TrainingSetup {
             spec_name: spec.name.clone(),
@@ -147,11 +158,10 @@ fn hyperparameters(training: &TrainingSpec, vehicle: &cpmx_vehicle::VehicleParam
 /// kinematic bicycle with exact states; any other layer needs `control: trajectory`, as in
 /// `cpmx run`), the lab's control architecture with the fidelity's layers and the spec's
 /// planner for `control: trajectory`; a lab driver is refused.
-fn plant_of(checked: &CheckedSpec, training: &TrainingSpec) -> Result<Plant, SetupError> {
-    let name = &training.fidelity;
+fn plant_of(checked: &CheckedSpec, name: &str) -> Result<Plant, SetupError> {
     let refuse = |reason: &str| {
         Err(SetupError::Fidelity {
-            name: name.clone(),
+            name: name.to_owned(),
             reason: reason.to_owned(),
         })
     };

@@ -42,6 +42,6 @@ pub use start::{
 pub use training::{
     Activation, AlgorithmSpec, CentreLineSpec, MappoSpec, NearAgentsSpec, NearBoundarySpec, NetworkSpec,
     PathSetName, ProgressSpec, RampShape, ResetScopeName, RewardSpec, SpeedSpec, SteeringChangeSpec,
-    TimeSpec, TrainingReset, TrainingScenario, TrainingSpec, TrainingStart, TtcSpec, ValueLoss,
-    VelocityToPointsSpec,
+    TimeSpec, TrainingFidelities, TrainingReset, TrainingScenario, TrainingSpec, TrainingStart, TtcSpec,
+    ValueLoss, VelocityToPointsSpec,
 };

@@ -162,6 +162,12 @@ pub struct TrainedActor {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(length(min = 1))]
     pub dir: Option<String>,
+    /// The fidelity it was trained in: one of `training.fidelity` (needed when that lists
+    /// several, whose actors are in `<dir>/<fidelity>/<seed>/`; its only one by default), or,
+    /// for an actor in another folder (`dir`), any fidelity of the spec. Reports compare
+    /// policies by the fidelity they were trained in (the transfer matrix).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fidelity: Option<String>,
 }
 
 /// Which of a training run's actors.
@@ -177,17 +183,34 @@ pub enum TrainedChoice {
 
 impl TrainedActor {
     /// The actor's file relative to the training folder `dir` (or the default
-    /// `out/<spec_name>-train`): `<dir>/<seed>/actor.safetensors` or `actor.last.safetensors`.
-    pub fn relative_file(&self, spec_name: &str) -> String {
-        let dir = self
-            .dir
-            .clone()
-            .unwrap_or_else(|| format!("out/{spec_name}-train"));
+    /// `out/<spec_name>-train`): `<dir>/<seed>/actor.safetensors` (`actor.last.safetensors`
+    /// for `which: last`), or `<dir>/<fidelity>/<seed>/...` for an actor of a spec that trains
+    /// in several fidelities (`training`: the spec's section, if it has one).
+    pub fn relative_file(&self, spec_name: &str, training: Option<&crate::model::TrainingSpec>) -> String {
         let file = match self.which {
             TrainedChoice::Best => "actor.safetensors",
             TrainedChoice::Last => "actor.last.safetensors",
         };
-        format!("{}/{}/{file}", dir.trim_end_matches('/'), self.seed)
+        let dir = self.dir.as_deref().map_or_else(
+            || format!("out/{spec_name}-train"),
+            |d| d.trim_end_matches('/').to_owned(),
+        );
+        match &self.fidelity {
+            Some(fidelity)
+                if training
+                    .is_some_and(|t| t.fidelity.several() && t.fidelity.names().contains(fidelity)) =>
+            {
+                format!("{dir}/{fidelity}/{}/{file}", self.seed)
+            }
+            _ => format!("{dir}/{}/{file}", self.seed),
+        }
+    }
+
+    /// The fidelity it was trained in: `fidelity`, else the spec's only training fidelity.
+    pub fn trained_in<'a>(&'a self, training: Option<&'a crate::model::TrainingSpec>) -> Option<&'a str> {
+        self.fidelity
+            .as_deref()
+            .or_else(|| training.and_then(|t| t.fidelity.single()))
     }
 }
 

@@ -11,10 +11,12 @@ use super::{ObservationSpec, PresetOr};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TrainingSpec {
-    /// The fidelity of this spec to train in: a simulated stack, never a lab driver.
-    /// Default: `sim`.
+    /// The fidelity of this spec to train in (a simulated stack, never a lab driver), or a
+    /// list of them: one policy per fidelity and seed, trained into `<out>/<fidelity>/<seed>/`
+    /// (a single fidelity: `<out>/<seed>/`). Default: `sim`.
     #[serde(default = "default_fidelity")]
-    pub fidelity: String,
+    #[schemars(with = "FidelityNames")]
+    pub fidelity: TrainingFidelities,
     /// Where the agents train: reference paths, agents, parallel environments, episode
     /// length, start sampling and reset rules. SigmaRL's: `stdlib:sigmarl-intersection`.
     #[schemars(with = "PresetOr<TrainingScenario>")]
@@ -43,8 +45,63 @@ pub struct TrainingSpec {
     pub seeds: Vec<u64>,
 }
 
-fn default_fidelity() -> String {
-    "sim".to_owned()
+fn default_fidelity() -> TrainingFidelities {
+    TrainingFidelities(vec!["sim".to_owned()])
+}
+
+/// The fidelities a spec trains in, in the order given (never empty, no name twice: checked).
+/// Written as one name or a list.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TrainingFidelities(pub Vec<String>);
+
+impl TrainingFidelities {
+    /// The names, in order.
+    pub fn names(&self) -> &[String] {
+        &self.0
+    }
+
+    /// Whether more than one is listed (trainings go to `<out>/<fidelity>/<seed>/`).
+    pub fn several(&self) -> bool {
+        self.0.len() > 1
+    }
+
+    /// The only one, when exactly one is listed.
+    pub fn single(&self) -> Option<&str> {
+        match self.0.as_slice() {
+            [one] => Some(one),
+            _ => None,
+        }
+    }
+}
+
+/// One fidelity name, or a list of them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(untagged)]
+enum FidelityNames {
+    /// One fidelity.
+    One(String),
+    /// Several, each trained alike.
+    Several(#[schemars(length(min = 1))] Vec<String>),
+}
+
+impl Serialize for TrainingFidelities {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        match self.single() {
+            Some(one) => serializer.serialize_str(one),
+            None => self.0.serialize(serializer),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for TrainingFidelities {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        Ok(TrainingFidelities(
+            match FidelityNames::deserialize(deserializer)? {
+                FidelityNames::One(name) => vec![name],
+                FidelityNames::Several(names) => names,
+            },
+        ))
+    }
 }
 
 /// The training scenario. Exactly one of `path_set`, `ref_paths` and `region` says which
