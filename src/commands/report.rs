@@ -177,7 +177,12 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
         );
     }
 
-    let summary = summarize(&scoring.spec.name, &records, &scoring.spec.report);
+    let summary = summarize(
+        &scoring.spec.name,
+        &records,
+        &scoring.spec.report,
+        &cpmx_report::Origins::of_spec(&scoring.spec),
+    );
     if let Some(out) = &args.out {
         folder::write_summaries_from(out, &args.dirs, &scoring, &records)
             .map_err(|e| fail(format!("cannot write `{}`: {e}", out.display())))?;

@@ -210,7 +210,12 @@ pub fn write_summaries_from(
     scoring: &Scoring,
     records: &[RunRecord],
 ) -> std::io::Result<Summary> {
-    let summary = summarize(&scoring.spec.name, records, &scoring.spec.report);
+    let summary = summarize(
+        &scoring.spec.name,
+        records,
+        &scoring.spec.report,
+        &cpmx_report::Origins::of_spec(&scoring.spec),
+    );
     write_atomic(&out.join("per_run.csv"), per_run_csv(records).as_bytes())?;
     for format in Format::ALL {
         if let Some(name) = format.file_name() {

@@ -3,7 +3,7 @@
 
 use cpmx_metrics::{MetricsConfig, PathGeometry, evaluate};
 use cpmx_recording::{AgentSample, Recording};
-use cpmx_report::{RunRecord, summarize};
+use cpmx_report::{Origins, RunRecord, summarize};
 use cpmx_report_html::{Page, PageRun, page_data, report_html};
 use cpmx_spec::RunPlan;
 use cpmx_spec::model::{Bootstrap, Compare, GroupKey, PairedTest, ReportSpec, Statistic};
@@ -88,7 +88,7 @@ fn page_data_of_a_small_folder() {
             test: PairedTest::Paired,
         }),
     };
-    let summary = summarize("small", &records, &report);
+    let summary = summarize("small", &records, &report, &Origins::default());
     let vehicle = VehicleParams::MU_CAR;
     let page = Page {
         summary: &summary,

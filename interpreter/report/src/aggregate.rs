@@ -12,7 +12,9 @@ use cpmx_spec::model::{Bootstrap, GroupKey, ReportSpec, Statistic};
 use crate::RunRecord;
 use crate::compare::{Comparison, compare};
 use crate::metric::{Metric, Units};
+use crate::transfer::{Origin, Transfer, transfer};
 use crate::units::distinct_units;
+use std::collections::BTreeMap;
 
 /// Confidence of every interval of the report.
 pub const CONFIDENCE: f64 = 0.95;
@@ -34,6 +36,8 @@ pub struct Summary {
     pub groups: Vec<Group>,
     /// The paired comparison with the reference fidelity, when `report.compare` is set.
     pub comparison: Option<Comparison>,
+    /// The transfer matrix, when the runs' policies were trained in two fidelities or more.
+    pub transfer: Option<Transfer>,
 }
 
 impl Summary {
@@ -106,12 +110,50 @@ pub fn axis_value(plan: &RunPlan, axis: GroupKey) -> &str {
     }
 }
 
+/// Where the policies of an experiment were trained: by policy name, and the training
+/// fidelity the others are compared with (the first the spec trains in).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Origins {
+    /// The training fidelity and seed of each policy `cpmx train` trained.
+    pub policies: BTreeMap<String, Origin>,
+    /// The reference training fidelity of the transfer matrix.
+    pub reference: Option<String>,
+}
+
+impl Origins {
+    /// The origins a spec declares: every policy `mlp: {trained}` with its training fidelity
+    /// (`trained.fidelity`, else the spec's only one) and seed; the reference is the first
+    /// fidelity of `training.fidelity`.
+    pub fn of_spec(spec: &cpmx_spec::model::Spec) -> Origins {
+        let training = spec.training.as_ref();
+        let policies = spec
+            .policies
+            .iter()
+            .filter_map(|p| {
+                let trained = p.mlp.as_ref()?.trained.as_ref()?;
+                Some((
+                    p.name.clone(),
+                    Origin {
+                        trained_in: trained.trained_in(training)?.to_owned(),
+                        seed: trained.seed,
+                    },
+                ))
+            })
+            .collect();
+        Origins {
+            policies,
+            reference: training.and_then(|t| t.fidelity.names().first().cloned()),
+        }
+    }
+}
+
 /// Summarises `runs` as `report` asks: groups by `report.group_by` in order of first
-/// appearance, every metric per group, and the paired comparison of `report.compare`.
+/// appearance, every metric per group, the paired comparison of `report.compare`, and the
+/// transfer matrix when `origins` names two training fidelities or more.
 ///
 /// Total: no runs, empty groups, single runs and NaN values all give a summary (with NaN
 /// statistics where they are undefined).
-pub fn summarize(experiment: &str, runs: &[RunRecord], report: &ReportSpec) -> Summary {
+pub fn summarize(experiment: &str, runs: &[RunRecord], report: &ReportSpec, origins: &Origins) -> Summary {
     let with_bootstrap = report.statistics.contains(&Statistic::Bootstrap);
     let units = Units::of_runs(runs.iter().map(|r| &r.metrics));
     let groups = group_runs(runs, &report.group_by)
@@ -131,6 +173,13 @@ pub fn summarize(experiment: &str, runs: &[RunRecord], report: &ReportSpec) -> S
             .compare
             .as_ref()
             .map(|c| compare(runs, &c.reference, &report.bootstrap)),
+        transfer: transfer(
+            runs,
+            &origins.policies,
+            origins.reference.as_deref(),
+            report,
+            units,
+        ),
     }
 }
 
@@ -150,7 +199,10 @@ pub fn sort_by_matrix(runs: &mut [RunRecord], matrix: &[RunPlan]) {
 }
 
 /// The runs of each group, groups in order of their first run.
-fn group_runs<'a>(runs: &'a [RunRecord], axes: &[GroupKey]) -> Vec<(Vec<String>, Vec<&'a RunRecord>)> {
+pub(crate) fn group_runs<'a>(
+    runs: &'a [RunRecord],
+    axes: &[GroupKey],
+) -> Vec<(Vec<String>, Vec<&'a RunRecord>)> {
     let mut groups: Vec<(Vec<String>, Vec<&RunRecord>)> = Vec::new();
     for run in runs {
         let key: Vec<String> = axes
@@ -165,7 +217,7 @@ fn group_runs<'a>(runs: &'a [RunRecord], axes: &[GroupKey]) -> Vec<(Vec<String>,
     groups
 }
 
-fn summarize_group(
+pub(crate) fn summarize_group(
     key: Vec<String>,
     members: &[&RunRecord],
     units: Units,
@@ -233,7 +285,12 @@ mod tests {
             record("twin", "p1", "init2", 1, [f64::NAN, f64::NAN, 0.05, 0.0]),
             record("twin", "p1", "init3", 1, [3.0, 42.0, 0.06, 0.8]),
         ];
-        let summary = summarize("x", &runs, &spec(&[GroupKey::Fidelity], false, None));
+        let summary = summarize(
+            "x",
+            &runs,
+            &spec(&[GroupKey::Fidelity], false, None),
+            &Origins::default(),
+        );
         let keys: Vec<&str> = summary.groups.iter().map(|g| g.key[0].as_str()).collect();
         assert_eq!(keys, ["twin", "sim"]);
         let cra_a = summary.groups[0].metric(Metric::CraA).unwrap();
@@ -255,7 +312,12 @@ mod tests {
             copy_of(&b, 2),
             copy_of(&b, 3),
         ];
-        let summary = summarize("x", &runs, &spec(&[GroupKey::Fidelity], true, None));
+        let summary = summarize(
+            "x",
+            &runs,
+            &spec(&[GroupKey::Fidelity], true, None),
+            &Origins::default(),
+        );
         let group = &summary.groups[0];
         assert_eq!((group.runs, group.units), (6, 2));
         let cd = group.metric(Metric::Cd).unwrap();
@@ -277,7 +339,12 @@ mod tests {
                 record("twin", "p", &format!("init{i}"), 1, [collisions, 40.0, 0.04, 0.7])
             })
             .collect();
-        let summary = summarize("x", &runs, &spec(&[GroupKey::Fidelity], false, None));
+        let summary = summarize(
+            "x",
+            &runs,
+            &spec(&[GroupKey::Fidelity], false, None),
+            &Origins::default(),
+        );
         let cra_a = summary.groups[0].metric(Metric::CraA).unwrap();
         assert_eq!(cra_a.stats.ci95.low, 0.0);
     }
@@ -291,8 +358,8 @@ mod tests {
             })
             .collect();
         let report = spec(&[GroupKey::Fidelity], true, None);
-        let a = summarize("x", &runs, &report);
-        let b = summarize("x", &runs, &report);
+        let a = summarize("x", &runs, &report, &Origins::default());
+        let b = summarize("x", &runs, &report, &Origins::default());
         assert_eq!(a, b);
         let ci = a.groups[0].metric(Metric::CraA).unwrap().bootstrap.unwrap();
         assert!(ci.mean.low < 2.5 && 2.5 < ci.mean.high, "{ci:?}");
@@ -317,7 +384,12 @@ mod tests {
 
     #[test]
     fn no_runs_give_no_groups() {
-        let summary = summarize("x", &[], &spec(&[GroupKey::Policy], true, Some("sim")));
+        let summary = summarize(
+            "x",
+            &[],
+            &spec(&[GroupKey::Policy], true, Some("sim")),
+            &Origins::default(),
+        );
         assert!(summary.groups.is_empty());
         assert!(summary.comparison.unwrap().fidelities.is_empty());
     }

@@ -4,7 +4,8 @@
 //!
 //! Modules: `metric` (names, units, directions, precision, bounds), `units` (which runs are
 //! independent units and which are copies), `aggregate` (groups and their statistics),
-//! `compare` (paired differences with the reference fidelity), `table` (text renderers),
+//! `compare` (paired differences with the reference fidelity), `transfer` (policies trained in
+//! several fidelities, evaluated in every one), `table` (text renderers),
 //! `svg` (plots written as SVG text).
 //!
 //! Every renderer is a pure function of its input and byte-stable: fixed number formats,
@@ -18,16 +19,18 @@ mod svg;
 mod table;
 #[cfg(test)]
 mod testing;
+mod transfer;
 mod units;
 
 pub use aggregate::{
-    BootstrapIntervals, CONFIDENCE, Group, MetricSummary, Summary, axis_name, axis_value, sort_by_matrix,
-    summarize,
+    BootstrapIntervals, CONFIDENCE, Group, MetricSummary, Origins, Summary, axis_name, axis_value,
+    sort_by_matrix, summarize,
 };
 pub use compare::{Comparison, FidelityComparison, PairedMetric, Signs};
 pub use metric::{Metric, Units};
 pub use svg::{distribution_svg, trajectory_svg};
 pub use table::{Format, per_run_csv, render};
+pub use transfer::{Origin, Transfer, TransferCell};
 pub use units::distinct_units;
 
 use cpmx_metrics::RunMetrics;

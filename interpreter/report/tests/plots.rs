@@ -5,7 +5,7 @@ mod common;
 
 use cpmx_metrics::{MetricsConfig, PathGeometry, RunMetrics, evaluate};
 use cpmx_recording::{AgentSample, Recording};
-use cpmx_report::{Metric, distribution_svg, summarize, trajectory_svg};
+use cpmx_report::{Metric, Origins, distribution_svg, summarize, trajectory_svg};
 use cpmx_spec::model::GroupKey;
 use cpmx_vehicle::VehicleParams;
 use cpmx_world::Map;
@@ -113,6 +113,7 @@ fn distribution_plot_has_one_dot_per_defined_run() {
         "synthetic",
         &common::runs(),
         &common::report(&[GroupKey::Fidelity]),
+        &Origins::default(),
     );
     for metric in Metric::ALL {
         let svg = distribution_svg(&summary, metric);
@@ -131,12 +132,22 @@ fn distribution_plot_has_one_dot_per_defined_run() {
 
 #[test]
 fn distribution_plot_of_nothing_is_still_svg() {
-    let summary = summarize("empty", &[], &common::report(&[GroupKey::Fidelity]));
+    let summary = summarize(
+        "empty",
+        &[],
+        &common::report(&[GroupKey::Fidelity]),
+        &Origins::default(),
+    );
     let svg = distribution_svg(&summary, Metric::As);
     roxmltree::Document::parse(&svg).unwrap();
     let nan = vec![common::record("lab", "p", "i", 1, [f64::NAN; 4], 0.0)];
     let svg = distribution_svg(
-        &summarize("nan", &nan, &common::report(&[GroupKey::Fidelity])),
+        &summarize(
+            "nan",
+            &nan,
+            &common::report(&[GroupKey::Fidelity]),
+            &Origins::default(),
+        ),
         Metric::CraA,
     );
     let doc = roxmltree::Document::parse(&svg).unwrap();

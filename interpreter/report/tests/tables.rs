@@ -3,7 +3,7 @@
 
 mod common;
 
-use cpmx_report::{Format, per_run_csv, render, summarize};
+use cpmx_report::{Format, Origins, per_run_csv, render, summarize};
 use cpmx_spec::model::{GroupKey, ReportSpec};
 
 fn fixture() -> cpmx_report::Summary {
@@ -11,6 +11,7 @@ fn fixture() -> cpmx_report::Summary {
         "synthetic",
         &common::runs(),
         &common::report(&[GroupKey::Fidelity]),
+        &Origins::default(),
     )
 }
 
@@ -46,7 +47,7 @@ fn markdown_grouped_by_fidelity_and_policy_with_default_statistics() {
         ..ReportSpec::default()
     };
     insta::assert_snapshot!(render(
-        &summarize("synthetic", &common::runs(), &report),
+        &summarize("synthetic", &common::runs(), &report, &Origins::default()),
         Format::Markdown
     ));
 }
@@ -82,7 +83,7 @@ fn degenerate_inputs_render_in_every_format() {
     )];
     let one = vec![common::record("sim", "p", "i", 1, [1.0, 2.0, 0.1, 0.5], 10.0)];
     for runs in [vec![], single, one] {
-        let summary = summarize("edge", &runs, &report);
+        let summary = summarize("edge", &runs, &report, &Origins::default());
         for format in Format::ALL {
             let text = render(&summary, format);
             assert!(text.ends_with('\n'), "{format:?}: {text}");
@@ -91,7 +92,10 @@ fn degenerate_inputs_render_in_every_format() {
     }
     // The lab-only run has no pairs: the comparison says so instead of failing.
     let lab = vec![common::record("lab", "p", "i", 1, [1.0, 2.0, 0.1, 0.5], 10.0)];
-    let markdown = render(&summarize("edge", &lab, &report), Format::Markdown);
+    let markdown = render(
+        &summarize("edge", &lab, &report, &Origins::default()),
+        Format::Markdown,
+    );
     assert!(
         markdown.contains("The reference fidelity has no runs."),
         "{markdown}"
@@ -101,4 +105,33 @@ fn degenerate_inputs_render_in_every_format() {
             .contains("| lab | CRA-A ↓ [events/100 m] | 0 (1 unmatched) | n/a | n/a | n/a | 0/0/0 | n/a |"),
         "{markdown}"
     );
+}
+
+/// The synthetic experiment's two policies read as trained in two fidelities (`seed1` in sim,
+/// `seed2` in twin, both with training seed 1): the Markdown summary ends with the transfer
+/// matrix and the paired differences with the sim-trained policy.
+#[test]
+fn markdown_with_the_transfer_matrix() {
+    let origin = |trained_in: &str| cpmx_report::Origin {
+        trained_in: trained_in.to_owned(),
+        seed: 1,
+    };
+    let origins = Origins {
+        policies: [
+            ("seed1".to_owned(), origin("sim")),
+            ("seed2".to_owned(), origin("twin")),
+        ]
+        .into_iter()
+        .collect(),
+        reference: Some("sim".to_owned()),
+    };
+    let summary = summarize(
+        "synthetic",
+        &common::runs(),
+        &common::report(&[GroupKey::Fidelity]),
+        &origins,
+    );
+    let markdown = render(&summary, Format::Markdown);
+    let transfer = &markdown[markdown.find("## Transfer").expect("a transfer section")..];
+    insta::assert_snapshot!(transfer);
 }

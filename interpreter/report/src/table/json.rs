@@ -35,10 +35,30 @@ pub fn render(summary: &Summary) -> String {
         })).collect::<Vec<_>>(),
         "groups": summary.groups.iter().map(|g| group(summary, g)).collect::<Vec<_>>(),
         "comparison": summary.comparison.as_ref().map(comparison),
+        "transfer": summary.transfer.as_ref().map(transfer),
     });
     let mut text = serde_json::to_string_pretty(&document).unwrap_or_default();
     text.push('\n');
     text
+}
+
+fn transfer(t: &crate::Transfer) -> Value {
+    json!({
+        "trained_in": t.trained_in,
+        "evaluated_in": t.evaluated_in,
+        "reference": t.trained_in.first(),
+        "cells": t.cells.iter().map(|c| json!({
+            "trained_in": c.trained_in,
+            "evaluated_in": c.evaluated_in,
+            "runs": c.group.runs,
+            "units": c.group.units,
+            "metrics": c.group.metrics.iter().map(|m| (m.metric.id().to_owned(), metric(m))).collect::<Map<String, Value>>(),
+        })).collect::<Vec<_>>(),
+        "comparisons": t.comparisons.iter().map(|(evaluated, c)| json!({
+            "evaluated_in": evaluated,
+            "comparison": comparison(c),
+        })).collect::<Vec<_>>(),
+    })
 }
 
 fn group(summary: &Summary, g: &Group) -> Value {

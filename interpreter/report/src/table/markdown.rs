@@ -1,12 +1,14 @@
 //! `summary.md`: the paper's Table 2 as a Markdown table (rows: groups; columns: metrics
-//! with unit and ↑/↓; cells `mean ± std (IQM)`), then the confidence intervals, then the
-//! paired comparison with the reference fidelity.
+//! with unit and ↑/↓; cells `mean ± std (IQM)`), then the confidence intervals, the paired
+//! comparison with the reference fidelity, and the transfer matrix when the policies were
+//! trained in several fidelities.
 
 use std::fmt::Write;
 
 use cpmx_spec::model::Statistic;
 
 use super::{CellParts, best_groups, exclusions, fixed, p_value, pairs_text};
+use crate::Transfer;
 use crate::aggregate::axis_name;
 use crate::compare::Comparison;
 use crate::metric::Metric;
@@ -22,7 +24,98 @@ pub fn render(summary: &Summary) -> String {
     if let Some(comparison) = &summary.comparison {
         comparison_table(&mut out, summary, comparison);
     }
+    if let Some(transfer) = &summary.transfer {
+        transfer_tables(&mut out, summary, transfer);
+    }
     out
+}
+
+/// The transfer matrix: per metric, training fidelities × evaluation fidelities; then every
+/// training fidelity against the reference one in each evaluation fidelity.
+fn transfer_tables(out: &mut String, summary: &Summary, transfer: &Transfer) {
+    let reference = &transfer.trained_in[0];
+    let _ = writeln!(out, "\n## Transfer: trained in × evaluated in\n");
+    let _ = writeln!(
+        out,
+        "Policies that `cpmx train` trained in each fidelity (rows), evaluated in each fidelity \
+         (columns): mean [t 95 % CI] (n independent units) over every training seed, initial \
+         configuration and repetition."
+    );
+    for metric in Metric::ALL {
+        let d = metric.decimals();
+        let _ = writeln!(out, "\n**{}**\n", metric_name(summary, metric));
+        let mut header = vec!["trained in \\ evaluated in".to_owned()];
+        header.extend(transfer.evaluated_in.iter().map(|e| escape(e)));
+        row(out, &header);
+        let mut align = vec![":--"];
+        align.resize(header.len(), "--:");
+        row(out, &align);
+        for trained in &transfer.trained_in {
+            let mut cells = vec![escape(trained)];
+            for evaluated in &transfer.evaluated_in {
+                cells.push(
+                    transfer
+                        .cell(trained, evaluated)
+                        .and_then(|c| c.group.metric(metric))
+                        .map_or_else(String::new, |m| {
+                            format!(
+                                "{} {} ({})",
+                                fixed(m.stats.mean, d),
+                                interval(m.stats.ci95, d),
+                                m.stats.n
+                            )
+                        }),
+                );
+            }
+            row(out, &cells);
+        }
+    }
+    let _ = writeln!(out, "\n### Paired with policies trained in `{reference}`\n");
+    let _ = writeln!(
+        out,
+        "Differences trained in X − trained in {reference}, evaluated in the same fidelity, over runs \
+         with the same training seed, initial configuration and repetition; copies count once. CI: \
+         paired percentile bootstrap, {} resamples, seed {}. p: two-sided Wilcoxon signed-rank test.\n",
+        summary.bootstrap.resamples, summary.bootstrap.seed
+    );
+    row(
+        out,
+        &[
+            "evaluated in",
+            "trained in",
+            "metric",
+            "pairs",
+            "difference",
+            "95 % CI",
+            "p",
+            "+/−/0",
+        ]
+        .map(String::from),
+    );
+    row(
+        out,
+        &[":--", ":--", ":--", "--:", "--:", "--:", "--:", "--:"].map(String::from),
+    );
+    for (evaluated, comparison) in &transfer.comparisons {
+        for trained in &comparison.fidelities {
+            for m in &trained.metrics {
+                let d = m.metric.decimals();
+                row(
+                    out,
+                    &[
+                        escape(evaluated),
+                        escape(&trained.fidelity),
+                        metric_name(summary, m.metric),
+                        pairs_text(m),
+                        fixed(m.mean_difference, d),
+                        interval(m.ci95_bootstrap, d),
+                        p_value(m.wilcoxon_p),
+                        format!("{}/{}/{}", m.signs.positive, m.signs.negative, m.signs.zero),
+                    ],
+                );
+            }
+        }
+    }
 }
 
 /// Table 2: one row per group.
