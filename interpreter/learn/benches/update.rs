@@ -175,10 +175,21 @@ unsafe fn fma_peak_avx2() -> f32 {
 }
 
 fn bench(c: &mut Criterion) {
+    // As the trainer does: the step runs inside a pool of `RAYON_NUM_THREADS` (default: all
+    // cores), so that its parallel loops start on the calling thread instead of waking a
+    // worker for each.
+    let threads = std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("a thread pool");
     let mut step = Step::new();
     let mut group = c.benchmark_group("update");
     group.throughput(Throughput::Elements(step.flops()));
-    group.bench_function("minibatch_step_flop", |b| b.iter(|| step.run()));
+    group.bench_function("minibatch_step_flop", |b| b.iter(|| pool.install(|| step.run())));
     group.finish();
     // The parts, to see where the time goes.
     let mut group = c.benchmark_group("parts");
