@@ -21,6 +21,8 @@ fn markdown_to_html(markdown: &str) -> String {
         }
         if let Some(heading) = line.strip_prefix("## ") {
             out.push_str(&format!("<h3>{}</h3>\n", inline(heading)));
+        } else if let Some(heading) = line.strip_prefix("### ") {
+            out.push_str(&format!("<h4>{}</h4>\n", inline(heading)));
         } else if line.starts_with('|') {
             let mut rows = vec![line];
             while let Some(next) = lines.next_if(|l| l.starts_with('|')) {
@@ -136,14 +138,14 @@ mod tests {
 
     #[test]
     fn the_summary_subset_of_markdown_becomes_html() {
-        let md = "# x\n\nSome **bold** and `code` <b>.\n\n| a | b \\| c |\n| :-- | --: |\n| 1 | **2** |\n\n## Notes\n\n- one\n- two\n";
+        let md = "# x\n\nSome **bold** and `code` <b>.\n\n| a | b \\| c |\n| :-- | --: |\n| 1 | **2** |\n\n## Notes\n\n- one\n- two\n\n### Detail\n";
         let html = markdown_to_html(md);
         assert_eq!(
             html,
             "<p class=\"note\">Some <strong>bold</strong> and <code>code</code> &lt;b&gt;.</p>\n\
              <table>\n<thead><tr><th>a</th><th>b | c</th></tr></thead>\n<tbody>\n\
              <tr><td>1</td><td class=\"num\"><strong>2</strong></td></tr>\n</tbody>\n</table>\n\
-             <h3>Notes</h3>\n<ul>\n<li>one</li>\n<li>two</li>\n</ul>\n"
+             <h3>Notes</h3>\n<ul>\n<li>one</li>\n<li>two</li>\n</ul>\n<h4>Detail</h4>\n"
         );
     }
 }

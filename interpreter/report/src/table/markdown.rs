@@ -44,7 +44,7 @@ fn transfer_tables(out: &mut String, summary: &Summary, transfer: &Transfer) {
     for metric in Metric::ALL {
         let d = metric.decimals();
         let _ = writeln!(out, "\n**{}**\n", metric_name(summary, metric));
-        let mut header = vec!["trained in \\ evaluated in".to_owned()];
+        let mut header = vec!["trained in / evaluated in".to_owned()];
         header.extend(transfer.evaluated_in.iter().map(|e| escape(e)));
         row(out, &header);
         let mut align = vec![":--"];
