@@ -99,20 +99,9 @@ fn transfer_tables(out: &mut String, summary: &Summary, transfer: &Transfer) {
     for (evaluated, comparison) in &transfer.comparisons {
         for trained in &comparison.fidelities {
             for m in &trained.metrics {
-                let d = m.metric.decimals();
-                row(
-                    out,
-                    &[
-                        escape(evaluated),
-                        escape(&trained.fidelity),
-                        metric_name(summary, m.metric),
-                        pairs_text(m),
-                        fixed(m.mean_difference, d),
-                        interval(m.ci95_bootstrap, d),
-                        p_value(m.wilcoxon_p),
-                        format!("{}/{}/{}", m.signs.positive, m.signs.negative, m.signs.zero),
-                    ],
-                );
+                let mut cells = vec![escape(evaluated), escape(&trained.fidelity)];
+                cells.extend(paired_cells(summary, m));
+                row(out, &cells);
             }
         }
     }
@@ -268,20 +257,10 @@ fn comparison_table(out: &mut String, summary: &Summary, comparison: &Comparison
     );
     for fidelity in &comparison.fidelities {
         for m in &fidelity.metrics {
-            let d = m.metric.decimals();
-            row(
-                out,
-                &[
-                    escape(&fidelity.fidelity),
-                    metric_name(summary, m.metric),
-                    pairs_text(m),
-                    fixed(m.mean_difference, d),
-                    interval(m.ci95_bootstrap, d),
-                    p_value(m.wilcoxon_p),
-                    format!("{}/{}/{}", m.signs.positive, m.signs.negative, m.signs.zero),
-                    fixed(m.probability_of_improvement, 2),
-                ],
-            );
+            let mut cells = vec![escape(&fidelity.fidelity)];
+            cells.extend(paired_cells(summary, m));
+            cells.push(fixed(m.probability_of_improvement, 2));
+            row(out, &cells);
         }
     }
     let notes = super::comparison_notes(comparison);
@@ -291,6 +270,19 @@ fn comparison_table(out: &mut String, summary: &Summary, comparison: &Comparison
             let _ = writeln!(out, "- {note}");
         }
     }
+}
+
+/// A paired metric's cells: metric, pairs, difference, its CI, p, signs.
+fn paired_cells(summary: &Summary, m: &crate::PairedMetric) -> [String; 6] {
+    let d = m.metric.decimals();
+    [
+        metric_name(summary, m.metric),
+        pairs_text(m),
+        fixed(m.mean_difference, d),
+        interval(m.ci95_bootstrap, d),
+        p_value(m.wilcoxon_p),
+        format!("{}/{}/{}", m.signs.positive, m.signs.negative, m.signs.zero),
+    ]
 }
 
 fn group_header(summary: &Summary) -> Vec<String> {
