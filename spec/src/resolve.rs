@@ -77,12 +77,24 @@ fn insert_defaults(doc: &mut Value) {
             }
         }
     }
+    // A network's observation: SigmaRL's, or for an actor this spec trains, the one it is
+    // trained with.
+    let trained_with = root
+        .get("training")
+        .and_then(|t| t.get("observation"))
+        .cloned()
+        .unwrap_or_else(|| Value::from("stdlib:sigmarl"));
     if let Some(policies) = root.get_mut("policies").and_then(Value::as_array_mut) {
         for policy in policies.iter_mut().filter_map(Value::as_object_mut) {
+            let trained = policy.get("mlp").and_then(|m| m.get("trained")).is_some();
             if policy.contains_key("mlp") || policy.contains_key("onnx") {
-                policy
-                    .entry("observation")
-                    .or_insert_with(|| Value::from("stdlib:sigmarl"));
+                policy.entry("observation").or_insert_with(|| {
+                    if trained {
+                        trained_with.clone()
+                    } else {
+                        Value::from("stdlib:sigmarl")
+                    }
+                });
             }
         }
     }

@@ -381,3 +381,24 @@ fn a_spec_trains_in_several_fidelities_one_folder_each() {
     );
     assert_eq!(trained.trained_in(training), Some("mpc"));
 }
+
+/// An actor the spec trains is observed as it was trained: without `observation:` of its own,
+/// the policy takes the training section's (here with the steering angles).
+#[test]
+fn a_trained_actor_is_observed_as_it_was_trained() {
+    let text = edit(
+        "  reward: stdlib:sigmarl\n",
+        "  reward: stdlib:sigmarl\n  observation: {extends: stdlib:sigmarl, steering: true}\n",
+    )
+    .replace(
+        "  - {name: base, builtin: lane-follow}\n",
+        "  - {name: base, builtin: lane-follow}\n  - {name: s2, mlp: {trained: {seed: 2}}}\n",
+    );
+    let checked = check(&text).unwrap();
+    let observation = checked.spec.policies[1].observation.as_ref().unwrap();
+    assert!(observation.steering, "the training observation");
+    assert!(
+        checked.spec.policies[0].observation.is_none(),
+        "a baseline observes nothing"
+    );
+}

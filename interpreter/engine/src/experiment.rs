@@ -220,6 +220,7 @@ pub fn observation(o: &ObservationSpec) -> SigmarlObservation {
         distance_norm_m: o.distance_scale_m,
         observe_center_line_distance: o.center_line_distance,
         observe_boundary_distances: o.boundary_distances,
+        observe_steering: o.steering,
         boundary_corners: if o.agent0_boundary_lag {
             BoundaryCorners::LaggedForFirstAgent
         } else {

@@ -44,6 +44,7 @@ fn rollout_start() -> (AgentPaths, Vec<AgentState>) {
                 yaw_rad: num(&step["rot"][i]),
                 speed_mps: num(&step["speed"][i]),
                 velocity_mps: [num(&step["vel"][i][0]), num(&step["vel"][i][1])],
+                steering_rad: 0.0,
             }
         })
         .collect();

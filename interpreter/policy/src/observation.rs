@@ -21,6 +21,8 @@ pub struct AgentState {
     pub speed_mps: f64,
     /// Velocity vector in the map frame [m/s] (SigmaRL observes its norm).
     pub velocity_mps: [f64; 2],
+    /// Steering angle [rad] (observed only with [`SigmarlObservation::observe_steering`]).
+    pub steering_rad: f64,
 }
 
 impl AgentState {
@@ -33,6 +35,7 @@ impl AgentState {
             yaw_rad: state.yaw_rad,
             speed_mps: state.speed_mps,
             velocity_mps,
+            steering_rad: state.steering_rad,
         }
     }
 
@@ -95,6 +98,11 @@ pub struct SigmarlObservation {
     pub observe_boundary_distances: bool,
     /// Observe each neighbour's centre distance (1 value per neighbour).
     pub observe_neighbour_distance: bool,
+    /// Observe the steering angles (SigmaRL's `is_obs_steering`): the own after the own speed,
+    /// each neighbour's after its velocity (1 + `neighbours` values).
+    pub observe_steering: bool,
+    /// Normaliser of steering angles [rad] (SigmaRL: 2π).
+    pub steering_norm_rad: f64,
     /// Which corners enter the boundary distances.
     pub boundary_corners: BoundaryCorners,
 }
@@ -112,6 +120,8 @@ impl Default for SigmarlObservation {
             observe_center_line_distance: true,
             observe_boundary_distances: true,
             observe_neighbour_distance: true,
+            observe_steering: false,
+            steering_norm_rad: std::f64::consts::TAU,
             boundary_corners: BoundaryCorners::LaggedForFirstAgent,
         }
     }
@@ -148,10 +158,12 @@ pub const MAX_NEIGHBOURS: usize = 8;
 impl SigmarlObservation {
     /// Number of values per agent (32 for the default parameters).
     pub fn size(&self) -> usize {
-        1 + 2 * self.reference_points
+        let steering = usize::from(self.observe_steering);
+        1 + steering
+            + 2 * self.reference_points
             + usize::from(self.observe_center_line_distance)
             + 2 * usize::from(self.observe_boundary_distances)
-            + self.neighbours * (NEIGHBOUR_BASE + usize::from(self.observe_neighbour_distance))
+            + self.neighbours * (NEIGHBOUR_BASE + steering + usize::from(self.observe_neighbour_distance))
     }
 
     /// Observations of all agents into `out` (`agents * size()` values, agent-major).
@@ -200,8 +212,11 @@ impl SigmarlObservation {
         let frame = EgoFrame::new(me);
         let mut w = Writer { out, at: 0 };
 
-        // Own speed.
+        // Own speed (and steering).
         w.push(me.velocity_norm_mps() / self.speed_norm_mps);
+        if self.observe_steering {
+            w.push(me.steering_rad / self.steering_norm_rad);
+        }
 
         // Short-term reference points, from the closest centre-line point onward.
         let nearest = path.center.nearest([me.x_m, me.y_m]);
@@ -252,6 +267,9 @@ impl SigmarlObservation {
             let (speed, heading) = (other.velocity_norm_mps(), other.yaw_rad - me.yaw_rad);
             w.push(speed * heading.cos() / self.speed_norm_mps);
             w.push(speed * heading.sin() / self.speed_norm_mps);
+            if self.observe_steering {
+                w.push(other.steering_rad / self.steering_norm_rad);
+            }
             if self.observe_neighbour_distance {
                 w.push(distance_m / self.distance_norm_m);
             }
@@ -321,6 +339,55 @@ mod tests {
     #[test]
     fn default_layout_has_32_values() {
         assert_eq!(SigmarlObservation::default().size(), 32);
+    }
+
+    /// With the steering observed: the own angle after the own speed, each neighbour's after
+    /// its velocity, over 2π; everything else in place.
+    #[test]
+    fn steering_is_observed_where_sigmarl_puts_it() {
+        let map = cpmx_world::Map::builtin("intersection").unwrap();
+        let paths = AgentPaths::new([1, 2, 3].map(|id| map.reference_path(id).unwrap()));
+        let agents: Vec<AgentState> = [(0.3, 0.1), (-0.5, -0.2), (1.0, 0.4)]
+            .iter()
+            .enumerate()
+            .map(|(i, &(x, steering_rad))| AgentState {
+                x_m: x,
+                y_m: 0.2 * i as f64,
+                yaw_rad: 0.1,
+                speed_mps: 0.5,
+                velocity_mps: [0.5, 0.05],
+                steering_rad,
+            })
+            .collect();
+        let input = ObservationInput {
+            agents: &agents,
+            paths: &paths,
+            vehicle: &VehicleParams::MU_CAR,
+            previous_corners: None,
+        };
+        let plain = SigmarlObservation::default();
+        let steered = SigmarlObservation {
+            observe_steering: true,
+            ..plain
+        };
+        assert_eq!(steered.size(), 35);
+        let (mut a, mut b) = (vec![0.0; 3 * 32], vec![0.0; 3 * 35]);
+        plain.observe_all(&input, &mut a).unwrap();
+        steered.observe_all(&input, &mut b).unwrap();
+        let (a, b) = (&a[..32], &b[..35]);
+        let tau = std::f64::consts::TAU;
+        assert_eq!(b[1], (0.1 / tau) as f32);
+        // Own part: speed, steering, then as before.
+        assert_eq!(b[0], a[0]);
+        assert_eq!(b[2..11], a[1..10]);
+        // Each neighbour (agent 2 is nearest, then agent 1): 4 corners, velocity, steering,
+        // distance.
+        assert_eq!(b[11..21], a[10..20]);
+        assert_eq!(b[21], (0.4 / tau) as f32);
+        assert_eq!(b[22], a[20]);
+        assert_eq!(b[23..33], a[21..31]);
+        assert_eq!(b[33], (-0.2 / tau) as f32);
+        assert_eq!(b[34], a[31]);
     }
 
     #[test]

@@ -17,6 +17,7 @@ fn state(agent: &serde_json::Value) -> AgentState {
         yaw_rad: num(&agent["rot"]),
         speed_mps: num(&agent["speed"]),
         velocity_mps: [num(&agent["vel"][0]), num(&agent["vel"][1])],
+        steering_rad: 0.0,
     }
 }
 
@@ -95,6 +96,7 @@ fn current_corners_option_differs_only_for_agent_zero() {
             yaw_rad: 0.36,
             speed_mps: 0.5,
             velocity_mps: [0.47, 0.17],
+            steering_rad: 0.0,
         },
         AgentState {
             x_m: 3.39,
@@ -102,6 +104,7 @@ fn current_corners_option_differs_only_for_agent_zero() {
             yaw_rad: -0.06,
             speed_mps: 0.0,
             velocity_mps: [0.0, 0.0],
+            steering_rad: 0.0,
         },
     ];
     let vehicle = VehicleParams::MU_CAR;

@@ -61,6 +61,7 @@ fn recorded(step: &Value) -> (Vec<BicycleState>, Vec<AgentState>) {
                 yaw_rad: b.yaw_rad,
                 speed_mps: b.speed_mps,
                 velocity_mps: [num(&step["vel"][i][0]), num(&step["vel"][i][1])],
+                steering_rad: 0.0,
             };
             (b, a)
         })

@@ -35,6 +35,7 @@ fn measure(agents: usize, steps: usize) -> (f64, f64) {
                 yaw_rad: 0.3 * i as f64,
                 speed_mps: 0.4,
                 velocity_mps: [0.3, 0.2],
+                steering_rad: 0.0,
             }
         })
         .collect();

@@ -25,8 +25,8 @@ pub struct PolicySpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub process: Option<ProcessSpec>,
     /// The observation design the network was trained with (default for `mlp` and `onnx`:
-    /// `stdlib:sigmarl`); for a `process`, the observation sent with every step (none when
-    /// omitted).
+    /// `stdlib:sigmarl`, for `mlp: {trained}` the `training:` section's); for a `process`, the
+    /// observation sent with every step (none when omitted).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(with = "Option<PresetOr<ObservationSpec>>")]
     pub observation: Option<ObservationSpec>,
@@ -304,6 +304,12 @@ pub struct ObservationSpec {
     /// SigmaRL's quirk: agent 0's corner-based boundary distances use the previous step's
     /// corners. `true` reproduces SigmaRL's code; `false` uses the current corners.
     pub agent0_boundary_lag: bool,
+    /// Observe the steering angles, over 2π (SigmaRL's `is_obs_steering`): the own after the
+    /// own speed, each observed agent's after its velocity (1 + `observed_agents` values).
+    /// A steering rate limit makes the steering a state the policy cannot see otherwise.
+    /// Default: `false` (SigmaRL's published policies).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub steering: bool,
 }
 
 /// Observation designs.
