@@ -289,6 +289,13 @@ fn bad_input_is_refused_and_nothing_trained_is_lost() {
     let out = train(&dir, &spec, &["--only", "seed=9"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("the spec's seeds: 7, 8"));
+    // So are an unknown fidelity and an axis `cpmx train` does not select by.
+    let out = train(&dir, &spec, &["--only", "fidelity=twin"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("the spec's fidelities: sim"));
+    let out = train(&dir, &spec, &["--only", "policy=trained"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("by `seed` or `fidelity`"));
 
     // A changed spec does not continue the folder's run.
     let text = std::fs::read_to_string(&spec)

@@ -80,7 +80,8 @@ fn selected<T: Clone + PartialEq + std::fmt::Display>(
                 }
                 _ => {
                     eprintln!(
-                        "error: `--only {axis}={list}`: the spec trains no {axis} `{value}`\nhelp: the spec's {axis}s: {}",
+                        "error: `--only {axis}={list}`: the spec trains no {axis} `{value}`\nhelp: the spec's {}: {}",
+                        if axis == "seed" { "seeds" } else { "fidelities" },
                         listed.join(", ")
                     );
                     return Err(Failure::Usage);
