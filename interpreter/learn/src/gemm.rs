@@ -154,7 +154,16 @@ pub fn gemm_with(
         "A or B too small"
     );
     let n_panels = n.div_ceil(NR);
-    let mut packed_b = vec![0.0f32; n_panels * NR * KC.min(k)];
+    // The AVX-512 kernel reads a row-major B in place, one 16-value row of a panel per step
+    // (streamed from L2: a cache line per 12 multiply-adds); only a last partial panel is
+    // packed, zero-padded. Every other B is packed.
+    let b_in_place = kernel == Kernel::Avx512 && b.cs == 1;
+    let packed_panels = if b_in_place {
+        usize::from(n % NR != 0)
+    } else {
+        n_panels
+    };
+    let mut packed_b = vec![0.0f32; packed_panels * NR * KC.min(k)];
     // Row blocks: at least two per thread when there are enough rows.
     let threads = rayon::current_num_threads();
     let tile = kernel.tile_rows();
@@ -165,8 +174,24 @@ pub fn gemm_with(
         // Without `accumulate`, the first depth block starts every tile from zero instead of
         // loading C (the same sums as zeroing C first, without the pass over C).
         let load_c = accumulate || pc > 0;
-        pack_b(&b, pc, kc, n, &mut packed_b[..n_panels * NR * kc]);
-        let packed_b = &packed_b[..n_panels * NR * kc];
+        let packed_b = &mut packed_b[..packed_panels * NR * kc];
+        if b_in_place {
+            if packed_panels == 1 {
+                pack_b_panel(&b, pc, kc, n, (n_panels - 1) * NR, packed_b);
+            }
+        } else {
+            pack_b(&b, pc, kc, n, packed_b);
+        }
+        let packed_b = &*packed_b;
+        let panels = if b_in_place {
+            Panels::InPlace {
+                b: &b.data[pc * b.rs..],
+                row_stride: b.rs,
+                last_packed: (packed_panels == 1).then_some(packed_b),
+            }
+        } else {
+            Panels::Packed(packed_b)
+        };
         let c_rows = &mut c[..(m - 1) * ldc + n];
         let work = |(block, c_block): (usize, &mut [f32])| {
             let i0 = block * mc;
@@ -176,7 +201,7 @@ pub fn gemm_with(
                     data: &a.data[i0 * a.rs + pc * a.cs..],
                     ..a
                 };
-                block_product_in_place(&a_block, packed_b, kc, rows, n, c_block, ldc, load_c);
+                block_product_in_place(&a_block, &panels, kc, rows, n, c_block, ldc, load_c);
                 return;
             }
             PACK_A.with_borrow_mut(|packed_a| {
@@ -351,6 +376,33 @@ fn micro_kernel(kc: usize, a: &[f32], b: &[f32], c: &mut [f32], ldc: usize, fma:
     micro_kernel_portable(kc, a, b, c, ldc, load_c);
 }
 
+/// Where the AVX-512 kernel reads B's panels of [`NR`] columns over a depth block.
+enum Panels<'a> {
+    /// Packed: panel `p` at `p * NR * kc`, `NR` values a row.
+    Packed(&'a [f32]),
+    /// A row-major B read in place from the depth block's first row: panel `p` at `p * NR`,
+    /// rows `row_stride` apart; a last partial panel packed instead.
+    InPlace {
+        b: &'a [f32],
+        row_stride: usize,
+        last_packed: Option<&'a [f32]>,
+    },
+}
+
+impl<'a> Panels<'a> {
+    /// Panel `p` of `n_panels` and its row stride.
+    fn panel(&self, p: usize, n_panels: usize, kc: usize) -> (&'a [f32], usize) {
+        match *self {
+            Panels::Packed(packed) => (&packed[p * NR * kc..(p + 1) * NR * kc], NR),
+            Panels::InPlace {
+                last_packed: Some(last),
+                ..
+            } if p + 1 == n_panels => (last, NR),
+            Panels::InPlace { b, row_stride, .. } => (&b[p * NR..], row_stride),
+        }
+    }
+}
+
 /// All tiles of one row block with the AVX-512 kernel, reading A in place: `a` starts at the
 /// block's first row and depth (element `(i, kk)` at `i * rs + kk * cs`), `c_block` at the
 /// block's first row. Full tiles are updated in place; tiles over the last columns go through
@@ -358,7 +410,7 @@ fn micro_kernel(kc: usize, a: &[f32], b: &[f32], c: &mut [f32], ldc: usize, fma:
 #[allow(clippy::too_many_arguments)]
 fn block_product_in_place(
     a: &Mat<'_>,
-    packed_b: &[f32],
+    panels: &Panels<'_>,
     kc: usize,
     rows: usize,
     n: usize,
@@ -368,7 +420,9 @@ fn block_product_in_place(
 ) {
     assert!(a.data.len() > (rows - 1) * a.rs + (kc - 1) * a.cs, "A block");
     let mut tile = [[0.0f32; NR]; MR_WIDE];
-    for (jp, b_panel) in packed_b.chunks_exact(NR * kc).enumerate() {
+    let n_panels = n.div_ceil(NR);
+    for jp in 0..n_panels {
+        let (b_panel, b_stride) = panels.panel(jp, n_panels, kc);
         let j0 = jp * NR;
         let cols = NR.min(n - j0);
         for i0 in (0..rows).step_by(MR_WIDE) {
@@ -376,7 +430,7 @@ fn block_product_in_place(
             let a_tile = &a.data[i0 * a.rs..];
             if cols == NR {
                 let c = &mut c_block[i0 * ldc + j0..(i0 + valid - 1) * ldc + j0 + NR];
-                wide_kernel(valid, kc, a_tile, a.rs, a.cs, b_panel, c, ldc, load_c);
+                wide_kernel(valid, kc, a_tile, a.rs, a.cs, b_panel, b_stride, c, ldc, load_c);
             } else {
                 if load_c {
                     for (r, t) in tile.iter_mut().enumerate().take(valid) {
@@ -384,7 +438,7 @@ fn block_product_in_place(
                     }
                 }
                 let t = &mut tile.as_flattened_mut()[..valid * NR];
-                wide_kernel(valid, kc, a_tile, a.rs, a.cs, b_panel, t, NR, load_c);
+                wide_kernel(valid, kc, a_tile, a.rs, a.cs, b_panel, b_stride, t, NR, load_c);
                 for (r, t) in tile.iter().enumerate().take(valid) {
                     c_block[(i0 + r) * ldc + j0..][..cols].copy_from_slice(&t[..cols]);
                 }
@@ -394,7 +448,8 @@ fn block_product_in_place(
 }
 
 /// The AVX-512 tile of `rows` (1 to [`MR_WIDE`]) rows: `C_tile (+)= A_tile B_panel` over `kc`
-/// terms, A element `(r, kk)` at `a[r * rs + kk * cs]`, C element `(r, j)` at `c[r * ldc + j]`.
+/// terms, A element `(r, kk)` at `a[r * rs + kk * cs]`, B row `kk` at `b[kk * ldb..][..NR]`,
+/// C element `(r, j)` at `c[r * ldc + j]`.
 #[allow(clippy::too_many_arguments)]
 fn wide_kernel(
     rows: usize,
@@ -403,6 +458,7 @@ fn wide_kernel(
     rs: usize,
     cs: usize,
     b: &[f32],
+    ldb: usize,
     c: &mut [f32],
     ldc: usize,
     load_c: bool,
@@ -410,7 +466,7 @@ fn wide_kernel(
     assert!(
         (1..=MR_WIDE).contains(&rows)
             && a.len() > (rows - 1) * rs + (kc - 1) * cs
-            && b.len() >= kc * NR
+            && b.len() >= (kc - 1) * ldb + NR
             && c.len() > (rows - 1) * ldc + NR - 1
     );
     #[cfg(target_arch = "x86_64")]
@@ -421,7 +477,7 @@ fn wide_kernel(
                 match rows {
                     // SAFETY: the kernel is only chosen when the CPU has AVX-512F
                     // (`Kernel::available`); the operands hold the tile (asserted above).
-                    $($r => unsafe { micro_kernel_avx512::<$r>(kc, a, rs, cs, b, c, ldc, load_c) },)*
+                    $($r => unsafe { micro_kernel_avx512::<$r>(kc, a, rs, cs, b, ldb, c, ldc, load_c) },)*
                     _ => unreachable!("1 to 12 rows"),
                 }
             };
@@ -434,7 +490,7 @@ fn wide_kernel(
 
 /// # Safety
 /// The CPU must support AVX-512F; `a` must be valid at `r * rs + kk * cs` for `r < R`,
-/// `kk < kc`, `b` for `kc * NR` values and `c` at `r * ldc + j`, `r < R`, `j < NR`.
+/// `kk < kc`, `b` at `kk * ldb + j`, `j < NR`, and `c` at `r * ldc + j`, `r < R`, `j < NR`.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 #[allow(clippy::too_many_arguments)]
@@ -444,6 +500,7 @@ unsafe fn micro_kernel_avx512<const R: usize>(
     rs: usize,
     cs: usize,
     b: *const f32,
+    ldb: usize,
     c: *mut f32,
     ldc: usize,
     load_c: bool,
@@ -459,7 +516,7 @@ unsafe fn micro_kernel_avx512<const R: usize>(
     for kk in 0..kc {
         // SAFETY: `kk < kc`, `r < R`: within the operands (caller's guarantee).
         unsafe {
-            let b_k = _mm512_loadu_ps(b.add(kk * NR));
+            let b_k = _mm512_loadu_ps(b.add(kk * ldb));
             let a_k = a.add(kk * cs);
             for (r, acc_r) in acc.iter_mut().enumerate() {
                 *acc_r = _mm512_fmadd_ps(_mm512_set1_ps(*a_k.add(r * rs)), b_k, *acc_r);
