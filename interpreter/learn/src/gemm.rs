@@ -159,7 +159,7 @@ pub fn gemm_with(
     // packed, zero-padded. Every other B is packed.
     let b_in_place = kernel == Kernel::Avx512 && b.cs == 1;
     let packed_panels = if b_in_place {
-        usize::from(n % NR != 0)
+        usize::from(!n.is_multiple_of(NR))
     } else {
         n_panels
     };
