@@ -162,7 +162,11 @@ impl Mlp {
                 true,
             );
             if l + 1 < self.layers() {
-                y.par_chunks_mut(ELEMENTWISE_CHUNK).for_each(tanh);
+                if serial() {
+                    tanh(y);
+                } else {
+                    y.par_chunks_mut(ELEMENTWISE_CHUNK).for_each(tanh);
+                }
             }
         }
     }
@@ -194,7 +198,7 @@ impl Mlp {
             );
             // db = column sums of dZ, rows in order (columns split between threads).
             let db = &mut grad[b_at..b_at + outputs];
-            db.par_chunks_mut(BIAS_COLUMNS).enumerate().for_each(|(c, db)| {
+            let column_sums = |(c, db): (usize, &mut [f32])| {
                 let j0 = c * BIAS_COLUMNS;
                 db.fill(0.0);
                 for row in dz.chunks_exact(outputs) {
@@ -202,7 +206,12 @@ impl Mlp {
                         *d += v;
                     }
                 }
-            });
+            };
+            if serial() {
+                db.chunks_mut(BIAS_COLUMNS).enumerate().for_each(column_sums);
+            } else {
+                db.par_chunks_mut(BIAS_COLUMNS).enumerate().for_each(column_sums);
+            }
             if l == 0 {
                 break;
             }
@@ -218,13 +227,18 @@ impl Mlp {
                 inputs,
                 false,
             );
-            dh.par_chunks_mut(ELEMENTWISE_CHUNK)
-                .zip(tape.h[l].par_chunks(ELEMENTWISE_CHUNK))
-                .for_each(|(dh, h)| {
-                    for (d, &h) in dh.iter_mut().zip(h) {
-                        *d *= 1.0 - h * h;
-                    }
-                });
+            let through_tanh = |(dh, h): (&mut [f32], &[f32])| {
+                for (d, &h) in dh.iter_mut().zip(h) {
+                    *d *= 1.0 - h * h;
+                }
+            };
+            if serial() {
+                through_tanh((&mut dh[..], &tape.h[l][..]));
+            } else {
+                dh.par_chunks_mut(ELEMENTWISE_CHUNK)
+                    .zip(tape.h[l].par_chunks(ELEMENTWISE_CHUNK))
+                    .for_each(through_tanh);
+            }
             std::mem::swap(&mut dz, &mut dh);
         }
         tape.dz = dz;
@@ -284,6 +298,12 @@ impl Mlp {
             .collect();
         MlpActor::from_layers(&self.sizes, &layers, Activation::Tanh)
     }
+}
+
+/// Whether rayon's current pool has one thread: element-wise loops then run as plain loops
+/// (a parallel iterator costs its task splitting even alone; the results are the same).
+pub(crate) fn serial() -> bool {
+    rayon::current_num_threads() == 1
 }
 
 /// `cpmx-policy`'s tanh ([`cpmx_policy::tanh_in_place`]), 16 lanes at a time with AVX-512 or

@@ -16,8 +16,12 @@ pub fn clip_grad_norm(grads: &mut [&mut [f32]], max_norm: f64) -> f64 {
     let coef = (max_norm / (total + 1e-6)).min(1.0) as f32;
     if coef < 1.0 {
         for g in grads.iter_mut() {
-            g.par_chunks_mut(CHUNK)
-                .for_each(|g| g.iter_mut().for_each(|v| *v *= coef));
+            if crate::mlp::serial() {
+                g.iter_mut().for_each(|v| *v *= coef);
+            } else {
+                g.par_chunks_mut(CHUNK)
+                    .for_each(|g| g.iter_mut().for_each(|v| *v *= coef));
+            }
         }
     }
     total
@@ -27,6 +31,9 @@ pub fn clip_grad_norm(grads: &mut [&mut [f32]], max_norm: f64) -> f64 {
 pub fn squared_norm(g: &[f32]) -> f64 {
     g.iter().map(|&v| f64::from(v) * f64::from(v)).sum()
 }
+
+/// Matching chunks of the parameters, the gradient and the two moments.
+type AdamChunk<'a> = ((&'a mut [f32], &'a [f32]), (&'a mut [f32], &'a mut [f32]));
 
 /// Adam's hyperparameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -79,18 +86,23 @@ impl AdamState {
         let (b1, b2) = (config.beta1, config.beta2);
         let eps = config.eps;
         // Element-wise, so splitting the vectors between threads changes no bit.
-        params
-            .par_chunks_mut(CHUNK)
-            .zip(grad.par_chunks(CHUNK))
-            .zip(self.m.par_chunks_mut(CHUNK).zip(self.v.par_chunks_mut(CHUNK)))
-            .for_each(|((params, grad), (m, v))| {
-                for (((p, &g), m), v) in params.iter_mut().zip(grad).zip(m).zip(v) {
-                    *m = b1 * *m + (1.0 - b1) * g;
-                    *v = b2 * *v + (1.0 - b2) * g * g;
-                    let denom = v.sqrt() / bias2_sqrt + eps;
-                    *p -= step_size * *m / denom;
-                }
-            });
+        let update = |((params, grad), (m, v)): AdamChunk<'_>| {
+            for (((p, &g), m), v) in params.iter_mut().zip(grad).zip(m).zip(v) {
+                *m = b1 * *m + (1.0 - b1) * g;
+                *v = b2 * *v + (1.0 - b2) * g * g;
+                let denom = v.sqrt() / bias2_sqrt + eps;
+                *p -= step_size * *m / denom;
+            }
+        };
+        if crate::mlp::serial() {
+            update(((params, grad), (&mut self.m, &mut self.v)));
+        } else {
+            params
+                .par_chunks_mut(CHUNK)
+                .zip(grad.par_chunks(CHUNK))
+                .zip(self.m.par_chunks_mut(CHUNK).zip(self.v.par_chunks_mut(CHUNK)))
+                .for_each(update);
+        }
     }
 }
 

@@ -43,6 +43,10 @@ pub fn gae(
     }
 }
 
+/// One env-step of a minibatch: its index, its entries' raw-output gradients and loss terms,
+/// and its value gradient.
+type EnvStepChunk<'a> = (usize, ((&'a mut [f32], &'a mut [[f64; 4]]), &'a mut f32));
+
 /// The loss coefficients and the action box.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LossConfig {
@@ -115,52 +119,61 @@ pub fn ppo_loss(
     // depend on the threads.
     let mut terms = vec![[0.0f64; 4]; entries];
     d_value.fill(0.0);
-    d_raw[..entries * 4]
-        .par_chunks_mut(4 * agents)
-        .zip(terms.par_chunks_mut(agents))
-        .zip(d_value.par_iter_mut())
-        .enumerate()
-        .for_each(|(s, ((d_raw, terms), d_value))| {
-            for (a, (d_raw, term)) in d_raw.chunks_exact_mut(4).zip(terms).enumerate() {
-                let i = s * agents + a;
-                let p: Params = tanh_normal::params(&raw[i * 4..i * 4 + 4]);
-                let action = [input.action[2 * i], input.action[2 * i + 1]];
-                let eps = [input.entropy_eps[2 * i], input.entropy_eps[2 * i + 1]];
-                let scored = tanh_normal::log_prob(&p, action, config.high);
-                let advantage = f64::from(input.advantage[i]);
+    let entry = |(s, ((d_raw, terms), d_value)): EnvStepChunk<'_>| {
+        for (a, (d_raw, term)) in d_raw.chunks_exact_mut(4).zip(terms).enumerate() {
+            let i = s * agents + a;
+            let p: Params = tanh_normal::params(&raw[i * 4..i * 4 + 4]);
+            let action = [input.action[2 * i], input.action[2 * i + 1]];
+            let eps = [input.entropy_eps[2 * i], input.entropy_eps[2 * i + 1]];
+            let scored = tanh_normal::log_prob(&p, action, config.high);
+            let advantage = f64::from(input.advantage[i]);
 
-                // Clipped objective on the log-ratio.
-                let log_ratio = scored.log_prob - f64::from(input.log_prob_old[i]);
-                let clipped = log_ratio.clamp(log_low, log_high);
-                let (gain, clipped_gain) = (log_ratio.exp() * advantage, clipped.exp() * advantage);
-                let d_log_prob = if gain <= clipped_gain { -gain * inv } else { 0.0 };
+            // Clipped objective on the log-ratio.
+            let log_ratio = scored.log_prob - f64::from(input.log_prob_old[i]);
+            let clipped = log_ratio.clamp(log_low, log_high);
+            let (gain, clipped_gain) = (log_ratio.exp() * advantage, clipped.exp() * advantage);
+            let d_log_prob = if gain <= clipped_gain { -gain * inv } else { 0.0 };
 
-                // Entropy estimate through a reparameterised sample.
-                let sampled = tanh_normal::sample_log_prob(&p, eps, config.high);
-                let d_sample = config.entropy_coef * inv;
+            // Entropy estimate through a reparameterised sample.
+            let sampled = tanh_normal::sample_log_prob(&p, eps, config.high);
+            let d_sample = config.entropy_coef * inv;
 
-                for ((d, &g_scored), &g_sampled) in
-                    d_raw.iter_mut().zip(&scored.grad_raw).zip(&sampled.grad_raw)
-                {
-                    *d = (d_log_prob * g_scored + d_sample * g_sampled) as f32;
-                }
-
-                // Smooth-L1 value loss (beta 1) on the shared value.
-                let diff = f64::from(value[s]) - f64::from(input.value_target[i]);
-                let critic = if diff.abs() < 1.0 {
-                    0.5 * diff * diff
-                } else {
-                    diff.abs() - 0.5
-                };
-                *d_value += (config.critic_coef * diff.clamp(-1.0, 1.0) * inv) as f32;
-                *term = [
-                    gain.min(clipped_gain),
-                    f64::from(u8::from(clipped != log_ratio)),
-                    sampled.log_prob,
-                    critic,
-                ];
+            for ((d, &g_scored), &g_sampled) in d_raw.iter_mut().zip(&scored.grad_raw).zip(&sampled.grad_raw)
+            {
+                *d = (d_log_prob * g_scored + d_sample * g_sampled) as f32;
             }
-        });
+
+            // Smooth-L1 value loss (beta 1) on the shared value.
+            let diff = f64::from(value[s]) - f64::from(input.value_target[i]);
+            let critic = if diff.abs() < 1.0 {
+                0.5 * diff * diff
+            } else {
+                diff.abs() - 0.5
+            };
+            *d_value += (config.critic_coef * diff.clamp(-1.0, 1.0) * inv) as f32;
+            *term = [
+                gain.min(clipped_gain),
+                f64::from(u8::from(clipped != log_ratio)),
+                sampled.log_prob,
+                critic,
+            ];
+        }
+    };
+    if crate::mlp::serial() {
+        d_raw[..entries * 4]
+            .chunks_mut(4 * agents)
+            .zip(terms.chunks_mut(agents))
+            .zip(d_value.iter_mut())
+            .enumerate()
+            .for_each(entry);
+    } else {
+        d_raw[..entries * 4]
+            .par_chunks_mut(4 * agents)
+            .zip(terms.par_chunks_mut(agents))
+            .zip(d_value.par_iter_mut())
+            .enumerate()
+            .for_each(entry);
+    }
     let mut sums = Losses::default();
     for [gain, clip, log_prob, critic] in terms {
         sums.objective -= gain;
