@@ -20,7 +20,7 @@
 
 use std::hint::black_box;
 
-use cpmx_learn::gemm::{Mat, gemm};
+use cpmx_kernels::{Mat, gemm};
 use cpmx_learn::mlp::{Mlp, Tape};
 use cpmx_learn::optim::{AdamConfig, AdamState, clip_grad_norm};
 use cpmx_learn::ppo::{LossConfig, LossInput, ppo_loss};
@@ -145,7 +145,7 @@ const PEAK_FLOP: u64 = 12 * 8 * 2 * 100_000;
 /// 12 independent chains of 8-lane FMAs, 100,000 each.
 fn fma_peak() -> f32 {
     #[cfg(target_arch = "x86_64")]
-    if cpmx_learn::gemm::has_fma() {
+    if cpmx_kernels::gemm::has_fma() {
         // SAFETY: the CPU has AVX2 and FMA.
         return unsafe { fma_peak_avx2() };
     }
@@ -236,7 +236,7 @@ fn bench(c: &mut Criterion) {
         .collect();
     group.throughput(Throughput::Elements(v.len() as u64));
     group.bench_function("tanh_values", |bch| {
-        bch.iter(|| cpmx_learn::mlp::tanh(black_box(&mut v)))
+        bch.iter(|| cpmx_kernels::tanh(black_box(&mut v)))
     });
     group.throughput(Throughput::Elements(entries as u64));
     step.run();

@@ -2,7 +2,7 @@
 //! vectorised multi-agent [`Environment`].
 //!
 //! This crate owns the networks' training (an f32 MLP with forward, backward and per-tensor
-//! gradients on blocked FMA kernels, `gemm`/`mlp`), the action distribution with its
+//! gradients on `cpmx-kernels`' blocked FMA products and dense layer, `mlp`), the action distribution with its
 //! gradients (`tanh_normal`), GAE and the clipped PPO loss (`ppo`), Adam, joint gradient
 //! clipping and the learning-rate schedule (`optim`), the trainer loop (`trainer`) and its
 //! files (`checkpoint`). It knows nothing of vehicles, maps, rewards or specs: the scenario is
@@ -26,7 +26,6 @@
 
 pub mod checkpoint;
 pub mod env;
-pub mod gemm;
 pub mod hyperparameters;
 pub mod mlp;
 pub mod optim;

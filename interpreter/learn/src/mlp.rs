@@ -2,8 +2,9 @@
 //! (`W_l [out][in]` row-major, then `b_l`, layer by layer), a batched forward pass that keeps
 //! every activation, and the backward pass to per-tensor gradients in the same layout.
 //!
-//! The products run on [`crate::gemm`]; the activation is `cpmx-policy`'s tanh (the same
-//! function and bits as the inference actor). Files use the inference actor's tensor names
+//! The forward pass runs `cpmx-kernels`' [`dense_layer`], the inference actor's layer, so the
+//! actor `cpmx run` evaluates computes the bits it computed while training; the backward
+//! products run on the same [`gemm`]. Files use the inference actor's tensor names
 //! `{prefix}.{l}.weight` / `{prefix}.{l}.bias`, so a trained actor loads with
 //! `cpmx_policy::MlpActor` (and [`Mlp::to_actor`] hands it over in memory).
 
@@ -14,11 +15,8 @@ use safetensors::{Dtype, SafeTensors};
 
 use rayon::prelude::*;
 
-use crate::gemm::{Mat, gemm};
-
-/// Elements per task of the element-wise passes (a multiple of the 8 SIMD lanes). Each
-/// element is computed alone, so the split never changes a bit.
-const ELEMENTWISE_CHUNK: usize = 8192;
+use cpmx_kernels::dense::ELEMENTWISE_CHUNK;
+use cpmx_kernels::{Mat, dense_layer, gemm};
 /// Bias-gradient columns per task.
 const BIAS_COLUMNS: usize = 64;
 
@@ -147,27 +145,21 @@ impl Mlp {
             let (before, after) = tape.h.split_at_mut(l + 1);
             let (x, y) = (&before[l], &mut after[0]);
             y.resize(rows * outputs, 0.0);
-            for row in y.chunks_exact_mut(outputs) {
-                row.copy_from_slice(self.bias(l));
-            }
-            // y = x W^T + b
-            gemm(
+            let activation = if l + 1 < self.layers() {
+                Activation::Tanh
+            } else {
+                Activation::Identity
+            };
+            dense_layer(
+                x,
                 rows,
-                outputs,
                 inputs,
-                Mat::rows(x, inputs),
-                Mat::transposed(self.weight(l), inputs),
-                y,
                 outputs,
-                true,
+                Mat::transposed(self.weight(l), inputs),
+                self.bias(l),
+                activation,
+                y,
             );
-            if l + 1 < self.layers() {
-                if serial() {
-                    tanh(y);
-                } else {
-                    y.par_chunks_mut(ELEMENTWISE_CHUNK).for_each(tanh);
-                }
-            }
         }
     }
 
@@ -306,209 +298,25 @@ pub(crate) fn serial() -> bool {
     rayon::current_num_threads() == 1
 }
 
-/// `cpmx-policy`'s tanh ([`cpmx_policy::tanh_in_place`]), 16 lanes at a time with AVX-512 or
-/// 8 with AVX2 when the CPU has them: the same operations in the same order, each rounded
-/// separately, so the same bits (a test sweeps the range).
-pub fn tanh(v: &mut [f32]) {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512dq") {
-        let (head, tail) = v.as_chunks_mut::<16>();
-        // SAFETY: the CPU supports AVX-512F and DQ (checked just above).
-        unsafe { tanh_chunks_avx512(head) };
-        tanh_avx2_or_portable(tail);
-        return;
-    }
-    tanh_avx2_or_portable(v);
-}
-
-fn tanh_avx2_or_portable(v: &mut [f32]) {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        let (head, tail) = v.as_chunks_mut::<8>();
-        // SAFETY: the CPU supports AVX2 (checked just above).
-        unsafe { tanh_chunks_avx2(head) };
-        cpmx_policy::tanh_in_place(tail);
-        return;
-    }
-    cpmx_policy::tanh_in_place(v);
-}
-
-/// [`tanh8_avx2`] over chunks, inlined into one loop so that out-of-order execution
-/// overlaps the (long) dependency chains of consecutive chunks.
-///
-/// # Safety
-/// The CPU must support AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn tanh_chunks_avx2(chunks: &mut [[f32; 8]]) {
-    for chunk in chunks {
-        // SAFETY: AVX2 is enabled in this function.
-        unsafe { tanh8_avx2(chunk) };
-    }
-}
-
-/// [`tanh16_avx512`] over chunks, in one loop.
-///
-/// # Safety
-/// The CPU must support AVX-512F and DQ.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512dq")]
-unsafe fn tanh_chunks_avx512(chunks: &mut [[f32; 16]]) {
-    for chunk in chunks {
-        // SAFETY: AVX-512F and DQ are enabled in this function.
-        unsafe { tanh16_avx512(chunk) };
-    }
-}
-
-/// Sixteen lanes of the tanh of [`tanh8_avx2`]: the same operations in the same order.
-///
-/// # Safety
-/// The CPU must support AVX-512F and DQ.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512dq")]
-#[inline]
-unsafe fn tanh16_avx512(v: &mut [f32; 16]) {
-    use std::arch::x86_64::*;
-    // SAFETY: `v` holds 16 values.
-    let x = unsafe { _mm512_loadu_ps(v.as_ptr()) };
-    let splat = _mm512_set1_ps;
-    let sign = splat(-0.0);
-    let ax = _mm512_andnot_ps(sign, x);
-    // Small arguments: x + x^3 P(x^2).
-    let z = _mm512_mul_ps(x, x);
-    let mut p = _mm512_add_ps(_mm512_mul_ps(splat(-5.704_988_7e-3), z), splat(2.063_909e-2));
-    p = _mm512_sub_ps(_mm512_mul_ps(p, z), splat(5.373_971_6e-2));
-    p = _mm512_add_ps(_mm512_mul_ps(p, z), splat(1.333_144_2e-1));
-    p = _mm512_sub_ps(_mm512_mul_ps(p, z), splat(3.333_328e-1));
-    let small = _mm512_add_ps(_mm512_mul_ps(_mm512_mul_ps(p, z), x), x);
-    // Large arguments: 1 - 2 / (exp(2 min(|x|, 10)) + 1) with the sign of x.
-    let y = _mm512_mul_ps(splat(2.0), _mm512_min_ps(ax, splat(10.0)));
-    let shifter = splat(12_582_912.0);
-    let shifted = _mm512_add_ps(_mm512_mul_ps(y, splat(std::f32::consts::LOG2_E)), shifter);
-    let nf = _mm512_sub_ps(shifted, shifter);
-    let r = _mm512_sub_ps(
-        _mm512_sub_ps(y, _mm512_mul_ps(nf, splat(0.693_359_4))),
-        _mm512_mul_ps(nf, splat(-2.121_944_4e-4)),
-    );
-    let mut q = _mm512_add_ps(_mm512_mul_ps(splat(1.987_569_1e-4), r), splat(1.398_199_9e-3));
-    q = _mm512_add_ps(_mm512_mul_ps(q, r), splat(8.333_452e-3));
-    q = _mm512_add_ps(_mm512_mul_ps(q, r), splat(4.166_579_6e-2));
-    q = _mm512_add_ps(_mm512_mul_ps(q, r), splat(1.666_666_5e-1));
-    q = _mm512_add_ps(_mm512_mul_ps(q, r), splat(0.5));
-    let q = _mm512_add_ps(
-        _mm512_add_ps(_mm512_mul_ps(_mm512_mul_ps(q, r), r), r),
-        splat(1.0),
-    );
-    let pow2 = _mm512_castsi512_ps(_mm512_slli_epi32::<23>(_mm512_add_epi32(
-        _mm512_castps_si512(shifted),
-        _mm512_set1_epi32(127),
-    )));
-    let e = _mm512_mul_ps(q, pow2);
-    let large_abs = _mm512_sub_ps(
-        splat(1.0),
-        _mm512_div_ps(splat(2.0), _mm512_add_ps(e, splat(1.0))),
-    );
-    let large = _mm512_or_ps(_mm512_andnot_ps(sign, large_abs), _mm512_and_ps(sign, x));
-    let use_large = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(ax, splat(0.625));
-    // SAFETY: `v` holds 16 values.
-    unsafe { _mm512_storeu_ps(v.as_mut_ptr(), _mm512_mask_blend_ps(use_large, small, large)) };
-}
-
-/// Eight lanes of `cpmx-policy`'s Cephes tanh (see `kernel.rs` there for the algorithm).
-///
-/// # Safety
-/// The CPU must support AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-unsafe fn tanh8_avx2(v: &mut [f32; 8]) {
-    use std::arch::x86_64::*;
-    // (Plain calls: a closure or function pointer would not inherit the target feature.)
-    // SAFETY: `v` holds 8 values.
-    let x = unsafe { _mm256_loadu_ps(v.as_ptr()) };
-    let sign = _mm256_set1_ps(-0.0);
-    let ax = _mm256_andnot_ps(sign, x);
-    // Small arguments: x + x^3 P(x^2).
-    let z = _mm256_mul_ps(x, x);
-    let mut p = _mm256_add_ps(
-        _mm256_mul_ps(_mm256_set1_ps(-5.704_988_7e-3), z),
-        _mm256_set1_ps(2.063_909e-2),
-    );
-    p = _mm256_sub_ps(_mm256_mul_ps(p, z), _mm256_set1_ps(5.373_971_6e-2));
-    p = _mm256_add_ps(_mm256_mul_ps(p, z), _mm256_set1_ps(1.333_144_2e-1));
-    p = _mm256_sub_ps(_mm256_mul_ps(p, z), _mm256_set1_ps(3.333_328e-1));
-    let small = _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(p, z), x), x);
-    // Large arguments: 1 - 2 / (exp(2 min(|x|, 10)) + 1) with the sign of x.
-    let y = _mm256_mul_ps(_mm256_set1_ps(2.0), _mm256_min_ps(ax, _mm256_set1_ps(10.0)));
-    let shifter = _mm256_set1_ps(12_582_912.0);
-    let shifted = _mm256_add_ps(
-        _mm256_mul_ps(y, _mm256_set1_ps(std::f32::consts::LOG2_E)),
-        shifter,
-    );
-    let nf = _mm256_sub_ps(shifted, shifter);
-    let r = _mm256_sub_ps(
-        _mm256_sub_ps(y, _mm256_mul_ps(nf, _mm256_set1_ps(0.693_359_4))),
-        _mm256_mul_ps(nf, _mm256_set1_ps(-2.121_944_4e-4)),
-    );
-    let mut q = _mm256_add_ps(
-        _mm256_mul_ps(_mm256_set1_ps(1.987_569_1e-4), r),
-        _mm256_set1_ps(1.398_199_9e-3),
-    );
-    q = _mm256_add_ps(_mm256_mul_ps(q, r), _mm256_set1_ps(8.333_452e-3));
-    q = _mm256_add_ps(_mm256_mul_ps(q, r), _mm256_set1_ps(4.166_579_6e-2));
-    q = _mm256_add_ps(_mm256_mul_ps(q, r), _mm256_set1_ps(1.666_666_5e-1));
-    q = _mm256_add_ps(_mm256_mul_ps(q, r), _mm256_set1_ps(0.5));
-    let q = _mm256_add_ps(
-        _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(q, r), r), r),
-        _mm256_set1_ps(1.0),
-    );
-    let pow2 = _mm256_castsi256_ps(_mm256_slli_epi32::<23>(_mm256_add_epi32(
-        _mm256_castps_si256(shifted),
-        _mm256_set1_epi32(127),
-    )));
-    let e = _mm256_mul_ps(q, pow2);
-    let large_abs = _mm256_sub_ps(
-        _mm256_set1_ps(1.0),
-        _mm256_div_ps(_mm256_set1_ps(2.0), _mm256_add_ps(e, _mm256_set1_ps(1.0))),
-    );
-    let large = _mm256_or_ps(_mm256_andnot_ps(sign, large_abs), _mm256_and_ps(sign, x));
-    let use_large = _mm256_cmp_ps::<_CMP_GE_OQ>(ax, _mm256_set1_ps(0.625));
-    // SAFETY: `v` holds 8 values.
-    unsafe { _mm256_storeu_ps(v.as_mut_ptr(), _mm256_blendv_ps(small, large, use_large)) };
-}
-
 #[cfg(test)]
 mod tests {
+    use rand::SeedableRng;
+
     use super::*;
 
     #[test]
-    fn the_simd_tanh_gives_the_policy_crates_bits() {
-        let mut x: Vec<f32> = (-130_000..130_000).map(|i| i as f32 * 1e-4).collect();
-        x.extend([
-            f32::MAX,
-            f32::MIN,
-            1e-30,
-            -1e-30,
-            0.0,
-            -0.0,
-            0.625,
-            -0.625,
-            10.0,
-            9.999_999,
-        ]);
-        x.extend([f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.624_999_9]);
-        let mut want = x.clone();
-        cpmx_policy::tanh_in_place(&mut want);
-        // The widest vectors this CPU has, and AVX2 (or the portable loop) alone.
-        for path in [tanh as fn(&mut [f32]), tanh_avx2_or_portable] {
-            let mut got = x.clone();
-            path(&mut got);
-            for ((g, w), a) in got.iter().zip(&want).zip(&x) {
-                assert!(
-                    g.to_bits() == w.to_bits() || (g.is_nan() && w.is_nan()),
-                    "tanh({a}): {g} vs {w}"
-                );
-            }
-        }
+    fn the_inference_actor_computes_the_training_forward_bits() {
+        let mut rng = ChaCha20Rng::seed_from_u64(3);
+        let mlp = Mlp::init(&[35, 64, 48, 4], &mut rng);
+        let rows = 7;
+        let x: Vec<f32> = (0..rows * 35).map(|i| (i as f32 * 0.37).sin() * 3.0).collect();
+        let mut tape = Tape::default();
+        mlp.forward(&x, rows, &mut tape);
+        let actor = mlp.to_actor().expect("an actor");
+        let mut ws = actor.workspace(rows);
+        let mut raw = vec![0.0f32; rows * 4];
+        actor.forward(&x, &mut ws, &mut raw).expect("a forward pass");
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&raw), bits(tape.output()));
     }
 }

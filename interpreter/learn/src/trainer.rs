@@ -22,7 +22,7 @@
 //!    become the best ones.
 //!
 //! Numbers do not depend on rayon's thread count: the collection runs in a fixed order and the
-//! matrix products split rows between threads without changing any sum (see `gemm`).
+//! matrix products split rows between threads without changing any sum (see `cpmx_kernels::gemm`).
 
 use std::time::Instant;
 

@@ -1,18 +1,19 @@
 //! MLP actor networks loaded from safetensors (`y = x W^T + b`, float32, an activation after
-//! every layer but the last) evaluated for all agents at once, in groups of 4, with
-//! preallocated buffers: SigmaRL's exact 32 -> 256 -> 256 -> 256 -> 4 tanh layout
-//! ([`MlpLayout`]), or any MLP whose layer sizes are read from the file
-//! ([`MlpActor::from_bytes_any`]).
+//! every layer but the last) evaluated for all agents at once with preallocated buffers:
+//! SigmaRL's exact 32 -> 256 -> 256 -> 256 -> 4 tanh layout ([`MlpLayout`]), or any MLP whose
+//! layer sizes are read from the file ([`MlpActor::from_bytes_any`]).
 //!
 //! This module owns loading, shape checks and the batched forward pass to the raw outputs;
-//! turning raw outputs into actions is `action`'s job.
+//! turning raw outputs into actions is `action`'s job. The layers run on `cpmx-kernels`'
+//! [`dense_layer`], as the trainer's networks do: an actor cpmx trained gives here the bits it
+//! gave while training.
 
 use std::path::{Path, PathBuf};
 
 use safetensors::{Dtype, SafeTensors};
 
-pub use crate::kernel::Activation;
-use crate::kernel::{Dense, GROUP};
+pub use cpmx_kernels::Activation;
+use cpmx_kernels::{Mat, dense_layer};
 
 /// The layer sizes and tensor names of an MLP actor.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -167,9 +168,54 @@ pub enum ActorError {
     },
 }
 
-/// A loaded MLP actor. Weights are packed once at load into the panels the kernel streams,
-/// and shared by its clones (a planner forks the policy every tick: a copy of SigmaRL's
-/// 140,000 weights each time cost more than the forward passes).
+/// One layer, its weight stored transposed (`[inputs][outputs]`, row-major), the layout the
+/// product streams in place.
+#[derive(Debug, Clone, PartialEq)]
+struct Dense {
+    inputs: usize,
+    outputs: usize,
+    /// `weight_t[k * outputs + j] = W[j][k]`.
+    weight_t: Vec<f32>,
+    bias: Vec<f32>,
+    activation: Activation,
+}
+
+impl Dense {
+    /// A layer from torch's `weight` (`[outputs][inputs]`, row-major) and `bias`.
+    fn new(weight: &[f32], bias: &[f32], inputs: usize, outputs: usize, activation: Activation) -> Self {
+        let mut weight_t = vec![0.0; inputs * outputs];
+        for (j, row) in weight.chunks_exact(inputs).take(outputs).enumerate() {
+            for (k, &w) in row.iter().enumerate() {
+                weight_t[k * outputs + j] = w;
+            }
+        }
+        Dense {
+            inputs,
+            outputs,
+            weight_t,
+            bias: bias[..outputs].to_vec(),
+            activation,
+        }
+    }
+
+    /// `y = activation(x W^T + b)` for `rows` rows.
+    fn apply(&self, x: &[f32], rows: usize, y: &mut [f32]) {
+        dense_layer(
+            x,
+            rows,
+            self.inputs,
+            self.outputs,
+            Mat::rows(&self.weight_t, self.outputs),
+            &self.bias,
+            self.activation,
+            y,
+        );
+    }
+}
+
+/// A loaded MLP actor. Weights are transposed once at load and shared by its clones (a
+/// planner forks the policy every tick: a copy of SigmaRL's 140,000 weights each time cost
+/// more than the forward passes).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MlpActor {
     layers: std::sync::Arc<[Dense]>,
@@ -177,7 +223,7 @@ pub struct MlpActor {
     weights: std::sync::Arc<[(String, [usize; 2])]>,
     input_size: usize,
     output_size: usize,
-    /// Widest activation row (input or padded layer output).
+    /// Widest hidden layer.
     width: usize,
 }
 
@@ -375,12 +421,8 @@ impl MlpActor {
     fn assemble(layers: Vec<Dense>, weights: Vec<(String, [usize; 2])>) -> Self {
         let input_size = weights.first().map_or(0, |(_, s)| s[1]);
         let output_size = weights.last().map_or(0, |(_, s)| s[0]);
-        let width = layers
-            .iter()
-            .map(Dense::out_padded)
-            .chain([input_size])
-            .max()
-            .unwrap_or(0);
+        let hidden = layers.len().saturating_sub(1);
+        let width = layers[..hidden].iter().map(|l| l.outputs).max().unwrap_or(0);
         MlpActor {
             layers: layers.into(),
             weights: weights.into(),
@@ -431,21 +473,21 @@ impl MlpActor {
         self.output_size
     }
 
-    /// Buffers for forward passes over up to `agents` agents (the network runs groups of up
-    /// to 4 agents, so the buffers hold one group whatever `agents` is).
+    /// Buffers for forward passes over up to `agents` agents.
     pub fn workspace(&self, agents: usize) -> ActorWorkspace {
         ActorWorkspace {
             capacity: agents,
-            ping: vec![0.0; GROUP * self.width],
-            pong: vec![0.0; GROUP * self.width],
+            ping: vec![0.0; agents * self.width],
+            pong: vec![0.0; agents * self.width],
         }
     }
 
     /// Raw outputs for a batch: `observations` holds `agents * input_size()` values
-    /// (agent-major), `raw` receives `agents * output_size()` values. Allocation-free.
+    /// (agent-major), `raw` receives `agents * output_size()` values. Allocation-free after
+    /// the first call on a thread.
     ///
-    /// The agents run through the network in groups of 4 (the last group holds the rest), so
-    /// each weight is loaded once per group; an agent's outputs do not depend on the batch.
+    /// All agents run through each layer at once (each weight is loaded once per batch); an
+    /// agent's outputs do not depend on the batch.
     pub fn forward(
         &self,
         observations: &[f32],
@@ -461,7 +503,7 @@ impl MlpActor {
             (
                 "workspace buffer",
                 ws.ping.len().min(ws.pong.len()),
-                GROUP * self.width,
+                ws.capacity * self.width,
             ),
         ];
         for (what, found, expected) in checks {
@@ -478,38 +520,24 @@ impl MlpActor {
             return Ok(());
         }
 
-        let groups = observations
-            .chunks(GROUP * self.input_size)
-            .zip(raw.chunks_mut(GROUP * self.output_size));
-        for (obs, out) in groups {
-            match obs.len() / self.input_size {
-                1 => self.forward_group::<1>(obs, ws, out),
-                2 => self.forward_group::<2>(obs, ws, out),
-                3 => self.forward_group::<3>(obs, ws, out),
-                _ => self.forward_group::<GROUP>(obs, ws, out),
-            }
+        // The input feeds the first layer, the last writes `raw`; hidden layers alternate
+        // between the two buffers.
+        let (ping, pong) = (&mut ws.ping, &mut ws.pong);
+        let last = self.layers.len() - 1;
+        let mut width = self.input_size;
+        for (l, layer) in self.layers.iter().enumerate() {
+            let (src, dst): (&[f32], &mut [f32]) = match (l, l % 2) {
+                (0, _) if l == last => (observations, &mut *raw),
+                (0, _) => (observations, &mut ping[..agents * layer.outputs]),
+                (_, 1) if l == last => (&ping[..agents * width], &mut *raw),
+                (_, 0) if l == last => (&pong[..agents * width], &mut *raw),
+                (_, 1) => (&ping[..agents * width], &mut pong[..agents * layer.outputs]),
+                _ => (&pong[..agents * width], &mut ping[..agents * layer.outputs]),
+            };
+            layer.apply(src, agents, dst);
+            width = layer.outputs;
         }
         Ok(())
-    }
-
-    /// One group of `R` agents (buffers already checked): transpose the observations to
-    /// feature-major, run the layers alternating between the two buffers, transpose back.
-    fn forward_group<const R: usize>(&self, observations: &[f32], ws: &mut ActorWorkspace, raw: &mut [f32]) {
-        let (mut src, mut dst) = (&mut ws.ping, &mut ws.pong);
-        for (r, obs) in observations.chunks_exact(self.input_size).enumerate() {
-            for (k, &v) in obs.iter().enumerate() {
-                src[k * R + r] = v;
-            }
-        }
-        for layer in self.layers.iter() {
-            layer.apply::<R>(&src[..layer.inputs() * R], &mut dst[..layer.out_padded() * R]);
-            std::mem::swap(&mut src, &mut dst);
-        }
-        for (r, out) in raw.chunks_exact_mut(self.output_size).enumerate() {
-            for (j, v) in out.iter_mut().enumerate() {
-                *v = src[j * R + r];
-            }
-        }
     }
 }
 

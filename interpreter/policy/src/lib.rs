@@ -31,7 +31,6 @@
 pub mod action;
 pub mod actor;
 pub mod geometry;
-mod kernel;
 pub mod lane_follow;
 pub mod observation;
 pub mod policy;
@@ -40,7 +39,6 @@ pub mod process;
 pub use action::{ActionHead, ActionMode, ActionOutput, OutputHead};
 pub use actor::{Activation, ActorError, ActorWorkspace, MlpActor, MlpLayout};
 pub use geometry::{AgentPaths, PreparedPath, Segments};
-pub use kernel::tanh_in_place;
 pub use lane_follow::{LaneFollow, LaneFollowParams};
 pub use observation::{AgentState, BoundaryCorners, ObservationError, ObservationInput, SigmarlObservation};
 pub use policy::{MlpPolicy, Network, Policy, PolicyError, check_input_size};

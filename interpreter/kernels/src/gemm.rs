@@ -1,4 +1,4 @@
-//! The f32 matrix product of training: `C (+)= op(A) op(B)` over strided operands, B packed
+//! The f32 matrix product of every MLP in cpmx: `C (+)= op(A) op(B)` over strided operands, B packed
 //! BLIS-style into panels of 16 columns and multiplied by register-blocked micro-kernels with
 //! fused multiply-adds: 12 x 16 tiles with AVX-512 (A read in place through its strides: no
 //! packing of A), 6 x 16 with AVX2 and FMA (A packed), and a portable kernel.
@@ -10,7 +10,7 @@
 //! and so does any split of the rows between rayon threads: results never depend on the CPU's
 //! vector extensions, the path or the thread count.
 
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 
 use rayon::prelude::*;
 
@@ -18,8 +18,7 @@ use rayon::prelude::*;
 pub const MR: usize = 6;
 /// Rows of the AVX-512 micro-kernel's tile (12 of the 32 vector registers accumulate).
 pub const MR_WIDE: usize = 12;
-/// Columns of the micro-kernel's tile (two 256-bit vectors; the width of `cpmx-policy`'s
-/// weight panels, so a forward pass packs W^T exactly as the inference actor stores it).
+/// Columns of the micro-kernel's tile (one 512-bit or two 256-bit vectors).
 pub const NR: usize = 16;
 /// Depth of one packed block (a 6 x 256 A micro-panel and a 256 x 16 B micro-panel fit L1).
 const KC: usize = 256;
@@ -63,6 +62,10 @@ impl<'a> Mat<'a> {
 thread_local! {
     /// Per-thread packing buffer for blocks of A.
     static PACK_A: RefCell<Vec<f32>> = const { RefCell::new(Vec::new()) };
+    /// The calling thread's packing buffer for B: taken for the length of a product and put
+    /// back (a product that starts on the same thread meanwhile, stolen by rayon, finds it
+    /// empty and allocates its own), so products after the first allocate nothing.
+    static PACK_B: Cell<Vec<f32>> = const { Cell::new(Vec::new()) };
 }
 
 /// `C = op(A) op(B) + (accumulate ? C : 0)` with `A` `m x k`, `B` `k x n`, and `C` row-major
@@ -163,7 +166,8 @@ pub fn gemm_with(
     } else {
         n_panels
     };
-    let mut packed_b = vec![0.0f32; packed_panels * NR * KC.min(k)];
+    let mut packed_b = PACK_B.take();
+    packed_b.resize(packed_panels * NR * KC.min(k), 0.0);
     // Row blocks: at least two per thread when there are enough rows.
     let threads = rayon::current_num_threads();
     let tile = kernel.tile_rows();
@@ -217,6 +221,7 @@ pub fn gemm_with(
             c_rows.chunks_mut(mc * ldc).enumerate().for_each(work);
         }
     }
+    PACK_B.set(packed_b);
 }
 
 /// Whether the AVX2+FMA kernel runs on this CPU.
