@@ -1,7 +1,12 @@
 //! The f32 matrix product of every MLP in cpmx: `C (+)= op(A) op(B)` over strided operands, B packed
-//! BLIS-style into panels of 16 columns and multiplied by register-blocked micro-kernels with
-//! fused multiply-adds: 12 x 16 tiles with AVX-512 (A read in place through its strides: no
-//! packing of A), 6 x 16 with AVX2 and FMA (A packed), and a portable kernel.
+//! BLIS-style into `k`-major panels and multiplied by register-blocked micro-kernels with fused
+//! multiply-adds: 12 x 32 tiles with AVX-512 (24 of the 32 vector registers accumulate, enough
+//! to keep two 512-bit FMA units busy; A read in place through its strides: no packing of A;
+//! B in panels of 32 columns), 6 x 16 with AVX2 and FMA (A packed), and a portable kernel.
+//! B is always packed: read in place, a row-major B's rows lie a power of two apart and fall
+//! into a few L1 sets, so a panel does not stay in L1 between tiles (measured on an Intel core
+//! with two AVX-512 FMA units: 64-72 GFLOP/s in place with 12 x 16 tiles, 145-155 packed with
+//! 12 x 32, of a 175 GFLOP/s peak).
 //!
 //! Every element of C is one running sum over `k` in increasing order, one fused
 //! multiply-add per term, starting from C's previous value (or 0); a value stored between
@@ -16,10 +21,14 @@ use rayon::prelude::*;
 
 /// Rows of the AVX2 and portable micro-kernels' tile.
 pub const MR: usize = 6;
-/// Rows of the AVX-512 micro-kernel's tile (12 of the 32 vector registers accumulate).
+/// Rows of the AVX-512 micro-kernel's tile.
 pub const MR_WIDE: usize = 12;
-/// Columns of the micro-kernel's tile (one 512-bit or two 256-bit vectors).
+/// Columns of the AVX2 and portable micro-kernels' tile (two 256-bit vectors), and of one
+/// 512-bit vector.
 pub const NR: usize = 16;
+/// Columns of the AVX-512 micro-kernel's tile and of its B panels (two 512-bit vectors; a
+/// last panel of at most [`NR`] columns is multiplied with one).
+pub const NR_WIDE: usize = 32;
 /// Depth of one packed block (a 6 x 256 A micro-panel and a 256 x 16 B micro-panel fit L1).
 const KC: usize = 256;
 /// Largest row block packed at once (fits L2 together with the packed B block).
@@ -88,7 +97,7 @@ pub fn gemm(
 /// The micro-kernels, fastest first.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kernel {
-    /// 12 x 16 tiles in 512-bit registers, A read in place (`avx512f`).
+    /// 12 x 32 tiles in 512-bit registers, A read in place (`avx512f`).
     Avx512,
     /// 6 x 16 tiles in 256-bit registers from packed A (`avx2` and `fma`).
     Avx2Fma,
@@ -125,6 +134,14 @@ impl Kernel {
             Kernel::Avx2Fma | Kernel::Portable => MR,
         }
     }
+
+    /// Columns of one packed B panel.
+    fn panel_columns(self) -> usize {
+        match self {
+            Kernel::Avx512 => NR_WIDE,
+            Kernel::Avx2Fma | Kernel::Portable => NR,
+        }
+    }
 }
 
 /// [`gemm`] with the given kernel (which the CPU must support; [`Kernel::available`]).
@@ -156,18 +173,10 @@ pub fn gemm_with(
         a.data.len() > (m - 1) * a.rs + (k - 1) * a.cs && b.data.len() > (k - 1) * b.rs + (n - 1) * b.cs,
         "A or B too small"
     );
-    let n_panels = n.div_ceil(NR);
-    // The AVX-512 kernel reads a row-major B in place, one 16-value row of a panel per step
-    // (streamed from L2: a cache line per 12 multiply-adds); only a last partial panel is
-    // packed, zero-padded. Every other B is packed.
-    let b_in_place = kernel == Kernel::Avx512 && b.cs == 1;
-    let packed_panels = if b_in_place {
-        usize::from(!n.is_multiple_of(NR))
-    } else {
-        n_panels
-    };
+    let width = kernel.panel_columns();
+    let n_panels = n.div_ceil(width);
     let mut packed_b = PACK_B.take();
-    packed_b.resize(packed_panels * NR * KC.min(k), 0.0);
+    packed_b.resize(n_panels * width * KC.min(k), 0.0);
     // Row blocks: at least two per thread when there are enough rows.
     let threads = rayon::current_num_threads();
     let tile = kernel.tile_rows();
@@ -178,24 +187,13 @@ pub fn gemm_with(
         // Without `accumulate`, the first depth block starts every tile from zero instead of
         // loading C (the same sums as zeroing C first, without the pass over C).
         let load_c = accumulate || pc > 0;
-        let packed_b = &mut packed_b[..packed_panels * NR * kc];
-        if b_in_place {
-            if packed_panels == 1 {
-                pack_b_panel(&b, pc, kc, n, (n_panels - 1) * NR, packed_b);
-            }
+        let packed_b = &mut packed_b[..n_panels * width * kc];
+        if kernel == Kernel::Avx512 {
+            pack_b::<NR_WIDE>(&b, pc, kc, n, packed_b);
         } else {
-            pack_b(&b, pc, kc, n, packed_b);
+            pack_b::<NR>(&b, pc, kc, n, packed_b);
         }
         let packed_b = &*packed_b;
-        let panels = if b_in_place {
-            Panels::InPlace {
-                b: &b.data[pc * b.rs..],
-                row_stride: b.rs,
-                last_packed: (packed_panels == 1).then_some(packed_b),
-            }
-        } else {
-            Panels::Packed(packed_b)
-        };
         let c_rows = &mut c[..(m - 1) * ldc + n];
         let work = |(block, c_block): (usize, &mut [f32])| {
             let i0 = block * mc;
@@ -205,7 +203,7 @@ pub fn gemm_with(
                     data: &a.data[i0 * a.rs + pc * a.cs..],
                     ..a
                 };
-                block_product_in_place(&a_block, &panels, kc, rows, n, c_block, ldc, load_c);
+                block_product_wide(&a_block, packed_b, kc, rows, n, c_block, ldc, load_c);
                 return;
             }
             PACK_A.with_borrow_mut(|packed_a| {
@@ -236,41 +234,41 @@ pub fn has_fma() -> bool {
     }
 }
 
-/// Pack rows `pc..pc + kc` of B into micro-panels of [`NR`] columns, `k`-major, zero-padded;
+/// Pack rows `pc..pc + kc` of B into micro-panels of `W` columns, `k`-major, zero-padded;
 /// panels are split between rayon's threads when there are several (a copy: no bit changes).
-fn pack_b(b: &Mat<'_>, pc: usize, kc: usize, n: usize, out: &mut [f32]) {
-    let panel = |(p, panel): (usize, &mut [f32])| pack_b_panel(b, pc, kc, n, p * NR, panel);
-    if rayon::current_num_threads() > 1 && n >= 4 * NR {
-        out.par_chunks_exact_mut(NR * kc).enumerate().for_each(panel);
+fn pack_b<const W: usize>(b: &Mat<'_>, pc: usize, kc: usize, n: usize, out: &mut [f32]) {
+    let panel = |(p, panel): (usize, &mut [f32])| pack_b_panel::<W>(b, pc, kc, n, p * W, panel);
+    if rayon::current_num_threads() > 1 && n >= 4 * W {
+        out.par_chunks_exact_mut(W * kc).enumerate().for_each(panel);
     } else {
-        out.chunks_exact_mut(NR * kc).enumerate().for_each(panel);
+        out.chunks_exact_mut(W * kc).enumerate().for_each(panel);
     }
 }
 
-/// One micro-panel of [`pack_b`]: columns `j0..j0 + NR` of B's rows `pc..pc + kc`.
-fn pack_b_panel(b: &Mat<'_>, pc: usize, kc: usize, n: usize, j0: usize, panel: &mut [f32]) {
-    let cols = NR.min(n - j0);
+/// One micro-panel of [`pack_b`]: columns `j0..j0 + W` of B's rows `pc..pc + kc`.
+fn pack_b_panel<const W: usize>(b: &Mat<'_>, pc: usize, kc: usize, n: usize, j0: usize, panel: &mut [f32]) {
+    let cols = W.min(n - j0);
     if b.rs == 1 {
         // B is a transposed row-major matrix (W^T): each column is contiguous, so read
         // columns and scatter them into the panel, which stays in L1.
         for jj in 0..cols {
             let column = &b.data[(j0 + jj) * b.cs + pc..][..kc];
             for (kk, &v) in column.iter().enumerate() {
-                panel[kk * NR + jj] = v;
+                panel[kk * W + jj] = v;
             }
         }
-        if cols < NR {
-            for row in panel.as_chunks_mut::<NR>().0 {
+        if cols < W {
+            for row in panel.as_chunks_mut::<W>().0 {
                 row[cols..].fill(0.0);
             }
         }
         return;
     }
-    for (kk, row) in panel.as_chunks_mut::<NR>().0.iter_mut().enumerate() {
-        if b.cs == 1 && cols == NR {
+    for (kk, row) in panel.as_chunks_mut::<W>().0.iter_mut().enumerate() {
+        if b.cs == 1 && cols == W {
             // A fixed-size copy (a variable one would call memmove for 16 values).
             let start = (pc + kk) * b.rs + j0;
-            *row = b.data[start..start + NR].try_into().expect("16 values");
+            *row = b.data[start..start + W].try_into().expect("a panel row");
             continue;
         }
         if b.cs == 1 {
@@ -381,41 +379,14 @@ fn micro_kernel(kc: usize, a: &[f32], b: &[f32], c: &mut [f32], ldc: usize, fma:
     micro_kernel_portable(kc, a, b, c, ldc, load_c);
 }
 
-/// Where the AVX-512 kernel reads B's panels of [`NR`] columns over a depth block.
-enum Panels<'a> {
-    /// Packed: panel `p` at `p * NR * kc`, `NR` values a row.
-    Packed(&'a [f32]),
-    /// A row-major B read in place from the depth block's first row: panel `p` at `p * NR`,
-    /// rows `row_stride` apart; a last partial panel packed instead.
-    InPlace {
-        b: &'a [f32],
-        row_stride: usize,
-        last_packed: Option<&'a [f32]>,
-    },
-}
-
-impl<'a> Panels<'a> {
-    /// Panel `p` of `n_panels` and its row stride.
-    fn panel(&self, p: usize, n_panels: usize, kc: usize) -> (&'a [f32], usize) {
-        match *self {
-            Panels::Packed(packed) => (&packed[p * NR * kc..(p + 1) * NR * kc], NR),
-            Panels::InPlace {
-                last_packed: Some(last),
-                ..
-            } if p + 1 == n_panels => (last, NR),
-            Panels::InPlace { b, row_stride, .. } => (&b[p * NR..], row_stride),
-        }
-    }
-}
-
 /// All tiles of one row block with the AVX-512 kernel, reading A in place: `a` starts at the
-/// block's first row and depth (element `(i, kk)` at `i * rs + kk * cs`), `c_block` at the
-/// block's first row. Full tiles are updated in place; tiles over the last columns go through
-/// a zero-padded copy.
+/// block's first row and depth (element `(i, kk)` at `i * rs + kk * cs`), `packed_b` holds the
+/// depth block's panels of [`NR_WIDE`] columns, `c_block` starts at the block's first row.
+/// Full tiles are updated in place; tiles over the last columns go through a zero-padded copy.
 #[allow(clippy::too_many_arguments)]
-fn block_product_in_place(
+fn block_product_wide(
     a: &Mat<'_>,
-    panels: &Panels<'_>,
+    packed_b: &[f32],
     kc: usize,
     rows: usize,
     n: usize,
@@ -424,26 +395,28 @@ fn block_product_in_place(
     load_c: bool,
 ) {
     assert!(a.data.len() > (rows - 1) * a.rs + (kc - 1) * a.cs, "A block");
-    let mut tile = [[0.0f32; NR]; MR_WIDE];
-    let n_panels = n.div_ceil(NR);
-    for jp in 0..n_panels {
-        let (b_panel, b_stride) = panels.panel(jp, n_panels, kc);
-        let j0 = jp * NR;
-        let cols = NR.min(n - j0);
+    let mut tile = [[0.0f32; NR_WIDE]; MR_WIDE];
+    for (jp, b_panel) in packed_b.chunks_exact(NR_WIDE * kc).enumerate() {
+        let j0 = jp * NR_WIDE;
+        let cols = NR_WIDE.min(n - j0);
+        // One vector where the panel's second half is padding.
+        let vectors = cols.div_ceil(NR);
         for i0 in (0..rows).step_by(MR_WIDE) {
             let valid = MR_WIDE.min(rows - i0);
             let a_tile = &a.data[i0 * a.rs..];
-            if cols == NR {
-                let c = &mut c_block[i0 * ldc + j0..(i0 + valid - 1) * ldc + j0 + NR];
-                wide_kernel(valid, kc, a_tile, a.rs, a.cs, b_panel, b_stride, c, ldc, load_c);
+            if cols == vectors * NR {
+                let c = &mut c_block[i0 * ldc + j0..(i0 + valid - 1) * ldc + j0 + cols];
+                wide_kernel(valid, vectors, kc, a_tile, a.rs, a.cs, b_panel, c, ldc, load_c);
             } else {
                 if load_c {
                     for (r, t) in tile.iter_mut().enumerate().take(valid) {
                         t[..cols].copy_from_slice(&c_block[(i0 + r) * ldc + j0..][..cols]);
                     }
                 }
-                let t = &mut tile.as_flattened_mut()[..valid * NR];
-                wide_kernel(valid, kc, a_tile, a.rs, a.cs, b_panel, b_stride, t, NR, load_c);
+                let t = &mut tile.as_flattened_mut()[..(valid - 1) * NR_WIDE + vectors * NR];
+                wide_kernel(
+                    valid, vectors, kc, a_tile, a.rs, a.cs, b_panel, t, NR_WIDE, load_c,
+                );
                 for (r, t) in tile.iter().enumerate().take(valid) {
                     c_block[(i0 + r) * ldc + j0..][..cols].copy_from_slice(&t[..cols]);
                 }
@@ -452,37 +425,42 @@ fn block_product_in_place(
     }
 }
 
-/// The AVX-512 tile of `rows` (1 to [`MR_WIDE`]) rows: `C_tile (+)= A_tile B_panel` over `kc`
-/// terms, A element `(r, kk)` at `a[r * rs + kk * cs]`, B row `kk` at `b[kk * ldb..][..NR]`,
-/// C element `(r, j)` at `c[r * ldc + j]`.
+/// The AVX-512 tile of `rows` (1 to [`MR_WIDE`]) rows and `vectors` (1 or 2) times 16
+/// columns: `C_tile (+)= A_tile B_panel` over `kc` terms, A element `(r, kk)` at
+/// `a[r * rs + kk * cs]`, B row `kk` at `b[kk * NR_WIDE..]`, C element `(r, j)` at
+/// `c[r * ldc + j]`.
 #[allow(clippy::too_many_arguments)]
 fn wide_kernel(
     rows: usize,
+    vectors: usize,
     kc: usize,
     a: &[f32],
     rs: usize,
     cs: usize,
     b: &[f32],
-    ldb: usize,
     c: &mut [f32],
     ldc: usize,
     load_c: bool,
 ) {
     assert!(
         (1..=MR_WIDE).contains(&rows)
+            && (1..=2).contains(&vectors)
             && a.len() > (rows - 1) * rs + (kc - 1) * cs
-            && b.len() >= (kc - 1) * ldb + NR
-            && c.len() > (rows - 1) * ldc + NR - 1
+            && b.len() >= kc * NR_WIDE
+            && c.len() >= (rows - 1) * ldc + vectors * NR
     );
     #[cfg(target_arch = "x86_64")]
     {
         let (a, b, c) = (a.as_ptr(), b.as_ptr(), c.as_mut_ptr());
         macro_rules! tile {
             ($($r:literal)*) => {
-                match rows {
+                match (rows, vectors) {
                     // SAFETY: the kernel is only chosen when the CPU has AVX-512F
                     // (`Kernel::available`); the operands hold the tile (asserted above).
-                    $($r => unsafe { micro_kernel_avx512::<$r>(kc, a, rs, cs, b, ldb, c, ldc, load_c) },)*
+                    $(
+                        ($r, 1) => unsafe { micro_kernel_avx512::<$r, 1>(kc, a, rs, cs, b, c, ldc, load_c) },
+                        ($r, _) => unsafe { micro_kernel_avx512::<$r, 2>(kc, a, rs, cs, b, c, ldc, load_c) },
+                    )*
                     _ => unreachable!("1 to 12 rows"),
                 }
             };
@@ -495,42 +473,48 @@ fn wide_kernel(
 
 /// # Safety
 /// The CPU must support AVX-512F; `a` must be valid at `r * rs + kk * cs` for `r < R`,
-/// `kk < kc`, `b` at `kk * ldb + j`, `j < NR`, and `c` at `r * ldc + j`, `r < R`, `j < NR`.
+/// `kk < kc`, `b` at `kk * NR_WIDE + j`, and `c` at `r * ldc + j`, `r < R`, `j < 16 V`.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 #[allow(clippy::too_many_arguments)]
-unsafe fn micro_kernel_avx512<const R: usize>(
+unsafe fn micro_kernel_avx512<const R: usize, const V: usize>(
     kc: usize,
     a: *const f32,
     rs: usize,
     cs: usize,
     b: *const f32,
-    ldb: usize,
     c: *mut f32,
     ldc: usize,
     load_c: bool,
 ) {
     use std::arch::x86_64::*;
-    let mut acc = [_mm512_setzero_ps(); R];
+    let mut acc = [[_mm512_setzero_ps(); V]; R];
     if load_c {
         for (r, acc_r) in acc.iter_mut().enumerate() {
-            // SAFETY: within the tile (caller's guarantee).
-            *acc_r = unsafe { _mm512_loadu_ps(c.add(r * ldc)) };
+            for (v, acc_rv) in acc_r.iter_mut().enumerate() {
+                // SAFETY: within the tile (caller's guarantee).
+                *acc_rv = unsafe { _mm512_loadu_ps(c.add(r * ldc + v * NR)) };
+            }
         }
     }
     for kk in 0..kc {
-        // SAFETY: `kk < kc`, `r < R`: within the operands (caller's guarantee).
+        // SAFETY: `kk < kc`, `r < R`, `v < V`: within the operands (caller's guarantee).
         unsafe {
-            let b_k = _mm512_loadu_ps(b.add(kk * ldb));
+            let b_k: [__m512; V] = std::array::from_fn(|v| _mm512_loadu_ps(b.add(kk * NR_WIDE + v * NR)));
             let a_k = a.add(kk * cs);
             for (r, acc_r) in acc.iter_mut().enumerate() {
-                *acc_r = _mm512_fmadd_ps(_mm512_set1_ps(*a_k.add(r * rs)), b_k, *acc_r);
+                let a_rk = _mm512_set1_ps(*a_k.add(r * rs));
+                for (acc_rv, &b_kv) in acc_r.iter_mut().zip(&b_k) {
+                    *acc_rv = _mm512_fmadd_ps(a_rk, b_kv, *acc_rv);
+                }
             }
         }
     }
     for (r, acc_r) in acc.iter().enumerate() {
-        // SAFETY: within the tile (caller's guarantee).
-        unsafe { _mm512_storeu_ps(c.add(r * ldc), *acc_r) };
+        for (v, acc_rv) in acc_r.iter().enumerate() {
+            // SAFETY: within the tile (caller's guarantee).
+            unsafe { _mm512_storeu_ps(c.add(r * ldc + v * NR), *acc_rv) };
+        }
     }
 }
 
@@ -688,14 +672,22 @@ mod tests {
             (37, 40, 300),
             (130, 20, 257),
             (24, 48, 600),
+            (25, 64, 33),
+            (12, 16, 9),
+            (29, 100, 260),
         ] {
             let a_rm = data(m * k, 7.0);
             let b_rm = data(k * n, 8.0);
             let a_t: Vec<f32> = (0..k * m).map(|x| a_rm[(x % m) * k + x / m]).collect();
-            for (a, accumulate) in [(Mat::rows(&a_rm, k), true), (Mat::transposed(&a_t, m), false)] {
+            let b_t: Vec<f32> = (0..n * k).map(|x| b_rm[(x % k) * n + x / k]).collect();
+            for (a, b, accumulate) in [
+                (Mat::rows(&a_rm, k), Mat::rows(&b_rm, n), true),
+                (Mat::transposed(&a_t, m), Mat::rows(&b_rm, n), false),
+                (Mat::rows(&a_rm, k), Mat::transposed(&b_t, k), true),
+            ] {
                 let run = |kernel: Kernel| {
                     let mut c: Vec<f32> = (0..m * (n + 2)).map(|i| i as f32 * 1e-3).collect();
-                    gemm_with(kernel, m, n, k, a, Mat::rows(&b_rm, n), &mut c, n + 2, accumulate);
+                    gemm_with(kernel, m, n, k, a, b, &mut c, n + 2, accumulate);
                     c.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
                 };
                 let want = run(Kernel::Portable);

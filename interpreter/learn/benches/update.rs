@@ -4,19 +4,14 @@
 //! Adam, reported in FLOP/s (2 per multiply-add of the three products per layer; the input
 //! layers need no input gradient): 2.18 GFLOP per step, 240 steps per iteration.
 //!
-//! Peak for comparison (`peak/fma`): a loop of 12 independent 8-lane FMA chains, i.e. what
-//! one core can do at its current clock. On this machine's AMD EPYC (Zen, `avx2` and `fma` in
-//! /proc/cpuinfo, no AVX-512) a core issues two 256-bit FMAs per cycle: 2 x 8 lanes x 2 FLOP =
-//! 32 FLOP per cycle, e.g. 78 GFLOP/s at the nominal 2.45 GHz and more while boosting; the
-//! bench measures it rather than assuming a clock. Run with one thread while others build:
-//! `RAYON_NUM_THREADS=1 cargo bench -p cpmx-learn --bench update`.
-//!
-//! Measured here (2026-11-23, one thread, the machine otherwise idle): peak 88 GFLOP/s; one
-//! minibatch step 53.5 ms = 40 GFLOP/s, 46 % of that peak (two threads: 36 ms), i.e. 12.8 s
-//! for the 240 steps of an iteration; the products alone (`parts/gemm_*`) run at 59-65 GFLOP/s
-//! (67-74 %); tanh (535 M values/s, 7 % of a step), packing, the loss and Adam take the rest.
-//! (A first run of this bench recorded 33.5 ms at a 100 GFLOP/s peak.) A 240-step update needs
-//! 524 GFLOP, so 3 s would take 175 GFLOP/s: beyond one core's f32 peak.
+//! Peak for comparison (`peak/fma`): independent chains of the widest FMA the CPU has (AVX-512
+//! where present, else AVX2), i.e. what one core can do at its current clock; the bench
+//! measures it rather than assuming a clock. The width matters: a Zen 4 core splits a 512-bit
+//! FMA into two 256-bit halves (the same peak either way), an Intel core with two AVX-512 FMA
+//! units does twice the 256-bit figure. Run with one thread, nothing else running:
+//! `RAYON_NUM_THREADS=1 cargo bench -p cpmx-learn --bench update`. The README's performance
+//! section has the figures of each machine the project ran on. A 240-step update needs 524
+//! GFLOP.
 
 use std::hint::black_box;
 
@@ -139,17 +134,44 @@ impl Step {
     }
 }
 
-/// FLOP of one call of [`fma_peak`].
-const PEAK_FLOP: u64 = 12 * 8 * 2 * 100_000;
+/// Steps of every chain in one call of [`fma_peak`].
+const PEAK_STEPS: usize = 100_000;
 
-/// 12 independent chains of 8-lane FMAs, 100,000 each.
-fn fma_peak() -> f32 {
+/// The widest fused multiply-add this CPU runs, as many independent chains as keep every FMA
+/// unit busy: 12 chains of 16 lanes with AVX-512 (two 512-bit units with 4 cycles of latency
+/// need 8), else 12 of 8 lanes with AVX2. Returns the FLOP one call of the function does.
+fn fma_peak() -> (u64, fn() -> f32) {
     #[cfg(target_arch = "x86_64")]
-    if cpmx_kernels::gemm::has_fma() {
-        // SAFETY: the CPU has AVX2 and FMA.
-        return unsafe { fma_peak_avx2() };
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F.
+            return ((12 * 16 * 2 * PEAK_STEPS) as u64, || unsafe { fma_peak_avx512() });
+        }
+        if cpmx_kernels::gemm::has_fma() {
+            // SAFETY: the CPU has AVX2 and FMA.
+            return ((12 * 8 * 2 * PEAK_STEPS) as u64, || unsafe { fma_peak_avx2() });
+        }
     }
-    0.0
+    (1, || 0.0)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn fma_peak_avx512() -> f32 {
+    use std::arch::x86_64::*;
+    let mut acc = [_mm512_set1_ps(0.0); 12];
+    let a = _mm512_set1_ps(black_box(0.999_999));
+    let b = _mm512_set1_ps(black_box(1e-7));
+    for _ in 0..PEAK_STEPS {
+        for x in acc.iter_mut() {
+            *x = _mm512_fmadd_ps(*x, a, b);
+        }
+    }
+    let mut sum = _mm512_setzero_ps();
+    for x in acc {
+        sum = _mm512_add_ps(sum, x);
+    }
+    _mm512_reduce_add_ps(sum)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -159,7 +181,7 @@ unsafe fn fma_peak_avx2() -> f32 {
     let mut acc = [_mm256_set1_ps(0.0); 12];
     let a = _mm256_set1_ps(black_box(0.999_999));
     let b = _mm256_set1_ps(black_box(1e-7));
-    for _ in 0..100_000 {
+    for _ in 0..PEAK_STEPS {
         for x in acc.iter_mut() {
             *x = _mm256_fmadd_ps(*x, a, b);
         }
@@ -267,8 +289,9 @@ fn bench(c: &mut Criterion) {
     });
     group.finish();
     let mut group = c.benchmark_group("peak");
-    group.throughput(Throughput::Elements(PEAK_FLOP));
-    group.bench_function("fma_flop", |b| b.iter(|| black_box(fma_peak())));
+    let (peak_flop, peak) = fma_peak();
+    group.throughput(Throughput::Elements(peak_flop));
+    group.bench_function("fma_flop", |b| b.iter(|| black_box(peak())));
     group.finish();
 }
 
