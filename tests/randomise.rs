@@ -101,3 +101,35 @@ fn drawn_parameters_are_recorded_per_run_and_do_not_depend_on_threads() {
     assert_eq!(one, runs(&dir.join("two")));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn plan_lists_what_each_fidelity_draws() {
+    let dir = scratch("randomise-plan");
+    randomised_spec(&dir);
+    let table = ok(&cpmx_in(&dir, &["plan", "spec.yaml"]));
+    let section = table
+        .split("randomised parameters")
+        .nth(1)
+        .expect("a section of randomised parameters");
+    let rows: Vec<Vec<&str>> = section
+        .lines()
+        .skip(2)
+        .map(|l| l.split("  ").map(str::trim).filter(|c| !c.is_empty()).collect())
+        .collect();
+    assert_eq!(
+        rows,
+        [
+            vec!["twin", "sensing.latency_ms", "normal (mean 60, std 20)"],
+            vec!["twin", "actuation.delay_ms", "uniform [40, 120]"],
+        ]
+    );
+    let json = ok(&cpmx_in(&dir, &["plan", "spec.yaml", "--format", "json"]));
+    let json: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(
+        json["randomised"][1],
+        serde_json::json!({
+            "fidelity": "twin", "parameter": "actuation.delay_ms",
+            "distribution": {"uniform": [40.0, 120.0]},
+        })
+    );
+}

@@ -1,12 +1,14 @@
 //! `cpmx plan SPEC`: the run matrix as a table, CSV or JSON, with the start poses of every
 //! initial configuration (sampled ones included): every run of a configuration starts from
-//! them, whatever its fidelity, policy and repetition.
+//! them, whatever its fidelity, policy and repetition; then the training runs and the layer
+//! parameters that fidelities draw.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
 use cpmx_engine::{InitialState, Scoring, initial_states};
-use cpmx_spec::{RunPlan, TrainingPlan};
+use cpmx_spec::model::{Distribution, Fidelity, Parameter};
+use cpmx_spec::{RunPlan, Spec, TrainingPlan};
 
 use super::{Failure, load_checked};
 use crate::DataArgs;
@@ -40,6 +42,7 @@ pub fn run(spec: &Path, format: PlanFormat, data: &DataArgs) -> Result<(), Failu
         Failure::InvalidInput
     })?;
     let (runs, training) = (checked.plan(), checked.training_plan());
+    let randomised = randomised_parameters(&checked.spec);
     let mut text = render(&runs, format);
     match format {
         // A spec that only trains has no matrix to show.
@@ -48,11 +51,52 @@ pub fn run(spec: &Path, format: PlanFormat, data: &DataArgs) -> Result<(), Failu
             text.push_str(&starts_table(&starts));
             text.push_str(&render_training(&training, format));
         }
-        PlanFormat::Json => text = plan_json(&runs, &starts, &training),
+        PlanFormat::Json => text = plan_json(&runs, &starts, &training, &randomised),
         PlanFormat::Csv => {}
+    }
+    if format == PlanFormat::Table {
+        text.push_str(&randomised_table(&randomised));
     }
     print!("{text}");
     Ok(())
+}
+
+/// A layer parameter some fidelity draws: (fidelity, parameter, distribution).
+type Randomised = (String, String, Distribution);
+
+/// Every distribution of the spec's fidelities, in the order the fidelities are declared and
+/// their parameters drawn.
+fn randomised_parameters(spec: &Spec) -> Vec<Randomised> {
+    let mut out = Vec::new();
+    for (name, fidelity) in &spec.fidelities {
+        let Fidelity::Simulated(stack) = fidelity else {
+            continue;
+        };
+        for parameter in stack.parameters() {
+            if let Parameter::Drawn(distribution) = parameter.value {
+                out.push((name.clone(), parameter.name, distribution));
+            }
+        }
+    }
+    out
+}
+
+/// The randomised parameters as a table (nothing when no fidelity draws any): what `cpmx run`
+/// draws per run and `cpmx train` per episode.
+fn randomised_table(randomised: &[Randomised]) -> String {
+    if randomised.is_empty() {
+        return String::new();
+    }
+    let rows: Vec<Vec<String>> = randomised
+        .iter()
+        .map(|(fidelity, parameter, distribution)| {
+            vec![fidelity.clone(), parameter.clone(), distribution.to_string()]
+        })
+        .collect();
+    let mut out =
+        String::from("\nrandomised parameters (drawn per run by `cpmx run`, per episode by `cpmx train`):\n");
+    out.push_str(&table(&["fidelity", "parameter", "distribution"], &rows));
+    out
 }
 
 /// The start poses as a table, after the matrix.
@@ -83,7 +127,12 @@ fn starts_table(starts: &Starts) -> String {
 
 /// The matrix, the start poses and the training runs (when the spec trains) as one JSON
 /// document.
-fn plan_json(runs: &[RunPlan], starts: &Starts, training: &[TrainingPlan]) -> String {
+fn plan_json(
+    runs: &[RunPlan],
+    starts: &Starts,
+    training: &[TrainingPlan],
+    randomised: &[Randomised],
+) -> String {
     let starts: serde_json::Map<String, serde_json::Value> = starts
         .iter()
         .map(|(name, agents)| {
@@ -102,6 +151,16 @@ fn plan_json(runs: &[RunPlan], starts: &Starts, training: &[TrainingPlan]) -> St
     let mut value = serde_json::json!({ "runs": runs, "starts": starts });
     if !training.is_empty() {
         value["training"] = serde_json::json!(training);
+    }
+    if !randomised.is_empty() {
+        value["randomised"] = randomised
+            .iter()
+            .map(|(fidelity, parameter, distribution)| {
+                serde_json::json!({
+                    "fidelity": fidelity, "parameter": parameter, "distribution": distribution,
+                })
+            })
+            .collect();
     }
     format!("{}\n", serde_json::to_string_pretty(&value).unwrap_or_default())
 }

@@ -36,6 +36,18 @@ pub enum Distribution {
     Normal(NormalDistribution),
 }
 
+impl std::fmt::Display for Distribution {
+    /// As a spec writes it: `uniform [40, 120]`, `normal (mean 1, std 0.05)`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Distribution::Uniform([low, high]) => write!(f, "uniform [{low}, {high}]"),
+            Distribution::Normal(NormalDistribution { mean, std }) => {
+                write!(f, "normal (mean {mean}, std {std})")
+            }
+        }
+    }
+}
+
 /// The parameters of a normal distribution.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
