@@ -151,6 +151,39 @@ fn a_small_scenario_learns_and_the_trained_actor_runs() {
         page.contains("\"learning_curves\":[{"),
         "the page's data names the curve"
     );
+
+    // The actor is the one this spec's training section trained: no warning. Once the section
+    // changes (or the folder loses its run.json), validate says so at the policy's `trained`.
+    let validate = |spec: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_cpmx"))
+            .args(["validate", spec.to_str().unwrap(), "--data"])
+            .arg(reference())
+            .env_remove("CPMX_DATA")
+            .output()
+            .unwrap()
+    };
+    let same = validate(&spec);
+    assert!(same.status.success());
+    assert!(
+        !String::from_utf8_lossy(&same.stderr).contains("trained-elsewhere"),
+        "{}",
+        String::from_utf8_lossy(&same.stderr)
+    );
+    let text = std::fs::read_to_string(&spec).unwrap();
+    let changed = dir.join("changed.yaml");
+    std::fs::write(&changed, text.replace("lr: 1.0e-3", "lr: 2.0e-3")).unwrap();
+    let out = validate(&changed);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "a warning, not an error: {stderr}");
+    assert!(stderr.contains("cpmx::check::trained-elsewhere"), "{stderr}");
+    assert!(
+        stderr.contains("changed.yaml:7:"),
+        "at the policy's line: {stderr}"
+    );
+    assert!(stderr.contains("trained with other inputs"), "{stderr}");
+    std::fs::remove_file(dir.join("out/7/run.json")).unwrap();
+    let stderr = String::from_utf8_lossy(&validate(&spec).stderr).into_owned();
+    assert!(stderr.contains("no run.json beside the actor"), "{stderr}");
 }
 
 /// `stdlib:sigmarl-shaped` adds the paper's speed and centre-line terms: the learning curve

@@ -71,9 +71,26 @@ pub struct CheckedSpec {
     pub configurations: Vec<NamedConfiguration>,
     /// Problems that do not stop the spec (e.g. fidelities this build cannot run).
     pub warnings: Vec<SpecDiagnostic>,
+    /// Where every node of the spec's text is, for problems found after checking.
+    doc: SpannedDocument,
+    /// The spec's text, for those problems' diagnostics.
+    source: Arc<miette::NamedSource<String>>,
 }
 
 impl CheckedSpec {
+    /// Where to point for the node at the JSON `pointer` (e.g. `/policies/0/mlp/trained`): its
+    /// key when it has one, else its value, else its nearest ancestor in the text.
+    pub fn key_span(&self, pointer: &str) -> ByteSpan {
+        let spans = self.doc.spans_at(pointer);
+        spans.key.unwrap_or(spans.value)
+    }
+
+    /// A problem found after checking (by the interpreter, from files the checks do not read),
+    /// as a diagnostic of this spec's text.
+    pub fn diagnostic(&self, problem: Problem) -> SpecDiagnostic {
+        SpecDiagnostic::new(problem, self.source.clone())
+    }
+
     /// The run matrix.
     pub fn plan(&self) -> Vec<RunPlan> {
         matrix::expand(&self.spec, &self.configurations)
@@ -160,10 +177,12 @@ pub fn check_scoped(
     let configurations = matrix::configurations(&spec, &resources);
     Ok(CheckedSpec {
         spec,
-        resolved: doc.value,
+        resolved: doc.value.clone(),
         resources,
         configurations,
         warnings: attach(warnings),
+        doc,
+        source: named,
     })
 }
 

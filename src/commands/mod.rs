@@ -27,6 +27,44 @@ pub enum Failure {
     RunsFailed = 3,
 }
 
+/// Warnings for trained actors (`mlp: {trained}`) that the spec's `training:` section as it
+/// stands did not train (their `run.json` records other inputs), or whose folder does not say.
+fn trained_elsewhere(checked: &CheckedSpec) -> Vec<cpmx_spec::SpecDiagnostic> {
+    cpmx_train::trained_actors(checked)
+        .into_iter()
+        .filter_map(|(i, provenance)| {
+            let name = &checked.spec.policies[i].name;
+            let span = checked.key_span(&format!("/policies/{i}/mlp/trained"));
+            let problem = match provenance {
+                cpmx_train::Provenance::Same => return None,
+                cpmx_train::Provenance::Other { recorded, expected } => cpmx_spec::Problem::warning(
+                    "cpmx::check::trained-elsewhere",
+                    format!(
+                        "policy `{name}` names an actor that other inputs trained: this spec's \
+                         `training:` section, vehicle, `timing.dt` or map changed since"
+                    ),
+                    span,
+                    "trained with other inputs",
+                )
+                .with_help(format!(
+                    "its run.json records fingerprint {}…, this spec gives {}…; `cpmx train` \
+                     into a new `--out` folder trains it again",
+                    &recorded[..recorded.len().min(12)],
+                    &expected[..expected.len().min(12)]
+                )),
+                cpmx_train::Provenance::Unrecorded => cpmx_spec::Problem::warning(
+                    "cpmx::check::trained-elsewhere",
+                    format!("policy `{name}` names an actor whose folder does not say what trained it"),
+                    span,
+                    "no run.json beside the actor",
+                )
+                .with_help("`cpmx train` writes run.json beside every actor it trains"),
+            };
+            Some(checked.diagnostic(problem))
+        })
+        .collect()
+}
+
 /// Reads and checks a spec; on failure prints every diagnostic to stderr.
 pub fn load_checked(path: &Path, data: &DataArgs) -> Result<CheckedSpec, Failure> {
     load_checked_for(path, data, cpmx_spec::CheckScope::Run, &[])
@@ -51,7 +89,11 @@ pub fn load_checked_for(
     let data_path = DataPath::new(&source.dir, &data.data, cpmx_data.as_deref());
     let colour = std::io::stderr().is_terminal();
     match cpmx_spec::check_scoped(&source, &data_path, &cpmx_engine::BuildChecks, scope) {
-        Ok(checked) => {
+        Ok(mut checked) => {
+            if scope == cpmx_spec::CheckScope::Run {
+                let stale = trained_elsewhere(&checked);
+                checked.warnings.extend(stale);
+            }
             let warnings: Vec<_> = checked
                 .warnings
                 .iter()

@@ -4,7 +4,8 @@
 //! This crate owns the join and the files: [`TrainingSetup`] reads the section (scenario,
 //! reward, algorithm, network, fidelity) and the map; [`TrainingEnv`] hands the environments
 //! to the learner; [`SeedRun`] trains one seed into `<out>/<seed>/`, checkpointing every
-//! iteration so that a killed run resumes to the same weights. Rewards, resets and PPO live in
+//! iteration so that a killed run resumes to the same weights; [`trained_actors`] tells whether
+//! the actors a spec's policies name were trained by its section as it stands. Rewards, resets and PPO live in
 //! the crates below; the command line (progress bar, `--jobs`, `--only`) lives in `cpmx`.
 //!
 //! ```text
@@ -20,9 +21,11 @@
 
 pub mod curve;
 mod environment;
+mod provenance;
 mod seed_run;
 mod setup;
 
 pub use environment::{TrainingEnv, reward_term_names};
+pub use provenance::{Provenance, trained_actors};
 pub use seed_run::{RunError, RunInfo, SeedRun, Start, write_overview};
 pub use setup::{SetupError, TrainingSetup};
