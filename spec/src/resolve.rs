@@ -62,14 +62,14 @@ fn insert_defaults(doc: &mut Value) {
         training
             .entry("observation")
             .or_insert_with(|| Value::from("stdlib:sigmarl"));
-        // A spec that only trains (no key of the run matrix): SigmaRL's step and, for the
-        // default `training.fidelity: sim`, its simulation.
-        let named_fidelity = training.contains_key("fidelity");
+        // A spec that only trains (no key of the run matrix): SigmaRL's step and, unless it
+        // defines its own fidelities, SigmaRL's simulation as `sim` (the default
+        // `training.fidelity`, whether the section names it or not).
         let trains_only = MATRIX_KEYS.iter().all(|k| !root.contains_key(*k));
         if trains_only {
             root.entry("timing")
                 .or_insert_with(|| serde_json::json!({"dt": 0.1, "steps": 180}));
-            if !named_fidelity && !root.contains_key("fidelities") {
+            if !root.contains_key("fidelities") {
                 root.insert(
                     "fidelities".to_owned(),
                     serde_json::json!({"sim": {"control": "direct", "dynamics": "kinematic"}}),

@@ -80,6 +80,14 @@ fn a_spec_may_only_train_in_sigmarls_simulation() {
         Fidelity::Simulated(sim) => assert_eq!(sim.control, cpmx_spec::model::Control::Direct),
         Fidelity::Lab(_) => panic!("sim is SigmaRL's simulation"),
     }
+    // Naming the default, as the language reference writes it, is the same spec.
+    let named = check(&TRAINS_ONLY.replace("training:\n", "training:\n  fidelity: sim\n")).unwrap();
+    assert_eq!(named.spec.fidelities, checked.spec.fidelities);
+    assert_eq!(named.training_plan(), training);
+    // Another name needs the spec to define it.
+    let other = TRAINS_ONLY.replace("training:\n", "training:\n  fidelity: sim-mpc\n");
+    let problems = cpmx_spec::render(&check(&other).expect_err("sim-mpc is not defined"), false);
+    assert!(problems.contains("which the spec does not define"), "{problems}");
     // One key of the matrix makes it an experiment again, which needs all of them.
     let partial = TRAINS_ONLY.replace("training:\n", "agents: 2\ntraining:\n");
     let problems = cpmx_spec::render(&check(&partial).expect_err("matrix keys missing"), false);
