@@ -1,0 +1,93 @@
+//! The actors the repository ships (`experiments/policies/`) are the ones the experiments'
+//! own `training:` sections trained: each folder's `run.json` carries the fingerprint of every
+//! input that shaped the weights (the resolved training section for its fidelity, vehicle,
+//! `timing.dt`, map content, and for a `control: trajectory` fidelity its layers and the
+//! planner), which must equal the fingerprint of the spec as it stands; every planned
+//! iteration was trained, the curve has a row per iteration, and the best actor is the one
+//! SigmaRL's rule picks from that curve.
+
+mod support;
+
+use std::path::Path;
+
+use cpmx_spec::{DataPath, SpecSource};
+use cpmx_train::TrainingSetup;
+use support::{reference, root};
+
+/// Checks every `mlp: {trained}` policy of `spec`; returns how many it checked.
+fn check_shipped(spec: &str) -> usize {
+    let path = root().join(spec);
+    let source = SpecSource::read(&path).unwrap();
+    let data = DataPath::new(path.parent().unwrap(), &[reference()], None);
+    let checked = cpmx_spec::check(&source, &data, &cpmx_engine::BuildChecks)
+        .unwrap_or_else(|e| panic!("{spec}: {}", cpmx_spec::render(&e, false)));
+    let training = checked.spec.training.as_ref().expect("a training section");
+    let mut count = 0;
+    for policy in &checked.spec.policies {
+        let Some(trained) = policy.mlp.as_ref().and_then(|m| m.trained.as_ref()) else {
+            continue;
+        };
+        let fidelity = trained
+            .fidelity
+            .clone()
+            .unwrap_or_else(|| training.fidelity.names()[0].clone());
+        let setup = TrainingSetup::prepare(&checked, &fidelity).unwrap();
+        let actor = path
+            .parent()
+            .unwrap()
+            .join(trained.relative_file(&checked.spec.name, Some(training)));
+        let dir = actor.parent().unwrap();
+        let what = format!("{spec}: policy `{}` ({})", policy.name, dir.display());
+        assert!(actor.is_file(), "{what}: no actor");
+        let run: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.join("run.json")).unwrap()).unwrap();
+        assert_eq!(
+            run["fingerprint"], setup.fingerprint,
+            "{what}: trained by other inputs than the spec's (training section, vehicle, dt, map)"
+        );
+        assert_eq!(run["seed"], trained.seed, "{what}");
+        let planned = setup.hyperparameters.n_iters;
+        assert_eq!(run["iterations_done"], planned, "{what}: not trained to the end");
+        assert_eq!(run["iterations_planned"], planned, "{what}");
+        let made_by = run["made_by"].as_array().expect("made_by");
+        assert!(
+            !made_by.is_empty() && made_by.iter().all(|b| b.as_str().unwrap().contains("(commit ")),
+            "{what}: names the commits that trained it"
+        );
+        check_curve(dir, planned, &run, &what);
+        count += 1;
+    }
+    count
+}
+
+/// A row per iteration, and `run.json`'s best is the curve's highest `episode_reward_mean`
+/// (the first of equals), as SigmaRL picks its best policy.
+fn check_curve(dir: &Path, planned: u64, run: &serde_json::Value, what: &str) {
+    let text = std::fs::read_to_string(dir.join("learning_curve.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (iteration, reward) = (column("iteration"), column("episode_reward_mean"));
+    let rows: Vec<(u64, f64)> = lines
+        .map(|l| {
+            let cells: Vec<&str> = l.split(',').collect();
+            (cells[iteration].parse().unwrap(), cells[reward].parse().unwrap())
+        })
+        .collect();
+    assert_eq!(rows.len() as u64, planned, "{what}: curve rows");
+    assert!(
+        rows.iter().zip(1..).all(|(r, i)| r.0 == i),
+        "{what}: iterations in order"
+    );
+    let best = rows
+        .iter()
+        .fold(rows[0], |best, &row| if row.1 > best.1 { row } else { best });
+    assert_eq!(run["best_iteration"], best.0, "{what}: best iteration");
+    assert_eq!(run["best_episode_reward_mean"], best.1, "{what}: best reward");
+}
+
+#[test]
+fn the_shipped_actors_were_trained_by_the_experiments_training_sections() {
+    assert_eq!(check_shipped("experiments/transfer.yaml"), 3);
+    assert_eq!(check_shipped("experiments/at25.yaml"), 3);
+}
