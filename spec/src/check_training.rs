@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 use crate::check::CheckContext;
 use crate::diagnostic::Problem;
-use crate::model::{Fidelity, Spec, TrainedActor, TrainingSpec};
+use crate::model::{Control, Fidelity, Lookahead, Spec, TrainedActor, TrainingSpec};
 use crate::paths::DataPath;
 
 /// Every check of `training:` and of `mlp: {trained}`.
@@ -212,6 +212,20 @@ fn check_fidelity(spec: &Spec, training: &TrainingSpec, ctx: &mut CheckContext<'
             }
             Some(Fidelity::Simulated(_)) => {}
         }
+    }
+    let plans = |name: &String| matches!(spec.fidelities.get(name), Some(Fidelity::Simulated(f)) if f.control == Control::Trajectory);
+    if training.lookahead == Lookahead::Hold && !names.iter().any(plans) {
+        let span = key_span(ctx, "/training/lookahead");
+        ctx.push(
+            Problem::warning(
+                "cpmx::check::training-lookahead",
+                "`lookahead: hold` concerns the planner, and no fidelity this spec trains in plans \
+                 (`control: trajectory`)",
+                span,
+                "changes nothing here",
+            )
+            .with_help("train in a `control: trajectory` fidelity, or drop the key"),
+        );
     }
 }
 

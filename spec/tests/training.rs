@@ -4,7 +4,7 @@
 #[macro_use]
 mod common;
 
-use cpmx_spec::model::{Fidelity, PathSetName, ResetScopeName, ValueLoss};
+use cpmx_spec::model::{Fidelity, Lookahead, PathSetName, ResetScopeName, ValueLoss};
 use cpmx_spec::{CheckContext, InterpreterChecks, Resources, Spec, SpecDiagnostic};
 
 /// Stands in for the interpreter: runs everything, checks nothing more.
@@ -409,4 +409,34 @@ fn a_trained_actor_is_observed_as_it_was_trained() {
         checked.spec.policies[0].observation.is_none(),
         "a baseline observes nothing"
     );
+}
+
+#[test]
+fn the_lookahead_is_the_actor_unless_held_and_concerns_only_the_planner() {
+    let checked = check(VALID).unwrap();
+    assert_eq!(checked.spec.training.unwrap().lookahead, Lookahead::Actor);
+    // Training in sim only: holding changes nothing, and the spec says so at the key.
+    let held = edit("  iterations: 1000\n", "  lookahead: hold\n  iterations: 1000\n");
+    let checked = check(&held).unwrap();
+    assert_eq!(checked.spec.training.as_ref().unwrap().lookahead, Lookahead::Hold);
+    assert_eq!(checked.warnings.len(), 1);
+    assert_eq!((checked.warnings[0].line, checked.warnings[0].column), (20, 3));
+    insta::assert_snapshot!(cpmx_spec::render(&checked.warnings, false));
+    // With a fidelity that plans, it is what the key is for.
+    let planning = held
+        .replace(
+            "  lab: {driver",
+            "  sim-mpc: {control: trajectory, dynamics: kinematic}\n  lab: {driver",
+        )
+        .replace("training:\n", "training:\n  fidelity: [sim, sim-mpc]\n");
+    assert!(check(&planning).unwrap().warnings.is_empty());
+    // Anything else is refused where it is written.
+    insta::assert_snapshot!(diagnose(
+        &edit(
+            "  iterations: 1000\n",
+            "  lookahead: greedy\n  iterations: 1000\n"
+        ),
+        20,
+        14
+    ));
 }

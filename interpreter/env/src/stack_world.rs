@@ -5,7 +5,8 @@
 //! An environment step is one planning period. The learner's action is the policy's decision
 //! on the observation of the states the vehicles *report* (listed by the middleware, at least
 //! 60 ms old); the planner rolls it out over Hc with the current actor's mean actions on the
-//! predicted states (the lookahead), holds the speed and brings the steering to zero until Hp;
+//! predicted states (the lookahead; with `lookahead: hold`, the learner's action held for all
+//! of Hc), holds the speed and brings the steering to zero until Hp;
 //! each vehicle follows its trajectory, anchored at its state's time, for the period. Rewards,
 //! collisions and resets use the true states after the period; the next observation the
 //! reported ones. A vehicle placed by a reset is a new stack at rest in its start (follower,
@@ -22,7 +23,7 @@
 use cpmx_follower::TrajectoryPoint;
 use cpmx_planner::{Planner, PlannerParams};
 use cpmx_policy::{AgentPaths, MlpPolicy, Policy};
-use cpmx_spec::model::{DrawnFidelity, SimulatedFidelity};
+use cpmx_spec::model::{DrawnFidelity, Lookahead, SimulatedFidelity};
 use cpmx_stack::{
     CONTROL_PERIOD_S, InitialState, StampedState, VehicleStack, anchor_s, anchored_time_s, control_periods,
     max_state_age_s, trajectory_points,
@@ -41,6 +42,9 @@ pub struct StackPlant {
     pub fidelity: SimulatedFidelity,
     /// Hc, Hp and the rule after Hc.
     pub planner: PlannerParams,
+    /// What fills Hc after the learner's action: the actor handed over by
+    /// [`crate::VecEnv::set_actor`] (mean actions), or the learner's action held.
+    pub lookahead: Lookahead,
 }
 
 impl StackPlant {
@@ -421,7 +425,8 @@ fn follow(stack: &mut VehicleStack, tick_s: f64, points: &[TrajectoryPoint], sub
     }
 }
 
-/// The lookahead before a learner has handed its actor over: the first commands, held.
+/// The lookahead before a learner has handed its actor over, or for good with `lookahead:
+/// hold`: the first commands, held.
 struct HoldCommands;
 
 impl Policy for HoldCommands {

@@ -19,6 +19,7 @@ use cpmx_policy::{
     ActionMode, AgentPaths, AgentState, BoundaryCorners, MlpActor, MlpPolicy, ObservationInput,
 };
 use cpmx_spec::matrix::stream_key;
+use cpmx_spec::model::Lookahead;
 use cpmx_vehicle::{BicycleState, Command, Footprint, KinematicBicycle, Precision, footprint_corners};
 use cpmx_world::{Point, ReferencePath};
 use rand::SeedableRng;
@@ -156,10 +157,12 @@ impl VecEnv {
     }
 
     /// Hands the environments the learner's current actor: the planner of a
-    /// `control: trajectory` plant looks ahead with its mean actions (nothing else uses it).
+    /// `control: trajectory` plant looks ahead with its mean actions (nothing else uses it, nor
+    /// a plant whose lookahead holds the learner's action).
     pub fn set_actor(&mut self, actor: &MlpActor) -> Result<(), ConfigError> {
-        if !matches!(self.config.plant, Plant::Stack(_)) {
-            return Ok(());
+        match &self.config.plant {
+            Plant::Stack(plant) if plant.lookahead == Lookahead::Actor => {}
+            _ => return Ok(()),
         }
         let policy = MlpPolicy::new(
             actor.clone(),

@@ -9,7 +9,7 @@ use cpmx_env::{EnvConfig, Plant, StackPlant, StepResult, VecEnv, sigmarl_interse
 use cpmx_planner::{PlannerParams, SteeringAfterHc};
 use cpmx_spec::model::{
     ActuationLayer, ActuationModel, Control, Distribution, DynamicsLayer, GreyBoxModel, KinematicKeyword,
-    Parameter, SensingLayer, SensingModel, SimulatedFidelity,
+    Lookahead, Parameter, SensingLayer, SensingModel, SimulatedFidelity,
 };
 use cpmx_world::ReferencePath;
 use rand::{RngExt, SeedableRng};
@@ -71,6 +71,7 @@ fn config(fidelity: SimulatedFidelity, envs: usize) -> EnvConfig {
     c.plant = Plant::Stack(Box::new(StackPlant {
         fidelity,
         planner: PAPER_PLANNER,
+        lookahead: Lookahead::Actor,
     }));
     c
 }

@@ -147,12 +147,18 @@ mod tests {
     use cpmx_env::{Plant, StackPlant, sigmarl_intersection_paths};
     use cpmx_learn::{Hyperparameters, Trainer};
     use cpmx_spec::model::{
-        ActuationLayer, ActuationModel, Control, Distribution, DynamicsLayer, KinematicKeyword, Parameter,
-        SimulatedFidelity,
+        ActuationLayer, ActuationModel, Control, Distribution, DynamicsLayer, KinematicKeyword, Lookahead,
+        Parameter, SimulatedFidelity,
     };
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha20Rng;
 
     /// sim-mpc with an actuation delay drawn per episode, 3 environments of 2 agents.
     fn stacked_env(seed: u64) -> TrainingEnv {
+        stacked_env_with(seed, Lookahead::Actor)
+    }
+
+    fn stacked_env_with(seed: u64, lookahead: Lookahead) -> TrainingEnv {
         let map =
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference/maps/cpm.xml");
         let paths = sigmarl_intersection_paths(&map).expect("the CPM Lab map of ../shared/reference");
@@ -176,6 +182,7 @@ mod tests {
                 step_s: 0.1,
                 steering_after: cpmx_planner::SteeringAfterHc::LinearToZero,
             },
+            lookahead,
         }));
         TrainingEnv::new(config, &paths, seed).expect("environment")
     }
@@ -189,6 +196,35 @@ mod tests {
             critic_hidden: vec![16],
             ..Hyperparameters::sigmarl(5)
         }
+    }
+
+    /// The observations of 30 steps of fixed actions after the learner handed over an actor
+    /// initialised from `actor_seed`.
+    fn observations_with_actor(lookahead: Lookahead, actor_seed: u64) -> Vec<Vec<f32>> {
+        let mut env = stacked_env_with(5, lookahead);
+        let sizes = [env.obs_dim(), 16, 4];
+        let actor = cpmx_learn::Mlp::init(&sizes, &mut ChaCha20Rng::seed_from_u64(actor_seed));
+        env.set_actor(&actor).unwrap();
+        env.reset_all();
+        let actions: Vec<f32> = (0..env.num_envs() * env.num_agents())
+            .flat_map(|i| [0.4 + 0.05 * i as f32, 0.1])
+            .collect();
+        (0..30)
+            .map(|_| env.step(&actions).unwrap().observations)
+            .collect()
+    }
+
+    /// `lookahead: actor` plans Hc with the actor handed over, so another actor drives the
+    /// vehicles elsewhere; `lookahead: hold` holds the learner's action and never asks it.
+    #[test]
+    fn the_lookahead_plans_with_the_actor_or_holds_the_action() {
+        assert_ne!(
+            observations_with_actor(Lookahead::Actor, 1),
+            observations_with_actor(Lookahead::Actor, 2)
+        );
+        let held = observations_with_actor(Lookahead::Hold, 1);
+        assert_eq!(held, observations_with_actor(Lookahead::Hold, 2));
+        assert_ne!(held, observations_with_actor(Lookahead::Actor, 1));
     }
 
     /// A trainer restored from a checkpoint mid-episode (the vehicle stacks replayed, the

@@ -183,6 +183,12 @@ fn plant_of(checked: &CheckedSpec, name: &str) -> Result<Plant, SetupError> {
                 )
                 .params()
                 .to_owned(),
+                lookahead: checked
+                    .spec
+                    .training
+                    .as_ref()
+                    .map(|t| t.lookahead)
+                    .unwrap_or_default(),
             })))
         }
         Some(Fidelity::Simulated(f)) => {
@@ -244,6 +250,12 @@ fn fingerprint(
     let mut training = training.clone();
     if let Some(object) = training.as_object_mut() {
         object.remove("seeds");
+        // Only the planner has a lookahead (SigmaRL's simulation trains alike with either),
+        // and the default, written or not, is what actors trained before the key existed had.
+        // (`shift_remove`: the order of the other keys stays as written.)
+        if matches!(plant, Plant::Direct) || object.get("lookahead").is_some_and(|v| v == "actor") {
+            object.shift_remove("lookahead");
+        }
     }
     hasher.update(training.to_string().as_bytes());
     // The map by content: where its file lies and how it is pinned do not matter.

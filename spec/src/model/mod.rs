@@ -40,8 +40,8 @@ pub use start::{
     SampledStarts,
 };
 pub use training::{
-    Activation, AlgorithmSpec, CentreLineSpec, MappoSpec, NearAgentsSpec, NearBoundarySpec, NetworkSpec,
-    PathSetName, ProgressSpec, RampShape, ResetScopeName, RewardSpec, SpeedSpec, SteeringChangeSpec,
-    TimeSpec, TrainingFidelities, TrainingReset, TrainingScenario, TrainingSpec, TrainingStart, TtcSpec,
-    ValueLoss, VelocityToPointsSpec,
+    Activation, AlgorithmSpec, CentreLineSpec, Lookahead, MappoSpec, NearAgentsSpec, NearBoundarySpec,
+    NetworkSpec, PathSetName, ProgressSpec, RampShape, ResetScopeName, RewardSpec, SpeedSpec,
+    SteeringChangeSpec, TimeSpec, TrainingFidelities, TrainingReset, TrainingScenario, TrainingSpec,
+    TrainingStart, TtcSpec, ValueLoss, VelocityToPointsSpec,
 };

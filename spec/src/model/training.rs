@@ -36,6 +36,14 @@ pub struct TrainingSpec {
     /// The observation design the policy is trained with. Default: `stdlib:sigmarl`.
     #[schemars(with = "PresetOr<ObservationSpec>")]
     pub observation: ObservationSpec,
+    /// In a `control: trajectory` fidelity, what the planner plans over the control horizon
+    /// after the learner's action, its first step: `actor` (default), the current actor's mean
+    /// actions on the predicted states, as the lab's planners plan and `cpmx run` evaluates;
+    /// `hold`, the learner's action held for all of Hc, so that its exploration moves the
+    /// vehicle for the whole horizon. `control: direct` fidelities have no planner: it does
+    /// not concern them.
+    #[serde(default, skip_serializing_if = "Lookahead::is_actor")]
+    pub lookahead: Lookahead,
     /// Training iterations per seed (SigmaRL: 1000).
     #[schemars(range(min = 1, max = 1000000))]
     pub iterations: u32,
@@ -43,6 +51,26 @@ pub struct TrainingSpec {
     /// `<out>/<seed>/` (default `<out>`: `out/<name>-train`).
     #[schemars(length(min = 1))]
     pub seeds: Vec<u64>,
+}
+
+/// What fills the control horizon after the learner's action when training through the
+/// planner (`training.lookahead`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum Lookahead {
+    /// The current actor's mean actions on the predicted states (the lab's planner).
+    #[default]
+    Actor,
+    /// The learner's action, held for the whole control horizon.
+    Hold,
+}
+
+impl Lookahead {
+    /// The default, which the resolved spec leaves out (so that it does not change the
+    /// fingerprints of actors trained before the key existed).
+    pub fn is_actor(&self) -> bool {
+        *self == Lookahead::Actor
+    }
 }
 
 fn default_fidelity() -> TrainingFidelities {
