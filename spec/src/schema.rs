@@ -140,6 +140,10 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
                 out.push(problem);
                 return;
             }
+            if let Some(names) = constants_of_every_branch(context, &pointer) {
+                out.push(not_one_of(field, &names, spans.value, instance));
+                return;
+            }
             if let Some(branch) = best_branch(context, &pointer) {
                 for e in branch {
                     map_error(schema, doc, e, out);
@@ -177,16 +181,7 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
             let names: Vec<String> = options
                 .as_array()
                 .map_or(vec![], |o| o.iter().map(plain).collect());
-            let mut p = Problem::error(
-                "cpmx::schema::choice",
-                format!("`{field}` must be one of {}", names.join(", ")),
-                spans.value,
-                format!("{} is not one of them", plain(instance)),
-            );
-            if let Some(best) = did_you_mean(&plain(instance), &names) {
-                p = p.with_help(format!("did you mean `{best}`?"));
-            }
-            p
+            not_one_of(field, &names, spans.value, instance)
         }
         ValidationErrorKind::Constant { expected_value } => {
             let expected = plain(expected_value);
@@ -287,6 +282,36 @@ fn layer_forms(pointer: &str) -> Option<&'static str> {
         "actuation" => Some("`ideal`, or `{delay_ms: 80}`"),
         _ => None,
     }
+}
+
+/// A value that is none of the words a key takes.
+fn not_one_of(field: &str, names: &[String], span: crate::diagnostic::ByteSpan, instance: &Value) -> Problem {
+    let p = Problem::error(
+        "cpmx::schema::choice",
+        format!("`{field}` must be one of {}", names.join(", ")),
+        span,
+        format!("{} is not one of them", plain(instance)),
+    );
+    match did_you_mean(&plain(instance), names) {
+        Some(best) => p.with_help(format!("did you mean `{best}`?")),
+        None => p,
+    }
+}
+
+/// The words of a choice whose every branch is one constant (an enum whose variants have
+/// doc comments becomes such a `oneOf`), when the value at `pointer` is none of them.
+fn constants_of_every_branch(context: &[Vec<ValidationError<'static>>], pointer: &str) -> Option<Vec<String>> {
+    context
+        .iter()
+        .map(|errors| match errors.as_slice() {
+            [e] if e.instance_path().as_str() == pointer => match e.kind() {
+                ValidationErrorKind::Constant { expected_value } => Some(plain(expected_value)),
+                _ => None,
+            },
+            _ => None,
+        })
+        .collect::<Option<Vec<String>>>()
+        .filter(|names| names.len() > 1)
 }
 
 fn range(
