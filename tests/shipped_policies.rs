@@ -91,3 +91,30 @@ fn the_shipped_actors_were_trained_by_the_experiments_training_sections() {
     assert_eq!(check_shipped("experiments/transfer.yaml"), 3);
     assert_eq!(check_shipped("experiments/at25.yaml"), 3);
 }
+
+/// `training.lookahead` enters a fingerprint only where it changes what trains: a planning
+/// fidelity with `hold`. Written as the default, or for SigmaRL's simulation, it leaves the
+/// fingerprint as it was before the key existed (and the shipped actors' with it).
+#[test]
+fn the_lookahead_changes_only_a_planning_fidelitys_fingerprint() {
+    let path = root().join("experiments/transfer.yaml");
+    let shipped = SpecSource::read(&path).unwrap();
+    assert!(shipped.text.contains("\n  lookahead: hold\n"));
+    let fingerprints = |lookahead: &str| -> Vec<String> {
+        let source = SpecSource {
+            text: shipped.text.replace("\n  lookahead: hold\n", lookahead),
+            ..shipped.clone()
+        };
+        let data = DataPath::new(path.parent().unwrap(), &[reference()], None);
+        let checked = cpmx_spec::check(&source, &data, &cpmx_engine::BuildChecks).unwrap();
+        ["sim", "sim-mpc", "twin-random"]
+            .map(|f| TrainingSetup::prepare(&checked, f).unwrap().fingerprint)
+            .to_vec()
+    };
+    let held = fingerprints("\n  lookahead: hold\n");
+    let default = fingerprints("\n");
+    assert_eq!(fingerprints("\n  lookahead: actor\n"), default);
+    assert_eq!(held[0], default[0], "sim has no planner");
+    assert_ne!(held[1], default[1]);
+    assert_ne!(held[2], default[2]);
+}

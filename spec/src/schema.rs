@@ -300,7 +300,10 @@ fn not_one_of(field: &str, names: &[String], span: crate::diagnostic::ByteSpan, 
 
 /// The words of a choice whose every branch is one constant (an enum whose variants have
 /// doc comments becomes such a `oneOf`), when the value at `pointer` is none of them.
-fn constants_of_every_branch(context: &[Vec<ValidationError<'static>>], pointer: &str) -> Option<Vec<String>> {
+fn constants_of_every_branch(
+    context: &[Vec<ValidationError<'static>>],
+    pointer: &str,
+) -> Option<Vec<String>> {
     context
         .iter()
         .map(|errors| match errors.as_slice() {
