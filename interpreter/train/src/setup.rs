@@ -7,7 +7,8 @@ use cpmx_env::{EnvConfig, Plant, StackPlant, config_from_training, training_path
 use cpmx_learn::Hyperparameters;
 use cpmx_spec::CheckedSpec;
 use cpmx_spec::model::{
-    Activation, ActuationLayer, Control, DynamicsLayer, Fidelity, SensingLayer, TrainingSpec, ValueLoss,
+    Activation, ActuationLayer, Control, DynamicsLayer, Fidelity, Lookahead, SensingLayer, TrainingSpec,
+    ValueLoss,
 };
 use cpmx_world::ReferencePath;
 use sha2::{Digest, Sha256};
@@ -76,7 +77,7 @@ impl TrainingSetup {
     pub fn prepare(checked: &CheckedSpec, fidelity: &str) -> Result<TrainingSetup, SetupError> {
         let spec = &checked.spec;
         let training = spec.training.as_ref().ok_or(SetupError::NoTraining)?;
-        let plant = plant_of(checked, fidelity)?;
+        let plant = plant_of(checked, fidelity, training.lookahead)?;
         check_learner_choices(training)?;
         let map = cpmx_engine::load_map(spec, checked.resources.map_file.as_deref())?;
         let paths = training_paths(&map, training).map_err(cpmx_engine::PrepareError::Map)?;
@@ -157,8 +158,8 @@ fn hyperparameters(training: &TrainingSpec, vehicle: &cpmx_vehicle::VehicleParam
 /// The plant of the fidelity to train in: SigmaRL's simulation for `control: direct` (the
 /// kinematic bicycle with exact states; any other layer needs `control: trajectory`, as in
 /// `cpmx run`), the lab's control architecture with the fidelity's layers and the spec's
-/// planner for `control: trajectory`; a lab driver is refused.
-fn plant_of(checked: &CheckedSpec, name: &str) -> Result<Plant, SetupError> {
+/// planner (and the section's `lookahead`) for `control: trajectory`; a lab driver is refused.
+fn plant_of(checked: &CheckedSpec, name: &str, lookahead: Lookahead) -> Result<Plant, SetupError> {
     let refuse = |reason: &str| {
         Err(SetupError::Fidelity {
             name: name.to_owned(),
@@ -183,12 +184,7 @@ fn plant_of(checked: &CheckedSpec, name: &str) -> Result<Plant, SetupError> {
                 )
                 .params()
                 .to_owned(),
-                lookahead: checked
-                    .spec
-                    .training
-                    .as_ref()
-                    .map(|t| t.lookahead)
-                    .unwrap_or_default(),
+                lookahead,
             })))
         }
         Some(Fidelity::Simulated(f)) => {
