@@ -1,8 +1,9 @@
 //! `cpmx`: the command line over the spec and interpreter crates. Thin by design: it parses
 //! arguments, calls the crates, renders diagnostics and maps outcomes to exit codes
-//! (0 success, 1 invalid input, 2 usage error, 3 some runs failed).
+//! (0 success, 1 invalid input, 2 usage error, 3 some runs failed, 130 interrupted).
 
 mod commands;
+mod interrupt;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -80,6 +81,9 @@ enum Command {
         /// A preset's name, with or without `stdlib:`; omit it to list them all.
         name: Option<String>,
     },
+    /// A trained actor as an ONNX model that any ONNX runtime loads.
+    #[cfg(feature = "onnx")]
+    Export(commands::export::ExportArgs),
     /// The CPM Lab: `cpmx lab emulate SPEC` plays the lab for the spec's lab fidelity.
     Lab {
         #[command(subcommand)]
@@ -101,6 +105,8 @@ fn main() -> ExitCode {
             data,
         } => commands::evaluate::run(&spec, &recording, &data),
         Command::Lab { command } => commands::lab::run(&command),
+        #[cfg(feature = "onnx")]
+        Command::Export(args) => commands::export::run(&args),
         Command::Stdlib { name } => commands::stdlib::run(name.as_deref()),
         Command::Schema { format } => {
             match format {

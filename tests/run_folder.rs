@@ -14,12 +14,24 @@ fn scratch(name: &str) -> std::path::PathBuf {
 }
 
 #[test]
-fn the_quickstart_counts_its_copies_once() {
+fn the_quickstart_runs_without_a_warning() {
+    let validate = cpmx(&["validate", "experiments/quickstart.yaml"]);
+    assert!(validate.status.success());
+    let stderr = String::from_utf8_lossy(&validate.stderr);
+    assert!(stderr.trim().is_empty(), "{stderr}");
+}
+
+#[test]
+fn copies_of_deterministic_repetitions_count_once() {
     let dir = scratch("units");
+    let text = std::fs::read_to_string(root().join("experiments/quickstart.yaml")).unwrap();
+    let spec = dir.join("copies.yaml");
+    let twice = regex_free_replace(&text, "repetitions: 1", "repetitions: 2 #");
+    std::fs::write(&spec, twice).unwrap();
     let out = dir.join("out");
     let table = ok(&cpmx(&[
         "run",
-        "experiments/quickstart.yaml",
+        spec.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
     ]));
@@ -27,12 +39,24 @@ fn the_quickstart_counts_its_copies_once() {
     assert!(table.contains("| runs | units |"), "{table}");
     assert!(table.contains("| sim | cautious | 8 | 4 |"), "{table}");
     assert!(table.contains("Here 12 of 24 runs are copies"), "{table}");
-    let validate = cpmx(&["validate", "experiments/quickstart.yaml"]);
+    let validate = cpmx(&["validate", spec.to_str().unwrap()]);
     assert!(validate.status.success());
     let warnings = String::from_utf8_lossy(&validate.stderr);
     assert!(warnings.contains("deterministic"), "{warnings}");
     assert!(warnings.contains("repetitions: 1"), "{warnings}");
+    // Once for the spec, however many fidelities are deterministic.
+    assert_eq!(
+        warnings.matches("cpmx::check::deterministic-repetitions").count(),
+        1,
+        "{warnings}"
+    );
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `text` with the first `from` replaced by `to`; panics when `from` is not there.
+fn regex_free_replace(text: &str, from: &str, to: &str) -> String {
+    assert!(text.contains(from), "`{from}` not in the text");
+    text.replacen(from, to, 1)
 }
 
 #[test]
@@ -112,7 +136,7 @@ fn a_folder_of_another_spec_is_refused_without_force() {
     let stderr = String::from_utf8_lossy(&forced.stderr);
     assert!(stderr.contains("earlier spec"), "{stderr}");
     assert!(
-        table.contains("| sim | eager | 8 |") && !table.contains("cautious"),
+        table.contains("| sim | eager | 4 |") && !table.contains("cautious"),
         "{table}"
     );
     assert_eq!(

@@ -31,7 +31,7 @@ fidelities:
   sim: {control: direct, dynamics: kinematic}
 training:
   scenario: {extends: stdlib:sigmarl-intersection, envs: 8, agents: 2, episode_steps: 64}
-  reward: stdlib:sigmarl
+  reward: stdlib:sigmarl-reward
   algorithm:
     extends: stdlib:mappo-sigmarl
     mappo: {frames_per_iteration: 256, minibatch: 64, epochs: 4, lr: 1.0e-3, lr_min: 1.0e-4}
@@ -186,16 +186,17 @@ fn a_small_scenario_learns_and_the_trained_actor_runs() {
     assert!(stderr.contains("no run.json beside the actor"), "{stderr}");
 }
 
-/// `stdlib:sigmarl-shaped` adds the paper's speed and centre-line terms: the learning curve
+/// `stdlib:sigmarl-shaped-reward` adds the paper's speed and centre-line terms: the learning curve
 /// gets their columns after SigmaRL's five, and the agents learn to drive faster along their
 /// paths.
 #[test]
 fn the_shaped_reward_logs_its_terms_and_the_agents_speed_up() {
     let dir = scratch("train-shaped");
     let spec = small_spec(&dir, 24);
-    let text = std::fs::read_to_string(&spec)
-        .unwrap()
-        .replace("reward: stdlib:sigmarl\n", "reward: stdlib:sigmarl-shaped\n");
+    let text = std::fs::read_to_string(&spec).unwrap().replace(
+        "reward: stdlib:sigmarl-reward\n",
+        "reward: stdlib:sigmarl-shaped-reward\n",
+    );
     std::fs::write(&spec, text).unwrap();
     ok(&train(&dir, &spec, &["--only", "seed=7"]));
     let out = dir.join("out");
@@ -376,7 +377,7 @@ fn a_spec_that_only_trains_trains_and_has_nothing_to_run() {
     std::fs::write(
         &spec,
         "cpmx: 1\nname: only\nmap: {file: maps/cpm.xml}\ntraining:\n  \
-         scenario: {extends: stdlib:sigmarl-intersection, envs: 4, agents: 2}\n  reward: stdlib:sigmarl\n  \
+         scenario: {extends: stdlib:sigmarl-intersection, envs: 4, agents: 2}\n  reward: stdlib:sigmarl-reward\n  \
          algorithm: {extends: stdlib:mappo-sigmarl, mappo: {frames_per_iteration: 64, minibatch: 32, epochs: 1}}\n  \
          network: {hidden: [16], activation: tanh}\n  iterations: 1\n  seeds: [3]\n",
     )
@@ -426,7 +427,7 @@ planner: {control_horizon: 4, prediction_horizon: 12}
 training:
   fidelity: [sim-mpc, twin-random]
   scenario: {extends: stdlib:sigmarl-intersection, envs: 4, agents: 2, episode_steps: 32}
-  reward: stdlib:sigmarl-at25
+  reward: stdlib:sigmarl-at25-reward
   algorithm:
     extends: stdlib:mappo-sigmarl
     mappo: {frames_per_iteration: 128, minibatch: 64, epochs: 2}

@@ -68,7 +68,9 @@ pub trait InterpreterChecks {
     /// Why this build cannot run `fidelity`, or `None` when it can.
     fn cannot_run(&self, fidelity: &Fidelity) -> Option<String>;
 
-    /// Checks that read the map or the weights; called only when the spec passed every other check.
+    /// Checks that read the map or the weights; called on every spec that passed the schema,
+    /// with the files the data path did not find left out of `resources` (their problems are
+    /// already reported), so they check what is sound.
     fn check(&self, spec: &Spec, resources: &Resources, ctx: &mut CheckContext<'_>);
 }
 
@@ -165,38 +167,60 @@ fn check_repetitions(spec: &Spec, ctx: &mut CheckContext<'_>) {
     if deterministic_policies.is_empty() {
         return;
     }
-    for (name, fidelity) in &spec.fidelities {
-        if !fidelity_is_deterministic(fidelity) {
-            continue;
-        }
-        let spans = ctx.spans(&format!("/fidelities/{}", escape_pointer(name)));
-        let policies = deterministic_policies
+    let fidelities: Vec<&str> = spec
+        .fidelities
+        .iter()
+        .filter(|(_, fidelity)| fidelity_is_deterministic(fidelity))
+        .map(|(name, _)| name.as_str())
+        .collect();
+    let Some(first) = fidelities.first() else {
+        return;
+    };
+    let list = |names: &[&str]| {
+        names
             .iter()
-            .map(|p| format!("`{p}`"))
+            .map(|n| format!("`{n}`"))
             .collect::<Vec<_>>()
-            .join(", ");
-        let so = if deterministic_policies.len() == 1 {
-            "so is policy"
+            .join(", ")
+    };
+    let (fidelity_words, policy_words) = (
+        if fidelities.len() == 1 {
+            "fidelity"
         } else {
-            "so are policies"
-        };
-        ctx.push(
-            Problem::warning(
-                "cpmx::check::deterministic-repetitions",
-                format!(
-                    "fidelity `{name}` is deterministic, and {so} {policies}: their {} repetitions \
-                     will be identical copies",
-                    spec.repetitions
-                ),
-                spans.key.unwrap_or(spans.value),
-                "no random draw in this stack",
-            )
-            .with_help(
-                "copies count once in the statistics (n is the number of distinct runs); for independent \
-                 repetitions use `action: sample`, give the fidelity sensing noise, or set `repetitions: 1`",
+            "fidelities"
+        },
+        if deterministic_policies.len() == 1 {
+            "policy"
+        } else {
+            "policies"
+        },
+    );
+    let verb = if fidelities.len() == 1 { "is" } else { "are" };
+    // One warning for the spec, at the first such fidelity, naming them all.
+    let spans = ctx.spans(&format!("/fidelities/{}", escape_pointer(first)));
+    ctx.push(
+        Problem::warning(
+            "cpmx::check::deterministic-repetitions",
+            format!(
+                "{fidelity_words} {} {verb} deterministic, and so {} {policy_words} {}: their {} \
+                 repetitions will be identical copies",
+                list(&fidelities),
+                if deterministic_policies.len() == 1 {
+                    "is"
+                } else {
+                    "are"
+                },
+                list(&deterministic_policies),
+                spec.repetitions
             ),
-        );
-    }
+            spans.key.unwrap_or(spans.value),
+            "no random draw in this stack",
+        )
+        .with_help(
+            "copies count once in the statistics (n is the number of distinct runs); for independent \
+             repetitions use `action: sample`, give the fidelity sensing noise, or set `repetitions: 1`",
+        ),
+    );
 }
 
 fn check_version(spec: &Spec, ctx: &mut CheckContext<'_>) {
@@ -293,6 +317,7 @@ fn check_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
             ("mlp", p.mlp.is_some()),
             ("onnx", p.onnx.is_some()),
             ("process", p.process.is_some()),
+            ("python", p.python.is_some()),
             ("builtin", p.builtin.is_some()),
         ]
         .into_iter()
@@ -319,14 +344,14 @@ fn check_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
                     Problem::error(
                         "cpmx::check::policy-kind",
                         format!(
-                            "policy `{}` names neither `mlp`, `onnx`, `process` nor `builtin`",
+                            "policy `{}` names neither `mlp`, `onnx`, `process`, `python` nor `builtin`",
                             p.name
                         ),
                         span,
                         "what drives this policy?",
                     )
                     .with_help(
-                        "add `mlp: {weights: FILE}`, `onnx: {file: FILE}`, `process: {command: [PROGRAM, ARGS...]}` or `builtin: lane-follow`",
+                        "add `mlp: {weights: FILE}`, `onnx: {file: FILE}`, `process: {command: [PROGRAM, ARGS...]}`, `python: {}` or `builtin: lane-follow`",
                     ),
                 );
             }
@@ -343,7 +368,7 @@ fn check_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
                         "second kind of policy",
                     )
                     .with_help(
-                        "a policy is a trained network (`mlp` or `onnx`), a policy process (`process`) or a built-in baseline (`builtin`); split it in two",
+                        "a policy is a trained network (`mlp` or `onnx`), a policy process (`process`), a Python callable (`python`) or a built-in baseline (`builtin`); split it in two",
                     ),
                 );
             }
@@ -367,10 +392,10 @@ fn check_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
                 }
             }
             [kind] => {
-                let what = if kind == "mlp" || kind == "onnx" {
-                    "a network"
-                } else {
-                    "a policy process"
+                let what = match kind {
+                    "mlp" | "onnx" => "a network",
+                    "python" => "a Python callable",
+                    _ => "a policy process",
                 };
                 unused(
                     ctx,
@@ -382,16 +407,16 @@ fn check_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
                     ),
                     &format!("not used by an {kind} policy"),
                 );
-                if kind == "process" {
+                if kind == "process" || kind == "python" {
                     unused(
                         ctx,
                         "action",
                         p.action.is_some(),
                         format!(
-                            "`action` chooses from a network's distribution, and `{}` is a policy process",
+                            "`action` chooses from a network's distribution, and `{}` is {what}",
                             p.name
                         ),
-                        "not used by a process policy",
+                        &format!("not used by a {kind} policy"),
                     );
                 }
                 let head = p

@@ -383,7 +383,7 @@ fn check_reward(spec: &Spec, training: &TrainingSpec, ctx: &mut CheckContext<'_>
                 span,
                 "always 0",
             )
-            .with_help("add terms (`progress`, `near_boundary`, `near_agents_ttc`, `collide_agents`, `collide_boundary`), or use `stdlib:sigmarl`"),
+            .with_help("add terms (`progress`, `near_boundary`, `near_agents_ttc`, `collide_agents`, `collide_boundary`), or use `stdlib:sigmarl-reward`"),
         );
     }
 }

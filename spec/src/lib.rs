@@ -134,9 +134,10 @@ pub fn check_scoped(
     // Expand presets, then check the shape of the whole document.
     let mut problems = resolve::expand_presets(&mut doc);
     problems.extend(schema::validate(&doc));
-    if !problems.is_empty() {
+    if problems.iter().any(|p| p.level == Level::Error) {
         return Err(attach(problems));
     }
+    let early_warnings = problems;
     let spec: Spec = match serde_json::from_value(doc.value.clone()) {
         Ok(spec) => spec,
         Err(e) => {
@@ -156,11 +157,12 @@ pub fn check_scoped(
     let mut ctx = CheckContext::new(&doc);
     if scope == CheckScope::Run {
         check::check_capabilities(&spec, interpreter, &mut ctx);
-        if !before_interpreter.iter().any(|p| p.level == Level::Error) {
-            interpreter.check(&spec, &resources, &mut ctx);
-        }
+        // The interpreter's checks run on what is sound (a file not found is left out of
+        // `resources`), so one pass reports a wrong `ref_path` beside a missing `planner`.
+        interpreter.check(&spec, &resources, &mut ctx);
     }
-    let mut problems = before_interpreter;
+    let mut problems = early_warnings;
+    problems.extend(before_interpreter);
     problems.extend(ctx.into_problems());
     if scope == CheckScope::Measure {
         problems.retain(|p| p.level == Level::Error);

@@ -8,7 +8,7 @@
 use cpmx_stdlib::PresetKind;
 use serde_json::Value;
 
-use crate::diagnostic::Problem;
+use crate::diagnostic::{ByteSpan, Problem};
 use crate::yaml::{SpannedDocument, escape_pointer};
 
 /// The prefix of a standard-library reference.
@@ -87,7 +87,7 @@ fn insert_defaults(doc: &mut Value) {
     if let Some(policies) = root.get_mut("policies").and_then(Value::as_array_mut) {
         for policy in policies.iter_mut().filter_map(Value::as_object_mut) {
             let trained = policy.get("mlp").and_then(|m| m.get("trained")).is_some();
-            if policy.contains_key("mlp") || policy.contains_key("onnx") {
+            if policy.contains_key("mlp") || policy.contains_key("onnx") || policy.contains_key("python") {
                 policy.entry("observation").or_insert_with(|| {
                     if trained {
                         trained_with.clone()
@@ -100,23 +100,51 @@ fn insert_defaults(doc: &mut Value) {
     }
 }
 
-/// Expands every preset reference of `doc` in place; unknown names are problems.
+/// Expands every preset reference of `doc` in place; unknown names are errors, old names of
+/// renamed presets warnings.
 pub fn expand_presets(doc: &mut SpannedDocument) -> Vec<Problem> {
     insert_defaults(&mut doc.value);
     let mut problems = Vec::new();
+    let mut renames = Vec::new();
     for (pointer, kind) in preset_fields(&doc.value) {
         let Some(node) = doc.value.pointer(&pointer).cloned() else {
             continue;
         };
         let spans = doc.spans_at(&pointer);
+        let mut current = |reference: &str, span: ByteSpan| -> String {
+            let name = &reference[STDLIB_PREFIX.len()..];
+            match cpmx_stdlib::renamed(kind, name) {
+                Some(new) => {
+                    renames.push(
+                        Problem::warning(
+                            "cpmx::stdlib::renamed",
+                            format!(
+                                "`{reference}` as a {} is now called `{STDLIB_PREFIX}{new}`",
+                                kind.label()
+                            ),
+                            span,
+                            "old name",
+                        )
+                        .with_help(format!(
+                            "write `{STDLIB_PREFIX}{new}`: every stdlib name now means one preset \
+                             whatever field it is in (the old name still reads the same preset)"
+                        )),
+                    );
+                    new.to_owned()
+                }
+                None => name.to_owned(),
+            }
+        };
         let expanded = match &node {
             Value::String(s) if s.starts_with(STDLIB_PREFIX) => {
-                load_preset(kind, &s[STDLIB_PREFIX.len()..]).map_err(|help| (spans.value, s.clone(), help))
+                let name = current(s, spans.value);
+                load_preset(kind, &name).map_err(|help| (spans.value, s.clone(), help))
             }
             Value::Object(map) => match map.get("extends") {
                 Some(Value::String(s)) if s.starts_with(STDLIB_PREFIX) => {
                     let extends_span = doc.spans_at(&format!("{pointer}/extends")).value;
-                    load_preset(kind, &s[STDLIB_PREFIX.len()..])
+                    let name = current(s, extends_span);
+                    load_preset(kind, &name)
                         .map(|mut base| {
                             let mut overrides = map.clone();
                             overrides.remove("extends");
@@ -149,6 +177,7 @@ pub fn expand_presets(doc: &mut SpannedDocument) -> Vec<Problem> {
             ),
         }
     }
+    problems.extend(renames);
     problems
 }
 

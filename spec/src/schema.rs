@@ -167,16 +167,22 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
             )
             .with_help(format!("add `{name}:`; `cpmx schema` describes every key"))
         }
-        ValidationErrorKind::Type { kind } => Problem::error(
-            "cpmx::schema::type",
-            format!(
-                "`{field}` must be {}, found {}",
-                type_name(kind),
-                value_kind(instance)
-            ),
-            spans.value,
-            format!("expected {}", type_name(kind)),
-        ),
+        ValidationErrorKind::Type { kind } => {
+            let problem = Problem::error(
+                "cpmx::schema::type",
+                format!(
+                    "`{field}` must be {}, found {}",
+                    type_name(kind),
+                    value_kind(instance)
+                ),
+                spans.value,
+                format!("expected {}", type_name(kind)),
+            );
+            match quoted_value_help(kind, field, instance) {
+                Some(help) => problem.with_help(help),
+                None => problem,
+            }
+        }
         ValidationErrorKind::Enum { options } => {
             let names: Vec<String> = options
                 .as_array()
@@ -495,6 +501,25 @@ fn type_name(kind: &TypeKind) -> String {
         TypeKind::Single(t) => name(t),
         TypeKind::Multiple(ts) => ts.iter().map(|t| name(&t)).collect::<Vec<_>>().join(" or "),
     }
+}
+
+/// A help line for a number or a boolean written in quotes (YAML reads `"120"` as text).
+fn quoted_value_help(kind: &TypeKind, field: &str, instance: &Value) -> Option<String> {
+    let Value::String(text) = instance else {
+        return None;
+    };
+    let accepts = |wanted: &[&str]| match kind {
+        TypeKind::Single(t) => wanted.contains(&t.to_string().as_str()),
+        TypeKind::Multiple(ts) => ts.iter().any(|t| wanted.contains(&t.to_string().as_str())),
+    };
+    let trimmed = text.trim();
+    let number = trimmed.parse::<f64>().is_ok_and(f64::is_finite);
+    let integer = trimmed.parse::<i64>().is_ok();
+    let boolean = matches!(trimmed, "true" | "false");
+    let fits = (integer && accepts(&["integer", "number"]))
+        || (number && accepts(&["number"]))
+        || (boolean && accepts(&["boolean"]));
+    fits.then(|| format!("remove the quotes: `{field}: {trimmed}` (in quotes YAML reads it as text)"))
 }
 
 fn value_kind(v: &Value) -> String {

@@ -35,7 +35,7 @@ fidelities:
 planner: {control_horizon: 4, prediction_horizon: 12}
 training:
   scenario: stdlib:sigmarl-intersection
-  reward: stdlib:sigmarl
+  reward: stdlib:sigmarl-reward
   algorithm: stdlib:mappo-sigmarl
   iterations: 1000
   seeds: [1, 2, 3]
@@ -62,7 +62,7 @@ name: just-training
 map: stdlib:intersection
 training:
   scenario: stdlib:sigmarl-intersection
-  reward: stdlib:sigmarl
+  reward: stdlib:sigmarl-reward
   algorithm: stdlib:mappo-sigmarl
   iterations: 100
   seeds: [4]
@@ -155,8 +155,8 @@ fn the_presets_are_sigmarls_setup_and_the_plan_has_one_run_per_seed() {
 #[test]
 fn overrides_and_trained_policies() {
     let text = edit(
-        "  reward: stdlib:sigmarl\n",
-        "  reward: {extends: stdlib:sigmarl, clamp: [-2, 2]}\n",
+        "  reward: stdlib:sigmarl-reward\n",
+        "  reward: {extends: stdlib:sigmarl-reward, clamp: [-2, 2]}\n",
     )
     .replace(
         "  - {name: base, builtin: lane-follow}\n",
@@ -187,11 +187,11 @@ fn overrides_and_trained_policies() {
 case!(
     unknown_reward_term,
     edit(
-        "  reward: stdlib:sigmarl\n",
-        "  reward: {extends: stdlib:sigmarl, speed_bonus: 0.1}\n"
+        "  reward: stdlib:sigmarl-reward\n",
+        "  reward: {extends: stdlib:sigmarl-reward, speed_bonus: 0.1}\n"
     ),
     18,
-    37
+    44
 );
 case!(
     scenario_without_paths,
@@ -259,25 +259,25 @@ case!(
 case!(
     empty_near_agents_ramp,
     edit(
-        "  reward: stdlib:sigmarl\n",
-        "  reward: {extends: stdlib:sigmarl, near_agents: {penalty: -0.2, from_m: 0.3, to_m: 0.2}}\n"
+        "  reward: stdlib:sigmarl-reward\n",
+        "  reward: {extends: stdlib:sigmarl-reward, near_agents: {penalty: -0.2, from_m: 0.3, to_m: 0.2}}\n"
     ),
     18,
-    85
+    92
 );
 case!(
     steering_change_threshold_beyond_the_limit,
     edit(
-        "  reward: stdlib:sigmarl\n",
-        "  reward: {extends: stdlib:sigmarl, steering_change: {penalty: -0.02, threshold_rad: 0.6}}\n"
+        "  reward: stdlib:sigmarl-reward\n",
+        "  reward: {extends: stdlib:sigmarl-reward, steering_change: {penalty: -0.02, threshold_rad: 0.6}}\n"
     ),
     18,
-    86
+    93
 );
 case!(
     time_without_progress_points,
     edit(
-        "  reward: stdlib:sigmarl\n",
+        "  reward: stdlib:sigmarl-reward\n",
         "  reward: {collide_boundary: -1, time: {weight: 0.05}}\n"
     ),
     18,
@@ -287,8 +287,8 @@ case!(
 #[test]
 fn the_at25_presets_are_sigmarls_setup_when_the_papers_policies_were_trained() {
     let text = edit(
-        "  scenario: stdlib:sigmarl-intersection\n  reward: stdlib:sigmarl\n",
-        "  scenario: stdlib:sigmarl-intersection-at25\n  reward: stdlib:sigmarl-at25\n",
+        "  scenario: stdlib:sigmarl-intersection\n  reward: stdlib:sigmarl-reward\n",
+        "  scenario: stdlib:sigmarl-intersection-at25\n  reward: stdlib:sigmarl-at25-reward\n",
     );
     let checked = check(&text).unwrap();
     let t = checked.spec.training.as_ref().unwrap();
@@ -395,8 +395,8 @@ fn a_spec_trains_in_several_fidelities_one_folder_each() {
 #[test]
 fn a_trained_actor_is_observed_as_it_was_trained() {
     let text = edit(
-        "  reward: stdlib:sigmarl\n",
-        "  reward: stdlib:sigmarl\n  observation: {extends: stdlib:sigmarl, steering: true}\n",
+        "  reward: stdlib:sigmarl-reward\n",
+        "  reward: stdlib:sigmarl-reward\n  observation: {extends: stdlib:sigmarl, steering: true}\n",
     )
     .replace(
         "  - {name: base, builtin: lane-follow}\n",

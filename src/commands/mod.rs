@@ -1,6 +1,8 @@
 //! One module per subcommand, and what they share: reading and checking a spec.
 
 pub mod evaluate;
+#[cfg(feature = "onnx")]
+pub mod export;
 pub mod lab;
 pub mod plan;
 pub mod report;
@@ -12,7 +14,7 @@ pub mod validate;
 use std::io::IsTerminal;
 use std::path::Path;
 
-use cpmx_spec::{CheckedSpec, DataPath, SpecSource};
+use cpmx_spec::CheckedSpec;
 
 use crate::DataArgs;
 
@@ -25,44 +27,8 @@ pub enum Failure {
     Usage = 2,
     /// Some runs failed; the others are kept (exit 3).
     RunsFailed = 3,
-}
-
-/// Warnings for trained actors (`mlp: {trained}`) that the spec's `training:` section as it
-/// stands did not train (their `run.json` records other inputs), or whose folder does not say.
-fn trained_elsewhere(checked: &CheckedSpec) -> Vec<cpmx_spec::SpecDiagnostic> {
-    cpmx_train::trained_actors(checked)
-        .into_iter()
-        .filter_map(|(i, provenance)| {
-            let name = &checked.spec.policies[i].name;
-            let span = checked.key_span(&format!("/policies/{i}/mlp/trained"));
-            let problem = match provenance {
-                cpmx_train::Provenance::Same => return None,
-                cpmx_train::Provenance::Other { recorded, expected } => cpmx_spec::Problem::warning(
-                    "cpmx::check::trained-elsewhere",
-                    format!(
-                        "policy `{name}` names an actor that other inputs trained: this spec's \
-                         `training:` section, vehicle, `timing.dt` or map changed since"
-                    ),
-                    span,
-                    "trained with other inputs",
-                )
-                .with_help(format!(
-                    "its run.json records fingerprint {}…, this spec gives {}…; `cpmx train` \
-                     into a new `--out` folder trains it again",
-                    &recorded[..recorded.len().min(12)],
-                    &expected[..expected.len().min(12)]
-                )),
-                cpmx_train::Provenance::Unrecorded => cpmx_spec::Problem::warning(
-                    "cpmx::check::trained-elsewhere",
-                    format!("policy `{name}` names an actor whose folder does not say what trained it"),
-                    span,
-                    "no run.json beside the actor",
-                )
-                .with_help("`cpmx train` writes run.json beside every actor it trains"),
-            };
-            Some(checked.diagnostic(problem))
-        })
-        .collect()
+    /// Interrupted (Ctrl-C): what was finished is kept, and how to resume was printed (exit 130).
+    Interrupted = crate::interrupt::EXIT_CODE as isize,
 }
 
 /// Reads and checks a spec; on failure prints every diagnostic to stderr.
@@ -78,22 +44,9 @@ pub fn load_checked_for(
     scope: cpmx_spec::CheckScope,
     quiet: &[&str],
 ) -> Result<CheckedSpec, Failure> {
-    let source = match SpecSource::read(path) {
-        Ok(source) => source,
-        Err(e) => {
-            eprintln!("error: cannot read spec `{}`: {e}", path.display());
-            return Err(Failure::InvalidInput);
-        }
-    };
-    let cpmx_data = std::env::var("CPMX_DATA").ok();
-    let data_path = DataPath::new(&source.dir, &data.data, cpmx_data.as_deref());
     let colour = std::io::stderr().is_terminal();
-    match cpmx_spec::check_scoped(&source, &data_path, &cpmx_engine::BuildChecks, scope) {
-        Ok(mut checked) => {
-            if scope == cpmx_spec::CheckScope::Run {
-                let stale = trained_elsewhere(&checked);
-                checked.warnings.extend(stale);
-            }
+    match cpmx_session::load(path, &data.data, scope) {
+        Ok(checked) => {
             let warnings: Vec<_> = checked
                 .warnings
                 .iter()
@@ -105,7 +58,11 @@ pub fn load_checked_for(
             }
             Ok(checked)
         }
-        Err(diagnostics) => {
+        Err(cpmx_session::LoadError::Read(message)) => {
+            eprintln!("error: {message}");
+            Err(Failure::InvalidInput)
+        }
+        Err(cpmx_session::LoadError::Invalid(diagnostics)) => {
             eprint!("{}", cpmx_spec::render(&diagnostics, colour));
             let errors = diagnostics.iter().filter(|d| d.is_error()).count();
             eprintln!(

@@ -4,8 +4,9 @@
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
-use cpmx_engine::{Experiment, RunOptions, RunOutcome, Shard, execute, folder};
+use cpmx_engine::{RunOutcome, Shard};
 use cpmx_report::{Format, render};
+use cpmx_session::{RunError, RunRequest};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{Failure, load_checked};
@@ -50,160 +51,33 @@ fn parse_shard(text: &str) -> Result<Shard, String> {
     Ok(Shard { index, count })
 }
 
-/// A run's value of an `--only` axis.
-fn axis_value<'a>(plan: &'a cpmx_spec::RunPlan, axis: &str) -> &'a str {
-    match axis {
-        "fidelity" => &plan.fidelity,
-        "policy" => &plan.policy,
-        _ => &plan.initial_configuration,
-    }
-}
-
-/// `--only AXIS=a,b` filters.
-fn keep(plan: &cpmx_spec::RunPlan, only: &[(String, Vec<String>)]) -> bool {
-    only.iter()
-        .all(|(axis, names)| names.iter().any(|n| n == axis_value(plan, axis)))
-}
-
-/// Every name of `--only` must be one the matrix has: a typo would silently select nothing.
-fn check_only_names(only: &[(String, Vec<String>)], plans: &[cpmx_spec::RunPlan]) -> Result<(), Failure> {
-    for (axis, names) in only {
-        let mut valid: Vec<&str> = Vec::new();
-        for plan in plans {
-            let value = axis_value(plan, axis);
-            if !valid.contains(&value) {
-                valid.push(value);
-            }
-        }
-        for name in names {
-            if !valid.contains(&name.as_str()) {
-                let suggestion = cpmx_spec::schema::did_you_mean(
-                    name,
-                    &valid.iter().map(|v| v.to_string()).collect::<Vec<_>>(),
-                )
-                .map(|best| format!("did you mean `{best}`? "))
-                .unwrap_or_default();
-                eprintln!(
-                    "error: `--only {axis}={}`: the spec has no {} `{name}`\nhelp: {suggestion}the spec's {axis}s: {}",
-                    names.join(","),
-                    axis.replace('_', " "),
-                    valid.join(", ")
-                );
-                return Err(Failure::Usage);
-            }
-        }
-    }
-    Ok(())
-}
-
-/// Refuses to run into a folder made from another spec (its runs would be summarised with
-/// this spec's) unless `--force`.
-fn check_folder_spec(out: &Path, checked: &cpmx_spec::CheckedSpec, force: bool) -> Result<(), Failure> {
-    let existing = match folder::read_resolved_spec(out) {
-        Ok(text) => text,
-        Err(_) if !out.join("spec.resolved.yaml").exists() => return Ok(()),
-        Err(e) if force => {
-            eprintln!("note: {e}; --force replaces it");
-            return Ok(());
-        }
-        Err(e) => {
-            eprintln!(
-                "error: {e}\nhelp: choose another `--out`, or `--force` to make this spec the folder's spec"
-            );
-            return Err(Failure::Usage);
-        }
-    };
-    let differing = folder::differing_sections(&existing, checked);
-    if differing.is_empty() || force {
-        if !differing.is_empty() {
-            eprintln!(
-                "note: `{}` was made from a different spec ({}); --force makes this spec its spec",
-                out.display(),
-                differing.join(", ")
-            );
-        }
-        return Ok(());
-    }
-    eprintln!(
-        "error: `{}` holds runs of a different spec (it differs in: {})\nhelp: choose another `--out`, or \
-         `--force` to make this spec the folder's spec (runs it changes are left out of the summaries until \
-         they are run again; nothing is deleted)",
-        out.display(),
-        differing.join(", ")
-    );
-    Err(Failure::Usage)
-}
-
-fn parse_only(only: &[String]) -> Result<Vec<(String, Vec<String>)>, Failure> {
-    only.iter()
-        .map(|o| match o.split_once('=') {
-            Some((axis, names)) if ["fidelity", "policy", "initial_configuration"].contains(&axis) => {
-                Ok((axis.to_owned(), names.split(',').map(str::to_owned).collect()))
-            }
-            _ => {
-                eprintln!(
-                    "error: `--only {o}`: expected fidelity=..., policy=... or initial_configuration=..."
-                );
-                Err(Failure::Usage)
-            }
-        })
-        .collect()
-}
-
 pub fn run(args: &RunArgs) -> Result<(), Failure> {
-    let only = parse_only(&args.only)?;
+    let only = cpmx_session::parse_only(&args.only).map_err(|e| session_failure(&e))?;
     let checked = load_checked(&args.spec, &args.data)?;
-    let all_plans = checked.plan();
-    if all_plans.is_empty() {
-        eprintln!(
-            "error: `{}` has no runs: it only trains (no policies and initial configurations)\nhelp: \
-             `cpmx train` trains it; add `agents`, `policies`, `initial_configurations`, `repetitions`, `seed` \
-             and `fidelities` to benchmark what it trains",
-            args.spec.display()
-        );
-        return Err(Failure::InvalidInput);
-    }
-    check_only_names(&only, &all_plans)?;
-    let plans: Vec<_> = all_plans.iter().filter(|p| keep(p, &only)).cloned().collect();
-
-    // Refuse fidelities this build cannot run before doing anything.
-    for (name, fidelity) in &checked.spec.fidelities {
-        if plans.iter().any(|p| &p.fidelity == name)
-            && let Err(e) = cpmx_engine::engine_for(name, fidelity)
-        {
-            eprintln!("error: {e}\nhelp: leave it out with `--only fidelity=...`");
-            return Err(Failure::InvalidInput);
-        }
-    }
-
-    // Prepare the experiment and the folder.
-    let experiment = Experiment::prepare(&checked).map_err(|e| {
-        eprintln!("error: {e}");
-        Failure::InvalidInput
-    })?;
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| Path::new("out").join(&checked.spec.name));
-    check_folder_spec(&out, &checked, args.force)?;
-    let provenance = folder::Provenance {
-        spec: std::fs::canonicalize(&args.spec).unwrap_or_else(|_| args.spec.clone()),
-        data_path: data_path(&args.spec, &args.data),
+    let request = RunRequest {
+        spec_path: args.spec.clone(),
+        out: args.out.clone(),
+        only,
+        jobs: args.jobs,
+        shard: args.shard,
+        resume: args.resume,
+        force: args.force,
+        data: args.data.data.clone(),
+        stop: Some(crate::interrupt::flag()),
     };
-    folder::write_header(&out, &checked, &all_plans, &provenance).map_err(|e| io_failure(&out, e))?;
 
-    // Run.
-    let shard = args.shard.unwrap_or(Shard::WHOLE);
-    let jobs = args
-        .jobs
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    let total = plans
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| shard.contains(*i))
-        .count();
-    let bar = progress_bar(total as u64);
+    // Policies bound from Python run only from Python.
+    let plans = cpmx_session::selected_plans(&checked, &request).map_err(|e| session_failure(&e))?;
+    refuse_python_policies(args, &checked, &plans)?;
+
+    let bar = std::sync::OnceLock::new();
+    let on_total = |total: usize| {
+        let _ = bar.set(progress_bar(total as u64));
+    };
     let on_done = |plan: &cpmx_spec::RunPlan, outcome: &RunOutcome| {
+        let Some(bar) = bar.get() else {
+            return;
+        };
         match outcome {
             RunOutcome::Failed(reason) => bar.println(format!("failed: {}: {reason}", plan.key)),
             RunOutcome::Finished(stored) => {
@@ -211,87 +85,157 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
                     bar.println(format!("note: {}: {note}", plan.key));
                 }
             }
-            RunOutcome::Resumed(_) => {}
+            RunOutcome::Resumed(_) | RunOutcome::NotRun => {}
         }
         bar.inc(1);
     };
-    let options = RunOptions {
-        jobs,
-        shard,
-        resume: args.resume,
-    };
-    let context = folder::context_hash(&checked);
-    let outcomes = execute(&experiment, &plans, &out, &options, &context, &on_done).map_err(|e| {
-        eprintln!("error: cannot start {jobs} worker threads: {e}");
-        Failure::InvalidInput
-    })?;
-    bar.finish_and_clear();
-
-    // Summarise every finished run the folder holds for this spec (other shards and earlier
-    // `--only` selections included), so the folder's summary is what `cpmx report` gives.
-    let held = folder::read_records(&out, &all_plans, &context);
-    let summary = folder::write_summaries(&out, &experiment.scoring(), &held.records)
-        .map_err(|e| io_failure(&out, e))?;
-    print!("{}", render(&summary, Format::Markdown));
-    if !held.stale.is_empty() {
+    let result = cpmx_session::run_matrix(&checked, &request, &mut |_| Ok(()), &on_total, &on_done);
+    if let Some(bar) = bar.get() {
+        bar.finish_and_clear();
+    }
+    let done = result.map_err(|e| session_failure(&e))?;
+    for note in &done.notes {
+        eprintln!("note: {note}");
+    }
+    print!("{}", render(&done.summary, Format::Markdown));
+    if !done.stale.is_empty() {
         eprintln!(
             "note: {} runs in the folder were made from an earlier spec and are left out of the summary \
              (e.g. {}); run them again with `--resume`",
-            held.stale.len(),
-            held.stale[0]
+            done.stale.len(),
+            done.stale[0]
         );
     }
-    if !held.missing.is_empty() && held.missing.len() < all_plans.len() {
+    if done.summarised > 0 && done.summarised < done.matrix_runs {
         eprintln!(
             "note: the summary covers {} of the spec's {} runs; the others are not in the folder yet",
-            held.records.len(),
-            all_plans.len()
+            done.summarised, done.matrix_runs
         );
     }
-    let failed: Vec<_> = outcomes
-        .iter()
-        .filter(|(_, o)| matches!(o, RunOutcome::Failed(_)))
-        .collect();
-    let resumed = outcomes
-        .iter()
-        .filter(|(_, o)| matches!(o, RunOutcome::Resumed(_)))
-        .count();
+    let failed = done.count(|o| matches!(o, RunOutcome::Failed(_)));
+    let resumed = done.count(|o| matches!(o, RunOutcome::Resumed(_)));
+    let not_run = done.count(|o| matches!(o, RunOutcome::NotRun));
     eprintln!(
-        "{} runs in {}: {} run, {resumed} resumed, {} failed",
-        outcomes.len(),
-        out.display(),
-        outcomes.len() - failed.len() - resumed,
-        failed.len()
-    );
-    if failed.is_empty() {
-        Ok(())
-    } else {
-        for (plan, outcome) in failed {
-            if let RunOutcome::Failed(reason) = outcome {
-                eprintln!("  failed: {}: {reason}", plan.key);
-            }
+        "{} runs in {}: {} run, {resumed} resumed, {failed} failed{}",
+        done.outcomes.len(),
+        done.out.display(),
+        done.outcomes.len() - failed - resumed - not_run,
+        if not_run > 0 {
+            format!(", {not_run} not started")
+        } else {
+            String::new()
         }
-        Err(Failure::RunsFailed)
+    );
+    if crate::interrupt::requested() {
+        eprintln!(
+            "interrupted: every finished run is kept in {} and its summaries cover them ({} of the \
+             spec's {}); {not_run} runs were not started.\nresume with: {}",
+            done.out.display(),
+            done.summarised,
+            done.matrix_runs,
+            resume_command(args, &done.out)
+        );
+        return Err(Failure::Interrupted);
+    }
+    if failed == 0 {
+        return Ok(());
+    }
+    for (plan, outcome) in &done.outcomes {
+        if let RunOutcome::Failed(reason) = outcome {
+            eprintln!("  failed: {}: {reason}", plan.key);
+        }
+    }
+    Err(Failure::RunsFailed)
+}
+
+/// A spec's `python: {}` policies cannot run from the command line: a located error for each
+/// one the selected runs use, saying how to bind it.
+fn refuse_python_policies(
+    args: &RunArgs,
+    checked: &cpmx_spec::CheckedSpec,
+    plans: &[cpmx_spec::RunPlan],
+) -> Result<(), Failure> {
+    let python: Vec<_> = checked
+        .spec
+        .policies
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.python.is_some() && plans.iter().any(|r| r.policy == p.name))
+        .map(|(i, p)| {
+            checked.diagnostic(
+                cpmx_spec::Problem::error(
+                    "cpmx::policy::python",
+                    format!(
+                        "policy `{}` is bound from Python: the command line cannot run it",
+                        p.name
+                    ),
+                    checked.key_span(&format!("/policies/{i}/python")),
+                    "a Python callable",
+                )
+                .with_help(format!(
+                    "run the spec from Python (`pip install ./python`): cpmx.run(\"{}\", policies={{\"{}\": \
+                     callable}}); or leave the policy out here with `--only policy=...`",
+                    args.spec.display(),
+                    p.name
+                )),
+            )
+        })
+        .collect();
+    if python.is_empty() {
+        return Ok(());
+    }
+    eprint!("{}", cpmx_spec::render(&python, std::io::stderr().is_terminal()));
+    Err(Failure::InvalidInput)
+}
+
+/// Prints a session error and gives its exit code.
+pub(crate) fn session_failure(e: &RunError) -> Failure {
+    match e.help() {
+        Some(help) => eprintln!("error: {e}\nhelp: {help}"),
+        None => eprintln!("error: {e}"),
+    }
+    match e {
+        RunError::Usage { .. } => Failure::Usage,
+        RunError::Invalid { .. } | RunError::Io { .. } => Failure::InvalidInput,
     }
 }
 
-/// The data path of a spec as absolute folders, for `provenance.json`.
-fn data_path(spec: &Path, data: &DataArgs) -> Vec<PathBuf> {
-    let spec_dir = spec
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let cpmx_data = std::env::var("CPMX_DATA").ok();
-    cpmx_spec::DataPath::new(spec_dir, &data.data, cpmx_data.as_deref())
-        .folders
-        .into_iter()
-        .map(|f| std::fs::canonicalize(&f).unwrap_or(f))
-        .collect()
+/// The command that continues this one: the same arguments with `--out` and `--resume`.
+fn resume_command(args: &RunArgs, out: &Path) -> String {
+    let mut words = vec![
+        "cpmx".to_owned(),
+        "run".to_owned(),
+        shell_word(&args.spec.display().to_string()),
+        "--out".to_owned(),
+        shell_word(&out.display().to_string()),
+    ];
+    for only in &args.only {
+        words.extend(["--only".to_owned(), shell_word(only)]);
+    }
+    if let Some(jobs) = args.jobs {
+        words.extend(["--jobs".to_owned(), jobs.to_string()]);
+    }
+    if let Some(shard) = args.shard {
+        words.extend(["--shard".to_owned(), format!("{}/{}", shard.index, shard.count)]);
+    }
+    for dir in &args.data.data {
+        words.extend(["--data".to_owned(), shell_word(&dir.display().to_string())]);
+    }
+    words.push("--resume".to_owned());
+    words.join(" ")
 }
 
-fn io_failure(out: &Path, e: std::io::Error) -> Failure {
-    eprintln!("error: cannot write the run folder `{}`: {e}", out.display());
-    Failure::InvalidInput
+/// `word` as a POSIX shell reads it back: unquoted when it is plain, else in single quotes.
+pub(crate) fn shell_word(word: &str) -> String {
+    let plain = !word.is_empty()
+        && word
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_./=,:@%+".contains(c));
+    if plain {
+        word.to_owned()
+    } else {
+        format!("'{}'", word.replace('\'', "'\\''"))
+    }
 }
 
 fn progress_bar(total: u64) -> ProgressBar {

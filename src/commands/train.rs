@@ -161,6 +161,7 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
     }
 
     let mut summary = Vec::new();
+    crate::interrupt::flag();
     for (fidelity, mut run, start) in runs {
         let seed_started = Instant::now();
         let first = run.done();
@@ -192,6 +193,19 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
             })?;
             if record.episode_reward_mean.is_finite() {
                 last_rewards.push(record.episode_reward_mean);
+            }
+            if crate::interrupt::requested() {
+                bar.abandon();
+                eprintln!(
+                    "interrupted: {label} stopped after iteration {} of {}; its folder {} keeps \
+                     every finished iteration (checkpoint, learning curve, the best actor so far).\n\
+                     resume with: {}",
+                    record.iteration,
+                    run.planned(),
+                    run.dir().display(),
+                    resume_command(args, &out)
+                );
+                return Err(Failure::Interrupted);
             }
             let message = format!(
                 "{label}  reward {}  best {:.2}",
@@ -243,6 +257,29 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
         );
     }
     Ok(())
+}
+
+/// The command that continues this training: the same arguments with `--out` and `--resume`.
+fn resume_command(args: &TrainArgs, out: &Path) -> String {
+    use super::run::shell_word;
+    let mut words = vec![
+        "cpmx".to_owned(),
+        "train".to_owned(),
+        shell_word(&args.spec.display().to_string()),
+        "--out".to_owned(),
+        shell_word(&out.display().to_string()),
+    ];
+    for only in &args.only {
+        words.extend(["--only".to_owned(), shell_word(only)]);
+    }
+    if let Some(jobs) = args.jobs {
+        words.extend(["--jobs".to_owned(), jobs.to_string()]);
+    }
+    for dir in &args.data.data {
+        words.extend(["--data".to_owned(), shell_word(&dir.display().to_string())]);
+    }
+    words.push("--resume".to_owned());
+    words.join(" ")
 }
 
 fn run_seed(run: &SeedRun) -> String {

@@ -102,17 +102,17 @@ pub const PRESETS: &[Preset] = &[
     },
     Preset {
         kind: PresetKind::Reward,
-        name: "sigmarl",
+        name: "sigmarl-reward",
         yaml: include_str!("../presets/training/sigmarl-reward.yaml"),
     },
     Preset {
         kind: PresetKind::Reward,
-        name: "sigmarl-at25",
+        name: "sigmarl-at25-reward",
         yaml: include_str!("../presets/training/sigmarl-at25-reward.yaml"),
     },
     Preset {
         kind: PresetKind::Reward,
-        name: "sigmarl-shaped",
+        name: "sigmarl-shaped-reward",
         yaml: include_str!("../presets/training/sigmarl-shaped-reward.yaml"),
     },
     Preset {
@@ -122,9 +122,25 @@ pub const PRESETS: &[Preset] = &[
     },
 ];
 
-/// The preset of `kind` called `name`.
+/// Names presets had before every name became unique across kinds: `(kind, old, new)`. A
+/// spec that uses an old name still reads the preset, with a warning naming the new one.
+pub const RENAMED: &[(PresetKind, &str, &str)] = &[
+    (PresetKind::Reward, "sigmarl", "sigmarl-reward"),
+    (PresetKind::Reward, "sigmarl-at25", "sigmarl-at25-reward"),
+    (PresetKind::Reward, "sigmarl-shaped", "sigmarl-shaped-reward"),
+];
+
+/// The preset of `kind` called `name` (its current name; see [`renamed`] for old ones).
 pub fn preset(kind: PresetKind, name: &str) -> Option<&'static Preset> {
     PRESETS.iter().find(|p| p.kind == kind && p.name == name)
+}
+
+/// The current name of a preset of `kind` that used to be called `old`.
+pub fn renamed(kind: PresetKind, old: &str) -> Option<&'static str> {
+    RENAMED
+        .iter()
+        .find(|(k, name, _)| *k == kind && *name == old)
+        .map(|(_, _, new)| *new)
 }
 
 /// The names of every preset of `kind`, in library order.
@@ -141,17 +157,23 @@ mod tests {
     use super::*;
 
     #[test]
-    fn names_are_unique_within_a_kind() {
+    fn names_are_unique_across_kinds() {
+        // A name means one preset whatever field it is written in.
         for p in PRESETS {
-            assert_eq!(
-                PRESETS
-                    .iter()
-                    .filter(|q| q.kind == p.kind && q.name == p.name)
-                    .count(),
-                1,
-                "{}",
-                p.name
+            let same: Vec<_> = PRESETS.iter().filter(|q| q.name == p.name).collect();
+            assert_eq!(same.len(), 1, "`stdlib:{}` names {} presets", p.name, same.len());
+        }
+    }
+
+    #[test]
+    fn old_names_point_to_presets_of_their_kind() {
+        for (kind, old, new) in RENAMED {
+            assert!(
+                preset(*kind, old).is_none(),
+                "`{old}` is still a {} name",
+                kind.label()
             );
+            assert!(preset(*kind, new).is_some(), "`{new}` is no {}", kind.label());
         }
     }
 

@@ -23,6 +23,22 @@ pub fn reference() -> PathBuf {
     dir
 }
 
+/// The Python interpreter of the test venv (`CPMX_PYTHON`, set by `scripts/test`), or `None`
+/// after saying on stderr that the calling test is skipped; with `CPMX_REQUIRE_PYTHON=1` a
+/// missing interpreter fails the test instead.
+pub fn python(test: &str) -> Option<PathBuf> {
+    match std::env::var_os("CPMX_PYTHON") {
+        Some(python) => Some(PathBuf::from(python)),
+        None if std::env::var_os("CPMX_REQUIRE_PYTHON").is_some_and(|v| v == "1") => {
+            panic!("{test}: CPMX_PYTHON is not set (scripts/test sets it to the test venv's python)")
+        }
+        None => {
+            eprintln!("skipped: {test}: needs the test venv's python in CPMX_PYTHON (scripts/test sets it)");
+            None
+        }
+    }
+}
+
 /// `cpmx ARGS` in the repository, without `CPMX_DATA`.
 pub fn cpmx(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_cpmx"))

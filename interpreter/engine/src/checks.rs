@@ -28,6 +28,10 @@ impl InterpreterChecks for BuildChecks {
         check_weights(spec, resources, ctx);
         check_onnx(spec, resources, ctx);
         check_processes(spec, resources, ctx);
+        if matches!(spec.map, MapSpec::File(_)) && resources.map_file.is_none() {
+            // The data path did not find the file: the spec's checks said so.
+            return;
+        }
         let map = match load_map(spec, resources.map_file.as_deref()) {
             Ok(map) => map,
             Err(e) => {
@@ -268,8 +272,28 @@ fn check_starts(spec: &Spec, map: &Map, ctx: &mut CheckContext<'_>) {
                 );
                 continue;
             }
-            let Ok(start) = explicit_start(agent, map) else {
-                continue;
+            let start = match explicit_start(agent, map) {
+                Ok(start) => start,
+                Err(reason) => {
+                    let length_m = map
+                        .reference_path(agent.ref_path as usize)
+                        .map_or(0.0, |p| p.center_line.length_m());
+                    let span = ctx.span(&format!("{pointer}/arc_length"));
+                    ctx.push(
+                        Problem::error(
+                            "cpmx::map::arc-length",
+                            format!("agent {a} of `{}`: {reason}", e.name),
+                            span,
+                            "beyond the path's end",
+                        )
+                        .with_help(format!(
+                            "an arc length on path {} lies in [0, {length_m:.3}] m; `cpmx validate` of a \
+                             spec with only `cpmx`, `name` and `map` lists every path's length",
+                            agent.ref_path
+                        )),
+                    );
+                    continue;
+                }
             };
             let corners = footprint_corners(&vehicle, start.x_m, start.y_m, start.yaw_rad);
             if map.footprint_on_road(start.ref_path, &corners) == Some(false) {

@@ -2,7 +2,8 @@
 //! Engines know nothing of each other, of metrics or of files.
 
 use cpmx_policy::{
-    AgentPaths, LaneFollow, LaneFollowParams, MlpPolicy, Policy, PolicyError, ProcessConfig, ProcessPolicy,
+    AgentPaths, ExternalPolicy, LaneFollow, LaneFollowParams, MlpPolicy, Policy, PolicyError, ProcessConfig,
+    ProcessPolicy,
 };
 use cpmx_recording::Recording;
 use cpmx_spec::RunPlan;
@@ -23,6 +24,11 @@ pub enum RunError {
     Policy(#[from] PolicyError),
     #[error("the spec has no policy `{0}`")]
     UnknownPolicy(String),
+    #[error(
+        "policy `{0}` is bound from Python (`python: {{}}`) and nothing was bound to it: run the spec \
+         with cpmx.run(spec, policies={{\"{0}\": callable}})"
+    )]
+    Unbound(String),
     #[error("the spec has no initial configuration `{0}`")]
     UnknownConfiguration(String),
     #[error("fidelity `{0}` cannot run in this build: {1}")]
@@ -136,6 +142,12 @@ impl RunInputs<'_> {
                 dt_s: self.experiment.spec.timing.dt,
                 name: self.plan.policy.clone(),
             })?),
+            PreparedPolicy::External { observation, decider } => {
+                let decider = decider
+                    .clone()
+                    .ok_or_else(|| RunError::Unbound(self.plan.policy.clone()))?;
+                Box::new(ExternalPolicy::new(decider, *observation))
+            }
             PreparedPolicy::LaneFollow(p) => Box::new(LaneFollow::new(LaneFollowParams {
                 target_speed_mps: p.target_speed,
                 time_gap_s: p.time_gap_s,

@@ -70,6 +70,12 @@ pub enum PreparedPolicy {
         observation: Option<SigmarlObservation>,
         dir: std::path::PathBuf,
     },
+    /// A policy decided in this process by another language (`python: {}`): the decider is
+    /// bound with [`Experiment::bind`] before the runs; unbound, its runs fail saying so.
+    External {
+        observation: Option<SigmarlObservation>,
+        decider: Option<Arc<dyn cpmx_policy::Decider>>,
+    },
     LaneFollow(cpmx_spec::model::LaneFollowParams),
 }
 
@@ -146,6 +152,51 @@ impl Experiment {
             policies,
             starts,
         })
+    }
+
+    /// Binds the decider of the `python: {}` policy called `name`; an error names the
+    /// policies that can be bound when `name` is none of them.
+    pub fn bind(&mut self, name: &str, decider: Arc<dyn cpmx_policy::Decider>) -> Result<(), String> {
+        let bindable = |experiment: &Experiment| -> Vec<String> {
+            experiment
+                .policies
+                .iter()
+                .filter(|(_, p)| matches!(p, PreparedPolicy::External { .. }))
+                .map(|(n, _)| format!("`{n}`"))
+                .collect()
+        };
+        let names = bindable(self);
+        match self.policies.iter_mut().find(|(n, _)| n == name) {
+            Some((_, PreparedPolicy::External { decider: slot, .. })) => {
+                *slot = Some(decider);
+                Ok(())
+            }
+            Some(_) => Err(format!(
+                "policy `{name}` is not bound from Python (only `python: {{}}` policies are){}",
+                if names.is_empty() {
+                    String::new()
+                } else {
+                    format!("; these are: {}", names.join(", "))
+                }
+            )),
+            None => Err(format!(
+                "the spec has no policy `{name}`{}",
+                if names.is_empty() {
+                    "; it has no `python: {}` policy to bind".to_owned()
+                } else {
+                    format!("; its `python: {{}}` policies are {}", names.join(", "))
+                }
+            )),
+        }
+    }
+
+    /// The `python: {}` policies nothing has been bound to yet.
+    pub fn unbound(&self) -> Vec<&str> {
+        self.policies
+            .iter()
+            .filter(|(_, p)| matches!(p, PreparedPolicy::External { decider: None, .. }))
+            .map(|(n, _)| n.as_str())
+            .collect()
     }
 
     pub fn policy(&self, name: &str) -> Option<&PreparedPolicy> {
@@ -266,6 +317,12 @@ pub fn load_network(
 
 /// Loads a policy's network (once per experiment).
 pub fn prepare_policy(policy: &PolicySpec, weights: Option<&Path>) -> Result<PreparedPolicy, PrepareError> {
+    if policy.python.is_some() {
+        return Ok(PreparedPolicy::External {
+            observation: policy.observation.as_ref().map(observation),
+            decider: None,
+        });
+    }
     if let Some(process) = &policy.process {
         return Ok(PreparedPolicy::Process {
             spec: process.clone(),

@@ -4,7 +4,8 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
-use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 
 use cpmx_metrics::{PathGeometry, RunMetrics, evaluate};
 use cpmx_recording::Recording;
@@ -39,6 +40,9 @@ pub struct RunOptions {
     pub jobs: usize,
     pub shard: Shard,
     pub resume: bool,
+    /// Set (by a Ctrl-C handler) to start no further run: the runs under way finish and are
+    /// stored, the others come back [`RunOutcome::NotRun`].
+    pub stop: Option<Arc<AtomicBool>>,
 }
 
 /// What became of one run.
@@ -48,6 +52,8 @@ pub enum RunOutcome {
     /// Skipped by `--resume`: stored earlier with the same inputs.
     Resumed(Box<StoredRun>),
     Failed(String),
+    /// Not started: execution was stopped (`RunOptions::stop`) before its turn.
+    NotRun,
 }
 
 /// Runs `plans` (already filtered by `--only`) and stores each into `out`; `on_done` is called
@@ -76,7 +82,10 @@ pub fn execute(
         selected
             .par_iter()
             .map(|plan| {
-                let outcome = if silent.lock().is_ok_and(|s| s.contains(&plan.fidelity)) {
+                let stopped = options.stop.as_ref().is_some_and(|s| s.load(Ordering::SeqCst));
+                let outcome = if stopped {
+                    RunOutcome::NotRun
+                } else if silent.lock().is_ok_and(|s| s.contains(&plan.fidelity)) {
                     RunOutcome::Failed(format!(
                         "not started: the lab of fidelity `{}` did not answer an earlier run",
                         plan.fidelity

@@ -70,9 +70,17 @@ pub fn explicit_start(start: &AgentStart, map: &Map) -> Result<InitialState, Str
             speed_mps,
         });
     }
-    let (x_m, y_m, yaw_rad) = map
-        .pose_at(ref_path, start.arc_length.unwrap_or(0.0))
+    let path = map
+        .reference_path(ref_path)
         .ok_or_else(|| format!("the map has no reference path {ref_path}"))?;
+    let arc_length_m = start.arc_length.unwrap_or(0.0);
+    let (x_m, y_m, yaw_rad) = map.pose_at(ref_path, arc_length_m).ok_or_else(|| {
+        format!(
+            "`arc_length: {arc_length_m}` lies outside reference path {ref_path}, an open path \
+             {:.3} m long",
+            path.center_line.length_m()
+        )
+    })?;
     Ok(InitialState {
         ref_path,
         x_m,

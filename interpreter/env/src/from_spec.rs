@@ -140,7 +140,7 @@ mod tests {
         use cpmx_stdlib::PresetKind as K;
         let training: TrainingSpec = serde_json::from_value(serde_json::json!({
             "scenario": preset(K::TrainingScenario, "sigmarl-intersection"),
-            "reward": preset(K::Reward, "sigmarl"),
+            "reward": preset(K::Reward, "sigmarl-reward"),
             "algorithm": preset(K::Algorithm, "mappo-sigmarl"),
             "observation": preset(K::Observation, "sigmarl"),
             "iterations": 1,

@@ -23,6 +23,7 @@ mod collision;
 mod config;
 mod from_spec;
 mod paths;
+mod render;
 mod result;
 mod reward;
 mod stack_world;
@@ -42,6 +43,7 @@ pub use config::{
 };
 pub use from_spec::{config_from_training, training_paths};
 pub use paths::{TrainingPath, prepare_paths};
+pub use render::{AGENT_COLOURS, RgbImage};
 pub use result::{AgentStepInfo, CollisionCounts, ResetCounts, RewardTermMeans, StepResult};
 pub use reward::{RewardInput, RewardTerms, decreasing, reward};
 pub use stack_world::StackPlant;

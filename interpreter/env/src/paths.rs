@@ -27,6 +27,8 @@ pub struct TrainingPath {
     pub exit: Option<[Point; 2]>,
     /// Admissible start indices `[first, end)`.
     pub start_indices: (usize, usize),
+    /// The left and right shared boundaries' points, for drawing.
+    pub outline: [Vec<Point>; 2],
 }
 
 impl TrainingPath {
@@ -61,6 +63,7 @@ impl TrainingPath {
             entry,
             exit,
             start_indices: (first_index, end),
+            outline: [left.clone(), right.clone()],
         })
     }
 

@@ -16,6 +16,14 @@ pub struct StepResult {
     pub done: Vec<bool>,
     /// Equal to `done` (SigmaRL, through torchrl, treats the time limit as a termination).
     pub terminated: Vec<bool>,
+    /// Whether each environment's episode ended at this step by the time limit alone
+    /// (`episode_steps`) rather than by a collision or line rule, `[E]`: what Gymnasium calls a
+    /// truncation.
+    pub truncated: Vec<bool>,
+    /// The observations of the states each done environment ended in, before its reset,
+    /// `[E][N][obs_dim]` flattened (other environments' rows are zero); filled only when
+    /// [`crate::VecEnv::set_keep_final_observations`] asked for them, else empty.
+    pub final_observations: Vec<f32>,
     /// Every agent's return since its environment's last whole reset, this step included
     /// (torchrl's `RewardSum`), `[E][N]`; at a done step, the episode's return.
     pub episode_reward: Vec<f32>,
@@ -131,6 +139,7 @@ impl StepResult {
         self.agents.resize(envs * agents, AgentStepInfo::default());
         self.done.resize(envs, false);
         self.terminated.resize(envs, false);
+        self.truncated.resize(envs, false);
     }
 
     pub(crate) fn set_totals(&mut self, t: StepTotals, agent_steps: usize) {

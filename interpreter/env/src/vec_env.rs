@@ -62,7 +62,19 @@ struct Env {
     stack: Option<StackWorld>,
     /// The first failure of a vehicle stack (the environment is broken from there on).
     failure: Option<String>,
+    /// The observation of the states the last episode ended in, when kept
+    /// ([`VecEnv::set_keep_final_observations`]).
+    final_observation: Option<Vec<f32>>,
     scratch: Scratch,
+}
+
+/// How one environment's step ended.
+#[derive(Debug, Clone, Copy, Default)]
+struct StepEnd {
+    /// The episode ended (and the environment was re-placed).
+    done: bool,
+    /// It ended by the time limit alone.
+    time_limit: bool,
 }
 
 /// Per-step buffers of one environment.
@@ -138,6 +150,7 @@ impl VecEnv {
                 corners_start: vec![[[0.0; 2]; 4]; n],
                 stack,
                 failure: None,
+                final_observation: None,
                 scratch: Scratch::default(),
             })
             .collect();
@@ -213,6 +226,37 @@ impl VecEnv {
         &self.config
     }
 
+    /// Whether steps keep the observation each ending episode ended in, before the reset
+    /// replaces it ([`StepResult::final_observations`]; Gymnasium's `final_obs`). Off by
+    /// default: the learner bootstraps nothing from it.
+    pub fn set_keep_final_observations(&mut self, keep: bool) {
+        let size = self.num_agents() * self.obs_dim;
+        for env in &mut self.envs {
+            env.final_observation = keep.then(|| vec![0.0; size]);
+        }
+    }
+
+    /// Re-places the environments whose `mask` entry is true (new random starts, step
+    /// counters and returns zeroed) and writes their observations into their rows of
+    /// `observations` (`[E][N][obs_dim]`); the other rows are left as they are.
+    pub fn reset_masked(&mut self, mask: &[bool], observations: &mut [f32]) {
+        let (config, paths) = (&self.config, &self.paths);
+        let chunk = self.num_agents() * self.obs_dim;
+        for ((env, out), _) in self
+            .envs
+            .iter_mut()
+            .zip(observations.chunks_mut(chunk))
+            .zip(mask)
+            .filter(|(_, reset)| **reset)
+        {
+            env.reset_whole(config, paths);
+            env.observe(config, None, out);
+            if let Some(stack) = &mut env.stack {
+                stack.take_fresh_draw();
+            }
+        }
+    }
+
     /// Whether [`VecEnv::step`] spreads environments over rayon's threads (default: yes; the
     /// results are the same either way).
     pub fn set_parallel(&mut self, parallel: bool) {
@@ -254,6 +298,27 @@ impl VecEnv {
     /// The current placement (state, path, point) of every agent of environment `env`.
     pub fn placements(&self, env: usize) -> Vec<Placement> {
         self.envs[env].agents.iter().map(|a| a.placement).collect()
+    }
+
+    /// The agents' placements in environment `env`, or `None` when there is no such
+    /// environment.
+    pub fn placements_checked(&self, env: usize) -> Option<Vec<Placement>> {
+        (env < self.envs.len()).then(|| self.placements(env))
+    }
+
+    /// Every road boundary of the path set, for drawing.
+    pub(crate) fn outlines(&self) -> impl Iterator<Item = &[Point]> {
+        self.paths
+            .iter()
+            .flat_map(|p| p.outline.iter().map(Vec::as_slice))
+    }
+
+    /// The centre line of path `index` of the path set.
+    pub(crate) fn path_centre(&self, index: usize) -> Vec<Point> {
+        self.paths
+            .get(index)
+            .map(|p| p.prepared.center_points.clone())
+            .unwrap_or_default()
     }
 
     /// Size of the path set agents are placed on.
@@ -358,7 +423,7 @@ impl VecEnv {
             ((&mut Env, &[f32]), &mut [f32]),
             (&mut [f32], (&mut [f32], &mut [AgentStepInfo])),
         )| env.step(config, paths, act, obs, rew, ret, info);
-        let outcomes: Vec<(bool, StepTotals)> = if self.parallel {
+        let outcomes: Vec<(StepEnd, StepTotals)> = if self.parallel {
             self.envs
                 .par_iter_mut()
                 .zip(actions.par_chunks(n * 2))
@@ -392,10 +457,27 @@ impl VecEnv {
         };
         // Sums in environment order: the same on any number of threads.
         let mut totals = StepTotals::default();
-        for (i, (done, t)) in outcomes.into_iter().enumerate() {
-            result.done[i] = done;
-            result.terminated[i] = done;
+        for (i, (end, t)) in outcomes.into_iter().enumerate() {
+            result.done[i] = end.done;
+            result.terminated[i] = end.done;
+            result.truncated[i] = end.time_limit;
             totals.add(&t);
+        }
+        // The observations the ended episodes ended in, when kept.
+        result.final_observations.clear();
+        if self.envs.iter().any(|env| env.final_observation.is_some()) {
+            let chunk = n * d;
+            result.final_observations.resize(e * chunk, 0.0);
+            for ((env, out), done) in self
+                .envs
+                .iter()
+                .zip(result.final_observations.chunks_mut(chunk))
+                .zip(&result.done)
+            {
+                if let (true, Some(last)) = (*done, &env.final_observation) {
+                    out.copy_from_slice(last);
+                }
+            }
         }
         result.set_totals(totals, e * n);
         // The fidelity parameters of the episodes that began at this step.
@@ -509,7 +591,7 @@ impl Env {
         observe_into(config, &states, &self.paths, None, out);
     }
 
-    /// One step; returns whether the environment was done (and has been reset).
+    /// One step; returns whether the environment was done (and has been reset), and why.
     #[allow(clippy::too_many_arguments)]
     fn step(
         &mut self,
@@ -520,7 +602,7 @@ impl Env {
         rewards: &mut [f32],
         returns: &mut [f32],
         info: &mut [AgentStepInfo],
-    ) -> (bool, StepTotals) {
+    ) -> (StepEnd, StepTotals) {
         let n = self.agents.len();
         let model = KinematicBicycle::new(config.vehicle);
         let s = &mut self.scratch;
@@ -673,10 +755,14 @@ impl Env {
         // 5. Done and resets.
         let rules = config.scenario.reset;
         let collided = s.with_agents.iter().chain(&s.with_boundary).any(|&c| c);
-        let done = self.counter == config.scenario.episode_steps - 1
-            || (rules.on_collision == ResetScope::Environment && collided)
+        let time_limit = self.counter == config.scenario.episode_steps - 1;
+        let ended = (rules.on_collision == ResetScope::Environment && collided)
             || (rules.on_entry_or_exit_line == ResetScope::Environment && s.on_line.iter().any(|&l| l));
+        let done = time_limit || ended;
         if done {
+            if let Some(last) = &mut self.final_observation {
+                last.copy_from_slice(obs);
+            }
             totals.env_resets += 1;
             totals.starts_relaxed += u64::from(self.reset_whole(config, paths));
             self.observe(config, None, obs);
@@ -700,7 +786,11 @@ impl Env {
             a.prev_pos = [st.x_m, st.y_m];
             self.corners_start[i] = footprint_corners(&config.vehicle, st.x_m, st.y_m, st.yaw_rad);
         }
-        (done, totals)
+        let end = StepEnd {
+            done,
+            time_limit: time_limit && !ended,
+        };
+        (end, totals)
     }
 }
 

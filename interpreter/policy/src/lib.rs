@@ -1,6 +1,7 @@
 //! Policies for cpmx: SigmaRL's observation design, MLP actors of any layer sizes loaded from
 //! safetensors (SigmaRL's among them) with their output heads, policy processes in any
-//! language (`process`), and built-in baselines.
+//! language (`process`), policies decided in the same process by another language (`external`:
+//! the Python package's callables), and built-in baselines.
 //!
 //! This crate owns deciding commands from states. It never steps vehicles, reads specs or
 //! computes metrics; its only randomness is the `ChaCha20Rng` a caller hands to [`MlpPolicy`].
@@ -30,6 +31,7 @@
 
 pub mod action;
 pub mod actor;
+pub mod external;
 pub mod geometry;
 pub mod lane_follow;
 pub mod observation;
@@ -38,6 +40,7 @@ pub mod process;
 
 pub use action::{ActionHead, ActionMode, ActionOutput, OutputHead};
 pub use actor::{Activation, ActorError, ActorWorkspace, MlpActor, MlpLayout};
+pub use external::{Decider, ExternalPolicy, STATE_FIELDS};
 pub use geometry::{AgentPaths, PreparedPath, Segments};
 pub use lane_follow::{LaneFollow, LaneFollowParams};
 pub use observation::{AgentState, BoundaryCorners, ObservationError, ObservationInput, SigmarlObservation};

@@ -41,6 +41,9 @@ pub enum PolicyError {
     /// A policy process failed (crashed, hung, or answered out of protocol).
     #[error("the policy process {0}")]
     Process(String),
+    /// A policy decided outside cpmx's crates (a Python callable) failed.
+    #[error("the bound policy {0}")]
+    External(String),
     /// The command buffer does not hold one command per agent.
     #[error("{found} command slots for {agents} agents")]
     CommandCount { found: usize, agents: usize },

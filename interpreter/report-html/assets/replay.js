@@ -139,8 +139,9 @@
       for (const rep of fig.representatives) {
         const run = data.runs[rep.run];
         const m = run.metrics;
-        const p = panel(row, rep.fidelity + ": " + run.key + " (CD " + fmt(m.cd_m, 3) + " m; the fidelity's mean " +
-          fmt(rep.mean_cd_m, 3) + " m; CRA-A " + fmt(m.cra_a, 2) + ", AS " + fmt(m.as_mps, 3) + " m/s)");
+        const p = panel(row, rep.group + ": " + run.key + " (policy " + run.policy + "; CD " + fmt(m.cd_m, 3) +
+          " m, the group's mean " + fmt(rep.mean_cd_m, 3) + " m; CRA-A " + fmt(m.cra_a, 2) + ", AS " +
+          fmt(m.as_mps, 3) + " m/s)");
         drawRun(p.canvas, run, samples(run) - 1);
       }
       body.appendChild(block);

@@ -48,7 +48,7 @@ pub fn page_data(page: &Page<'_>) -> Value {
         "vehicle": {"length_m": page.vehicle.length_m, "width_m": page.vehicle.width_m},
         "runs": runs,
         "pairs": pairs(&page.runs),
-        "figure3": figure3(&page.runs),
+        "figure3": figure3(&page.runs, page.summary),
         "learning_curves": page.learning_curves.iter().map(|c| json!({
             "name": c.name,
             "iteration": c.iterations,
@@ -129,52 +129,56 @@ fn pairs(runs: &[PageRun<'_>]) -> Vec<Value> {
 }
 
 /// Figure 3 of the paper for each initial configuration: a run to show the setup from (its
-/// first sample: starts are shared by every run of the configuration), and per fidelity the run
-/// whose CD is closest to that fidelity's mean CD.
-fn figure3(runs: &[PageRun<'_>]) -> Vec<Value> {
-    let mut fidelities: Vec<&str> = Vec::new();
-    let mut cd_sums: BTreeMap<&str, (f64, usize)> = BTreeMap::new();
+/// first sample: starts are shared by every run of the configuration), and per group of the
+/// summary (its `group_by`: a fidelity and policy by default) the run of the configuration whose
+/// CD is closest to the group's mean CD, so that a caption never quotes a mean pooled over
+/// policies the reader did not ask to pool.
+fn figure3(runs: &[PageRun<'_>], summary: &cpmx_report::Summary) -> Vec<Value> {
     let mut configurations: Vec<&str> = Vec::new();
     for run in runs {
-        let plan = &run.record.plan;
-        if !fidelities.contains(&plan.fidelity.as_str()) {
-            fidelities.push(&plan.fidelity);
-        }
-        if !configurations.contains(&plan.initial_configuration.as_str()) {
-            configurations.push(&plan.initial_configuration);
-        }
-        let cd = run.record.metrics.cd_m;
-        if cd.is_finite() {
-            let entry = cd_sums.entry(&plan.fidelity).or_insert((0.0, 0));
-            entry.0 += cd;
-            entry.1 += 1;
+        let c = run.record.plan.initial_configuration.as_str();
+        if !configurations.contains(&c) {
+            configurations.push(c);
         }
     }
+    let in_group = |run: &PageRun<'_>, group: &cpmx_report::Group| {
+        summary
+            .group_by
+            .iter()
+            .zip(&group.key)
+            .all(|(&axis, value)| cpmx_report::axis_value(&run.record.plan, axis) == value)
+    };
     configurations
         .into_iter()
         .map(|configuration| {
             let of_configuration = |i: &usize| runs[*i].record.plan.initial_configuration == configuration;
             let setup = (0..runs.len()).find(of_configuration);
-            let representatives: Vec<Value> = fidelities
+            let representatives: Vec<Value> = summary
+                .groups
                 .iter()
-                .filter_map(|&fidelity| {
-                    let (sum, n) = cd_sums.get(fidelity).copied().unwrap_or((0.0, 0));
-                    let mean = if n > 0 { sum / n as f64 } else { f64::NAN };
+                .filter_map(|group| {
+                    let mean = group
+                        .metric(cpmx_report::Metric::Cd)
+                        .map_or(f64::NAN, |m| m.stats.mean);
+                    let gap = |i: usize| {
+                        let cd = runs[i].record.metrics.cd_m;
+                        if cd.is_finite() && mean.is_finite() {
+                            (cd - mean).abs()
+                        } else {
+                            f64::INFINITY
+                        }
+                    };
                     let best = (0..runs.len())
                         .filter(of_configuration)
-                        .filter(|&i| runs[i].record.plan.fidelity == fidelity)
-                        .min_by(|&a, &b| {
-                            let gap = |i: usize| {
-                                let cd = runs[i].record.metrics.cd_m;
-                                if cd.is_finite() && mean.is_finite() {
-                                    (cd - mean).abs()
-                                } else {
-                                    f64::INFINITY
-                                }
-                            };
-                            gap(a).total_cmp(&gap(b))
-                        })?;
-                    Some(json!({"fidelity": fidelity, "mean_cd_m": number(mean, 5), "run": best}))
+                        .filter(|&i| in_group(&runs[i], group))
+                        .min_by(|&a, &b| gap(a).total_cmp(&gap(b)))?;
+                    Some(json!({
+                        "group": group.key.join(" · "),
+                        "policy": runs[best].record.plan.policy,
+                        "fidelity": runs[best].record.plan.fidelity,
+                        "mean_cd_m": number(mean, 5),
+                        "run": best,
+                    }))
                 })
                 .collect();
             json!({"configuration": configuration, "setup": setup, "representatives": representatives})

@@ -88,8 +88,9 @@ pub fn report_html(page: &Page<'_>) -> String {
     // Figure 3, the replay and the run list are drawn by the script from the data.
     out.push_str(
         "<section id=\"figure3\"><h2>Initial configurations and representative runs</h2>\n\
-         <p>For each initial configuration: the setup with each agent's reference path, then per fidelity \
-         the run whose CD is closest to the fidelity's mean (as the paper chooses its Figure 3). \
+         <p>For each initial configuration: the setup with each agent's reference path, then per row of the summary \
+         (fidelity and policy unless the spec pools) the run whose CD is closest to that row's mean (as the \
+         paper chooses its Figure 3). \
          Red: collision events; orange: lane violations.</p>\n<div id=\"figure3-body\"></div></section>\n\
          <section id=\"replay\"><h2>Replay</h2>\n<p>The runs of one policy, initial configuration and \
          repetition in every fidelity, in sync (the paired design). Choose a run in the table below.</p>\n\

@@ -34,6 +34,9 @@ pub struct Summary {
     pub units: Units,
     /// The groups, in order of their first run (matrix order).
     pub groups: Vec<Group>,
+    /// The axes left out of `group_by` on which the runs differ, with their values in matrix
+    /// order: what every row pools (policies pooled on purpose, initial configurations).
+    pub pooled: Vec<(GroupKey, Vec<String>)>,
     /// The paired comparison with the reference fidelity, when `report.compare` is set.
     pub comparison: Option<Comparison>,
     /// The transfer matrix, when the runs' policies were trained in two fidelities or more.
@@ -169,6 +172,7 @@ pub fn summarize(experiment: &str, runs: &[RunRecord], report: &ReportSpec, orig
         bootstrap: report.bootstrap.clone(),
         units,
         groups,
+        pooled: pooled_axes(runs, &report.group_by),
         comparison: report
             .compare
             .as_ref()
@@ -181,6 +185,29 @@ pub fn summarize(experiment: &str, runs: &[RunRecord], report: &ReportSpec, orig
             units,
         ),
     }
+}
+
+/// The axes outside `group_by` that hold more than one value among `runs`, each with its
+/// values in order of first appearance.
+fn pooled_axes(runs: &[RunRecord], group_by: &[GroupKey]) -> Vec<(GroupKey, Vec<String>)> {
+    [
+        GroupKey::Fidelity,
+        GroupKey::Policy,
+        GroupKey::InitialConfiguration,
+    ]
+    .into_iter()
+    .filter(|axis| !group_by.contains(axis))
+    .filter_map(|axis| {
+        let mut values: Vec<String> = Vec::new();
+        for run in runs {
+            let value = axis_value(&run.plan, axis);
+            if !values.iter().any(|v| v == value) {
+                values.push(value.to_owned());
+            }
+        }
+        (values.len() > 1).then_some((axis, values))
+    })
+    .collect()
 }
 
 /// Puts `runs` in the order of `matrix` (runs whose key the matrix lacks go last, by key),

@@ -99,7 +99,9 @@ pub struct AsSpec {}
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ReportSpec {
-    /// Rows of the summary table.
+    /// Rows of the summary table: one per value of these axes. Default: one row per fidelity
+    /// and policy. Leaving `policy` out pools the policies into one row (as the paper pools its
+    /// three training seeds); the summary then names the policies each row pools.
     #[serde(default = "default_group_by")]
     #[schemars(length(min = 1))]
     pub group_by: Vec<GroupKey>,
@@ -126,7 +128,7 @@ impl Default for ReportSpec {
 }
 
 fn default_group_by() -> Vec<GroupKey> {
-    vec![GroupKey::Fidelity]
+    vec![GroupKey::Fidelity, GroupKey::Policy]
 }
 
 fn default_statistics() -> Vec<Statistic> {

@@ -6,7 +6,8 @@ use serde::{Deserialize, Serialize};
 
 use super::PresetOr;
 
-/// One policy of the matrix. Exactly one of `mlp`, `onnx`, `process` and `builtin` is given.
+/// One policy of the matrix. Exactly one of `mlp`, `onnx`, `process`, `python` and `builtin`
+/// is given.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PolicySpec {
@@ -24,6 +25,13 @@ pub struct PolicySpec {
     /// stdin/stdout (see docs/policy-process.md); started once per run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub process: Option<ProcessSpec>,
+    /// A policy bound from Python when the spec runs: `cpmx.run(spec, policies={"NAME":
+    /// callable})` calls the callable once per step with the agents' observations `[agents,
+    /// size]` (of `observation:`, default `stdlib:sigmarl`) and states `[agents, 5]` (x, y,
+    /// yaw, speed, steering) and takes actions `[agents, 2]` (speed m/s, steering rad). The
+    /// command line cannot run it: `cpmx run` says how to bind it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub python: Option<PythonPolicySpec>,
     /// The observation design the network was trained with (default for `mlp` and `onnx`:
     /// `stdlib:sigmarl`, for `mlp: {trained}` the `training:` section's); for a `process`, the
     /// observation sent with every step (none when omitted).
@@ -131,6 +139,11 @@ pub enum OutputHead {
     /// 2 outputs taken as speed and steering, clipped to the box.
     DeterministicClip,
 }
+
+/// A policy bound from Python (`python: {}`): what it computes is the callable's.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PythonPolicySpec {}
 
 /// A policy process.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]

@@ -22,8 +22,8 @@ pub struct TrainingSpec {
     #[schemars(with = "PresetOr<TrainingScenario>")]
     pub scenario: TrainingScenario,
     /// The reward, term by term; a term that is left out contributes nothing.
-    /// SigmaRL's: `stdlib:sigmarl`; with the paper's speed and centre-line terms added:
-    /// `stdlib:sigmarl-shaped`.
+    /// SigmaRL's: `stdlib:sigmarl-reward`; with the paper's speed and centre-line terms added:
+    /// `stdlib:sigmarl-shaped-reward`.
     #[schemars(with = "PresetOr<RewardSpec>")]
     pub reward: RewardSpec,
     /// The learning algorithm and its hyperparameters. SigmaRL's: `stdlib:mappo-sigmarl`.

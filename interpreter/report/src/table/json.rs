@@ -23,6 +23,11 @@ pub fn render(summary: &Summary) -> String {
         "experiment": summary.experiment,
         "units": super::units_note(summary),
         "group_by": summary.group_by.iter().map(|&a| axis_name(a)).collect::<Vec<_>>(),
+        "pooled": summary
+            .pooled
+            .iter()
+            .map(|(axis, values)| (axis_name(*axis).to_owned(), json!(values)))
+            .collect::<serde_json::Map<String, Value>>(),
         "statistics": statistics,
         "confidence": CONFIDENCE,
         "bootstrap": {"resamples": summary.bootstrap.resamples, "seed": summary.bootstrap.seed},

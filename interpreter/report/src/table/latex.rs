@@ -28,6 +28,9 @@ pub fn render(summary: &Summary) -> String {
             runs.join(", ")
         }
     );
+    if let Some(note) = super::pooled_note(summary) {
+        let _ = writeln!(out, "% {}", note.replace('`', ""));
+    }
     let columns = "l".repeat(summary.group_by.len()) + &"c".repeat(Metric::ALL.len());
     let _ = writeln!(out, "\\begin{{tabular}}{{{columns}}}\n\\toprule");
 

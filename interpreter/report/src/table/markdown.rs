@@ -151,6 +151,9 @@ fn main_table(out: &mut String, summary: &Summary) {
         }
         row(out, &cells);
     }
+    if let Some(note) = super::pooled_note(summary) {
+        let _ = writeln!(out, "\n{note}");
+    }
     let _ = writeln!(out, "\n{}", super::units_note(summary));
     let _ = writeln!(
         out,

@@ -10,6 +10,7 @@ mod json;
 mod latex;
 mod markdown;
 
+use cpmx_spec::model::GroupKey;
 pub use csv::per_run_csv;
 
 use crate::Summary;
@@ -193,6 +194,43 @@ fn exclusions(summary: &Summary) -> Vec<String> {
             (!parts.is_empty()).then(|| format!("{}: {}", g.key.join(" / "), parts.join(", ")))
         })
         .collect()
+}
+
+/// What every row pools: the values of the axes `report.group_by` leaves out, policies
+/// first (pooling policies is a choice the reader must see), or `None` when the rows pool
+/// nothing.
+fn pooled_note(summary: &Summary) -> Option<String> {
+    let list = |values: &[String]| {
+        values
+            .iter()
+            .map(|v| format!("`{v}`"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut parts = Vec::new();
+    let mut axes: Vec<&(GroupKey, Vec<String>)> = summary.pooled.iter().collect();
+    axes.sort_by_key(|(axis, _)| *axis != GroupKey::Policy);
+    for (axis, values) in axes {
+        let noun = match axis {
+            GroupKey::Fidelity => "fidelities",
+            GroupKey::Policy => "policies",
+            GroupKey::InitialConfiguration => "initial configurations",
+        };
+        parts.push(format!("the {} {noun} {}", values.len(), list(values)));
+    }
+    if parts.is_empty() {
+        return None;
+    }
+    let policies = summary.pooled.iter().any(|(axis, _)| *axis == GroupKey::Policy);
+    Some(format!(
+        "Each row pools {}{}.",
+        parts.join(" and "),
+        if policies {
+            " (`report.group_by` leaves out `policy`: add it for a row per policy)"
+        } else {
+            ""
+        }
+    ))
 }
 
 /// What the tables count as a sample, and how many copies the groups held.

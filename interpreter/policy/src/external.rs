@@ -1,0 +1,120 @@
+//! Policies decided outside cpmx's crates, in the same process: a [`Decider`] (the `cpmx`
+//! Python package binds a Python callable as one) gets every agent's observation and state at
+//! each step and returns one action per agent. [`ExternalPolicy`] forms the observation as
+//! [`crate::MlpPolicy`] does (SigmaRL's design, with its one-step memory of footprint
+//! corners), so a network written in another language sees exactly what `mlp:` would.
+
+use std::sync::Arc;
+
+use cpmx_vehicle::{Command, Footprint, footprint_corners};
+
+use crate::observation::{ObservationInput, SigmarlObservation};
+use crate::policy::{Policy, PolicyError, check_commands};
+
+/// The values of an agent's state handed to a [`Decider`], in this order: x [m], y [m],
+/// yaw [rad], signed speed [m/s], steering [rad].
+pub const STATE_FIELDS: [&str; 5] = ["x_m", "y_m", "yaw_rad", "speed_mps", "steering_rad"];
+
+/// One step's decision for all agents.
+pub trait Decider: std::fmt::Debug + Send + Sync {
+    /// `observations`: `agents × observation_size` values (agent-major; empty when the
+    /// policy has no observation design); `states`: `agents × STATE_FIELDS.len()` values;
+    /// `actions` receives `agents × 2` values: target speed [m/s] and steering [rad].
+    fn decide(
+        &self,
+        observations: &[f32],
+        observation_size: usize,
+        states: &[f64],
+        actions: &mut [f64],
+    ) -> Result<(), String>;
+}
+
+/// A [`Policy`] whose decisions a [`Decider`] makes.
+#[derive(Debug, Clone)]
+pub struct ExternalPolicy {
+    decider: Arc<dyn Decider>,
+    observation: Option<SigmarlObservation>,
+    observations: Vec<f32>,
+    states: Vec<f64>,
+    actions: Vec<f64>,
+    previous_corners: Vec<Footprint>,
+    current_corners: Vec<Footprint>,
+}
+
+impl ExternalPolicy {
+    /// A policy that observes with `observation` (none: states only) and asks `decider`.
+    pub fn new(decider: Arc<dyn Decider>, observation: Option<SigmarlObservation>) -> Self {
+        ExternalPolicy {
+            decider,
+            observation,
+            observations: Vec::new(),
+            states: Vec::new(),
+            actions: Vec::new(),
+            previous_corners: Vec::new(),
+            current_corners: Vec::new(),
+        }
+    }
+}
+
+impl Policy for ExternalPolicy {
+    fn act(&mut self, input: &ObservationInput<'_>, out: &mut [Command]) -> Result<(), PolicyError> {
+        check_commands(input, out)?;
+        let agents = input.agents.len();
+
+        // The observation, with SigmaRL's memory of the previous corners (as `MlpPolicy`).
+        let size = self.observation.map_or(0, |o| o.size());
+        self.observations.resize(agents * size, 0.0);
+        if let Some(o) = self.observation {
+            if self.previous_corners.len() != agents {
+                self.previous_corners.clear();
+            }
+            let remembered = (!self.previous_corners.is_empty()).then_some(self.previous_corners.as_slice());
+            let observed = ObservationInput {
+                previous_corners: input.previous_corners.or(remembered),
+                ..*input
+            };
+            o.observe_all(&observed, &mut self.observations)?;
+            self.current_corners.clear();
+            self.current_corners.extend(
+                input
+                    .agents
+                    .iter()
+                    .map(|a| footprint_corners(input.vehicle, a.x_m, a.y_m, a.yaw_rad)),
+            );
+            std::mem::swap(&mut self.previous_corners, &mut self.current_corners);
+        }
+
+        // The states, then the decision.
+        self.states.clear();
+        for a in input.agents {
+            self.states
+                .extend([a.x_m, a.y_m, a.yaw_rad, a.speed_mps, a.steering_rad]);
+        }
+        self.actions.clear();
+        self.actions.resize(agents * 2, 0.0);
+        self.decider
+            .decide(&self.observations, size, &self.states, &mut self.actions)
+            .map_err(PolicyError::External)?;
+        for (command, action) in out.iter_mut().zip(self.actions.chunks_exact(2)) {
+            if !(action[0].is_finite() && action[1].is_finite()) {
+                return Err(PolicyError::External(format!(
+                    "returned a non-finite action ({}, {})",
+                    action[0], action[1]
+                )));
+            }
+            *command = Command {
+                speed_mps: action[0],
+                steering_rad: action[1],
+            };
+        }
+        Ok(())
+    }
+
+    fn reset(&mut self) {
+        self.previous_corners.clear();
+    }
+
+    fn fork(&mut self) -> Box<dyn Policy> {
+        Box::new(self.clone())
+    }
+}
