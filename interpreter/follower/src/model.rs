@@ -299,7 +299,7 @@ mod tests {
         };
         let (r, v) = (0.6, 0.5);
         let sample = TrajectorySample {
-            t_s: 0.0,
+            t_ns: 0,
             position_m: [r, 0.0],
             velocity_mps: [0.0, v],
             acceleration_mps2: [-v * v / r, 0.0],
