@@ -382,6 +382,7 @@ impl Model<4, 2> for GreyBoxMpcModel {
     /// The lab's stop signals (`Controller::get_stop_signals`, `Controller.cxx:453-471`): a
     /// proportional brake on the measured speed, throttle = clip(0.5 · (0 − v), −1, 1), servo 0,
     /// clipped as the lab clips (`fmax(-1, fmin(1, ·))`, which takes a NaN to 1).
+    #[allow(clippy::manual_clamp)] // `clamp` keeps a NaN, the lab's clip does not
     fn stop_input(&self, state: &[f64; 4]) -> [f64; 2] {
         [(STOP_BRAKE_GAIN * (0.0 - state[3])).min(1.0).max(-1.0), 0.0]
     }
