@@ -1,4 +1,4 @@
-//! The MPC's reference window as the lab builds it (`MpcController::interpolate_reference_trajectory`,
+//! The MPC's reference window as the lab builds it (`interpolate_reference_trajectory`,
 //! `MpcController.cxx:351-471`): the six sample times in integer nanoseconds, the checks of a
 //! trajectory against them, and the samples with the lab's acceleration and curvature checks.
 //!

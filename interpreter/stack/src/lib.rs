@@ -3,8 +3,8 @@
 //! actuation delay, on-car sensing and the 50 Hz MPC trajectory follower (`stack.rs`). The twin
 //! engine drives several from the planner, `cpmx lab emulate` from trajectories received over
 //! DDS, `cpmx train` in a `control: trajectory` fidelity; none owns the vehicle. Also here: how
-//! plans are timed for the vehicles on their nanosecond clock (`timing.rs`) and how a randomised fidelity is drawn
-//! (`randomise.rs`), one rule for every driver of the vehicles.
+//! plans are timed for the vehicles on their nanosecond clock (`timing.rs`) and how a
+//! randomised fidelity is drawn (`randomise.rs`), one rule for every driver of the vehicles.
 
 mod plants;
 mod randomise;
