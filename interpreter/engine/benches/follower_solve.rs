@@ -20,19 +20,20 @@ use cpmx_vehicle::{GreyBoxParams, KinematicBicycle, VehicleParams};
 use criterion::{Criterion, criterion_group, criterion_main};
 
 const PERIOD_S: f64 = 0.02;
+const PERIOD_NS: u64 = 20_000_000;
 const RADIUS_M: f64 = 0.6;
 const SPEED_MPS: f64 = 0.5;
-/// The loop starts over after this long (the reference lasts 20 s).
-const LOOP_S: f64 = 19.0;
+/// The loop starts over after this long (the reference lasts 20 s) [ns].
+const LOOP_NS: u64 = 19_000_000_000;
 
 /// The circle from the origin heading +x, points every 0.1 s for 20 s.
 fn circle() -> Trajectory {
-    let points = (0..=200)
+    let points = (0..=200u32)
         .map(|k| {
             let t = f64::from(k) * 0.1;
             let a = SPEED_MPS * t / RADIUS_M;
             TrajectoryPoint {
-                t_s: t,
+                t_ns: u64::from(k) * 100_000_000,
                 x_m: RADIUS_M * a.sin(),
                 y_m: RADIUS_M * (1.0 - a.cos()),
                 vx_mps: SPEED_MPS * a.cos(),
@@ -51,19 +52,18 @@ fn bench_loop<M: Model<NX, 2> + Clone, const NX: usize>(
     start: [f64; NX],
 ) {
     let trajectory = circle();
-    let (mut current, mut state, mut t_s) = (mpc.clone(), start, 0.0);
+    let (mut current, mut state, mut t_ns) = (mpc.clone(), start, 0);
     c.bench_function(name, |b| {
         b.iter(|| {
-            if t_s > LOOP_S {
-                (current, state, t_s) = (mpc.clone(), start, 0.0);
+            if t_ns > LOOP_NS {
+                (current, state, t_ns) = (mpc.clone(), start, 0);
             }
-            let input = match current.solve(t_s, &state, &trajectory) {
+            let input = match current.solve(t_ns, &state, &trajectory) {
                 Ok(solution) => solution.input,
                 Err(_) => current.model().stop_input(&state),
             };
-            current.record_applied(input);
             state = current.model().step(&state, black_box(&input), PERIOD_S);
-            t_s += PERIOD_S;
+            t_ns += PERIOD_NS;
         })
     });
 }

@@ -8,18 +8,21 @@
 //! The planner starts from the states the lab's middleware would list at the tick (position
 //! and yaw as estimated, σ = σ_max · servo command, speed through the slip angle; at least
 //! 60 ms old, see `stack.rs`), and each plan is anchored at its state's time: point k of an
-//! agent's trajectory is at `create + k·dt` ([`anchor_s`], `docs/lab.md`), so the reference
-//! does not fall behind the car by speed × state age.
+//! agent's trajectory is at `create + k·dt` ([`anchor_ns`], `docs/lab.md`), so the reference
+//! does not fall behind the car by speed × state age. The vehicles' clock is integer
+//! nanoseconds from [`RUN_START_NS`] (tick `k` at `RUN_START_NS + k·dt`, control periods
+//! 20,000,000 ns apart), as the lab's stamps are, so every time the follower compares is a
+//! whole-nanosecond sum.
 
-use cpmx_planner::{PlannedTrajectory, Planner, PlannerParams, SteeringAfterHc};
+use cpmx_planner::{Planner, PlannerParams, SteeringAfterHc};
 use cpmx_recording::Recording;
 use cpmx_spec::model::{OnCollision, Planner as PlannerSpec};
 use cpmx_vehicle::{BicycleState, VehicleParams};
 
 use crate::engine::{Engine, RunError, RunInputs};
 use cpmx_stack::{
-    CONTROL_PERIOD_S, StampedState, VehicleStack, anchor_s, anchored_time_s, control_periods,
-    max_state_age_s, trajectory_points,
+    CONTROL_PERIOD_NS, CONTROL_PERIOD_S, RUN_START_NS, StampedState, VehicleStack, anchor_ns,
+    control_periods, max_state_age_ns, trajectory_points,
 };
 
 /// The lab's control stack around simulated vehicles.
@@ -63,9 +66,11 @@ impl Engine for TwinEngine {
             ref_paths: starts.iter().map(|s| s.ref_path).collect(),
             samples: Vec::with_capacity(spec.timing.steps as usize),
         };
-        let max_age_s = max_state_age_s(planner_spec.prediction_horizon, dt_s);
+        let dt_ns = substeps as u64 * CONTROL_PERIOD_NS;
+        let max_age_ns = max_state_age_ns(planner_spec.prediction_horizon, dt_ns);
         for tick in 0..spec.timing.steps {
             let t_s = (f64::from(tick) * dt_s * 1e9).round() / 1e9;
+            let tick_ns = RUN_START_NS + u64::from(tick) * dt_ns;
 
             // Record the true states.
             recording.times_s.push(t_s);
@@ -75,22 +80,19 @@ impl Engine for TwinEngine {
 
             // Plan from what the middleware lists; every vehicle gets its trajectory, anchored
             // at its state's time and valid from the tick on.
-            let listed: Vec<StampedState> = vehicles.iter().map(|v| v.listed_state(t_s)).collect();
+            let listed: Vec<StampedState> = vehicles.iter().map(|v| v.listed_state(tick_ns)).collect();
             let states: Vec<BicycleState> = listed.iter().map(|s| s.state).collect();
-            let anchors: Vec<f64> = listed
-                .iter()
-                .map(|s| anchor_s(s.create_s, t_s, max_age_s))
-                .collect();
-            let trajectories = plan_anchored(&mut planner, policy.as_mut(), &states, &paths, &anchors)?;
-            for (vehicle, trajectory) in vehicles.iter_mut().zip(&trajectories) {
-                vehicle.receive(trajectory_points(trajectory), t_s, t_s);
+            let trajectories = planner.plan(policy.as_mut(), &states, &paths, 0.0)?;
+            for ((vehicle, trajectory), state) in vehicles.iter_mut().zip(&trajectories).zip(&listed) {
+                let anchor = anchor_ns(state.create_ns, tick_ns, max_age_ns);
+                vehicle.receive(trajectory_points(trajectory, anchor, dt_ns), tick_ns, tick_ns);
             }
 
             // The vehicles' 50 Hz loops until the next policy period.
-            for sub in 0..substeps {
-                let now_s = t_s + sub as f64 * CONTROL_PERIOD_S;
+            for sub in 0..substeps as u64 {
+                let now_ns = tick_ns + sub * CONTROL_PERIOD_NS;
                 for vehicle in &mut vehicles {
-                    vehicle.step(now_s);
+                    vehicle.step(now_ns);
                 }
             }
 
@@ -102,25 +104,6 @@ impl Engine for TwinEngine {
         }
         Ok(recording)
     }
-}
-
-/// Plans every agent from its state and anchors each agent's trajectory at its own time:
-/// point k is at `anchors[i] + k·dt`.
-pub fn plan_anchored(
-    planner: &mut Planner,
-    policy: &mut dyn cpmx_policy::Policy,
-    states: &[BicycleState],
-    paths: &cpmx_policy::AgentPaths,
-    anchors: &[f64],
-) -> Result<Vec<PlannedTrajectory>, cpmx_policy::PolicyError> {
-    let step_s = planner.params().step_s;
-    let mut trajectories = planner.plan(policy, states, paths, 0.0)?;
-    for (trajectory, anchor) in trajectories.iter_mut().zip(anchors) {
-        for (k, point) in trajectory.iter_mut().enumerate() {
-            point.t_s = anchored_time_s(*anchor, k, step_s);
-        }
-    }
-    Ok(trajectories)
 }
 
 /// The planner a spec asks for.

@@ -18,15 +18,18 @@
 //!
 //! Checkpoints: a vehicle stack's state is a function of its start, its sensing seed and the
 //! trajectories it received (with the ticks they arrived at), so a checkpoint stores those and
-//! a restore replays them.
+//! a restore replays them. Times are the vehicles' nanosecond clock (`cpmx_stack::RUN_START_NS`
+//! when a vehicle is placed); a checkpoint holds them as f64 seconds since the placement, as it
+//! always did, and a restore rounds them back to whole nanoseconds (exact for any episode
+//! shorter than a month).
 
 use cpmx_follower::TrajectoryPoint;
 use cpmx_planner::{Planner, PlannerParams};
 use cpmx_policy::{AgentPaths, MlpPolicy, Policy};
 use cpmx_spec::model::{DrawnFidelity, Lookahead, SimulatedFidelity};
 use cpmx_stack::{
-    CONTROL_PERIOD_S, InitialState, StampedState, VehicleStack, anchor_s, anchored_time_s, control_periods,
-    max_state_age_s, trajectory_points,
+    CONTROL_PERIOD_NS, CONTROL_PERIOD_S, InitialState, RUN_START_NS, StampedState, VehicleStack, anchor_ns,
+    control_periods, max_state_age_ns, trajectory_points,
 };
 use cpmx_vehicle::{BicycleState, Command, Footprint, KinematicBicycle, VehicleParams, footprint_corners};
 use rand::{Rng, SeedableRng};
@@ -79,10 +82,10 @@ struct StackVehicle {
     spawn: InitialState,
     /// Its sensing stream's seed.
     sensing_seed: u64,
-    /// Time since it was placed [s].
-    clock_s: f64,
-    /// Every trajectory it received, with the tick it arrived at (replayed on restore).
-    received: Vec<(f64, Vec<TrajectoryPoint>)>,
+    /// Its clock (`RUN_START_NS` when it was placed) [ns].
+    clock_ns: u64,
+    /// Every trajectory it received, with the tick it arrived at [ns] (replayed on restore).
+    received: Vec<(u64, Vec<TrajectoryPoint>)>,
 }
 
 /// The vehicles of one environment and what drives them.
@@ -100,7 +103,9 @@ pub(crate) struct StackWorld {
     vehicles: Vec<StackVehicle>,
     planner: Planner,
     substeps: usize,
-    max_age_s: f64,
+    /// The planning period [ns].
+    dt_ns: u64,
+    max_age_ns: u64,
     /// What each vehicle reports at the current tick (the observation's states).
     listed: Vec<StampedState>,
     /// Corners of the reported states of the previous tick (SigmaRL's lagged corners), none
@@ -120,6 +125,7 @@ impl StackWorld {
         rng: ChaCha20Rng,
     ) -> Result<Self, String> {
         let substeps = plant.check(dt_s)?;
+        let dt_ns = substeps as u64 * CONTROL_PERIOD_NS;
         let planner = Planner::new(
             PlannerParams {
                 step_s: dt_s,
@@ -136,7 +142,11 @@ impl StackWorld {
             vehicles: Vec::new(),
             planner,
             substeps,
-            max_age_s: max_state_age_s(plant.planner.prediction_horizon as u32, dt_s),
+            dt_ns,
+            max_age_ns: max_state_age_ns(
+                u32::try_from(plant.planner.prediction_horizon).unwrap_or(u32::MAX),
+                dt_ns,
+            ),
             listed: Vec::new(),
             listed_corners: None,
             lookahead: None,
@@ -169,7 +179,7 @@ impl StackWorld {
         self.listed = self
             .vehicles
             .iter()
-            .map(|v| v.stack.listed_state(v.clock_s))
+            .map(|v| v.stack.listed_state(v.clock_ns))
             .collect();
         self.listed_corners = None;
         Ok(())
@@ -184,7 +194,7 @@ impl StackWorld {
     ) -> Result<(), String> {
         let seed = self.rng.next_u64();
         self.vehicles[i] = self.spawn(vehicle, placement, seed, i)?;
-        self.listed[i] = self.vehicles[i].stack.listed_state(0.0);
+        self.listed[i] = self.vehicles[i].stack.listed_state(RUN_START_NS);
         Ok(())
     }
 
@@ -207,7 +217,7 @@ impl StackWorld {
             stack: VehicleStack::new(&self.fidelity, vehicle, &spawn, sensing_seed, agent)?,
             spawn,
             sensing_seed,
-            clock_s: 0.0,
+            clock_ns: RUN_START_NS,
             received: Vec::new(),
         })
     }
@@ -249,7 +259,6 @@ impl StackWorld {
             .planner
             .plan_from_commands(first, lookahead, &states, paths, 0.0)
             .map_err(|e| e.to_string())?;
-        let dt_s = self.planner.params().step_s;
         // The corners of this tick's reported states lag into the next observation.
         self.listed_corners = Some(
             states
@@ -259,14 +268,11 @@ impl StackWorld {
         );
         let mut out = Vec::with_capacity(self.vehicles.len());
         for ((v, listed), trajectory) in self.vehicles.iter_mut().zip(&self.listed).zip(&trajectories) {
-            let anchor = anchor_s(listed.create_s, v.clock_s, self.max_age_s);
-            let mut points = trajectory_points(trajectory);
-            for (k, point) in points.iter_mut().enumerate() {
-                point.t_s = anchored_time_s(anchor, k, dt_s);
-            }
-            follow(&mut v.stack, v.clock_s, &points, self.substeps);
-            v.received.push((v.clock_s, points));
-            v.clock_s += dt_s;
+            let anchor = anchor_ns(listed.create_ns, v.clock_ns, self.max_age_ns);
+            let points = trajectory_points(trajectory, anchor, self.dt_ns);
+            follow(&mut v.stack, v.clock_ns, &points, self.substeps);
+            v.received.push((v.clock_ns, points));
+            v.clock_ns += self.dt_ns;
             let sample = v.stack.true_sample();
             let along =
                 sample.velocity_mps[0] * sample.yaw_rad.cos() + sample.velocity_mps[1] * sample.yaw_rad.sin();
@@ -287,7 +293,7 @@ impl StackWorld {
         self.listed = self
             .vehicles
             .iter()
-            .map(|v| v.stack.listed_state(v.clock_s))
+            .map(|v| v.stack.listed_state(v.clock_ns))
             .collect();
         Ok(out)
     }
@@ -310,16 +316,16 @@ impl StackWorld {
         for v in &self.vehicles {
             let s = v.spawn;
             out.extend_from_slice(&(s.ref_path as u64).to_le_bytes());
-            for x in [s.x_m, s.y_m, s.yaw_rad, s.speed_mps, v.clock_s] {
+            for x in [s.x_m, s.y_m, s.yaw_rad, s.speed_mps, since_placed_s(v.clock_ns)] {
                 out.extend_from_slice(&x.to_bits().to_le_bytes());
             }
             out.extend_from_slice(&v.sensing_seed.to_le_bytes());
             out.extend_from_slice(&(v.received.len() as u64).to_le_bytes());
-            for (tick_s, points) in &v.received {
-                out.extend_from_slice(&tick_s.to_bits().to_le_bytes());
+            for (tick_ns, points) in &v.received {
+                out.extend_from_slice(&since_placed_s(*tick_ns).to_bits().to_le_bytes());
                 out.extend_from_slice(&(points.len() as u64).to_le_bytes());
                 for p in points {
-                    for x in [p.t_s, p.x_m, p.y_m, p.vx_mps, p.vy_mps] {
+                    for x in [since_placed_s(p.t_ns), p.x_m, p.y_m, p.vx_mps, p.vy_mps] {
                         out.extend_from_slice(&x.to_bits().to_le_bytes());
                     }
                 }
@@ -365,7 +371,8 @@ impl StackWorld {
             vehicles: Vec::with_capacity(agents),
             planner: self.planner.clone(),
             substeps: self.substeps,
-            max_age_s: self.max_age_s,
+            dt_ns: self.dt_ns,
+            max_age_ns: self.max_age_ns,
             listed: Vec::new(),
             listed_corners,
             lookahead: self.lookahead.clone(),
@@ -373,6 +380,7 @@ impl StackWorld {
         for agent in 0..agents {
             let ref_path = r.u64()? as usize;
             let [x_m, y_m, yaw_rad, speed_mps, clock_s] = [r.f64()?, r.f64()?, r.f64()?, r.f64()?, r.f64()?];
+            let clock_ns = clock_ns_of(clock_s)?;
             let spawn = InitialState {
                 ref_path,
                 x_m,
@@ -385,44 +393,59 @@ impl StackWorld {
             let mut stack = VehicleStack::new(&world.fidelity, vehicle, &spawn, sensing_seed, agent)?;
             let mut received = Vec::with_capacity(count.min(1 << 16));
             for _ in 0..count {
-                let tick_s = r.f64()?;
+                let tick_ns = clock_ns_of(r.f64()?)?;
                 let n = r.u64()? as usize;
                 let mut points = Vec::with_capacity(n.min(1 << 12));
                 for _ in 0..n {
                     points.push(TrajectoryPoint {
-                        t_s: r.f64()?,
+                        t_ns: clock_ns_of(r.f64()?)?,
                         x_m: r.f64()?,
                         y_m: r.f64()?,
                         vx_mps: r.f64()?,
                         vy_mps: r.f64()?,
                     });
                 }
-                follow(&mut stack, tick_s, &points, world.substeps);
-                received.push((tick_s, points));
+                follow(&mut stack, tick_ns, &points, world.substeps);
+                received.push((tick_ns, points));
             }
             world.vehicles.push(StackVehicle {
                 stack,
                 spawn,
                 sensing_seed,
-                clock_s,
+                clock_ns,
                 received,
             });
         }
         world.listed = world
             .vehicles
             .iter()
-            .map(|v| v.stack.listed_state(v.clock_s))
+            .map(|v| v.stack.listed_state(v.clock_ns))
             .collect();
         Ok(world)
     }
 }
 
-/// A vehicle receives `points` at `tick_s` and runs its 50 Hz loop for the period.
-fn follow(stack: &mut VehicleStack, tick_s: f64, points: &[TrajectoryPoint], substeps: usize) {
-    stack.receive(points.to_vec(), tick_s, tick_s);
-    for sub in 0..substeps {
-        stack.step(tick_s + sub as f64 * CONTROL_PERIOD_S);
+/// A vehicle receives `points` at `tick_ns` and runs its 50 Hz loop for the period.
+fn follow(stack: &mut VehicleStack, tick_ns: u64, points: &[TrajectoryPoint], substeps: usize) {
+    stack.receive(points.to_vec(), tick_ns, tick_ns);
+    for sub in 0..substeps as u64 {
+        stack.step(tick_ns + sub * CONTROL_PERIOD_NS);
     }
+}
+
+/// A time of a vehicle's clock as a checkpoint holds it: seconds since the vehicle was placed
+/// (negative before).
+fn since_placed_s(t_ns: u64) -> f64 {
+    (t_ns as f64 - RUN_START_NS as f64) / 1e9
+}
+
+/// [`since_placed_s`] the other way, to the nanosecond it came from.
+fn clock_ns_of(since_placed_s: f64) -> Result<u64, String> {
+    let t_ns = (since_placed_s * 1e9).round() + RUN_START_NS as f64;
+    if !(0.0..=9.0e15).contains(&t_ns) {
+        return Err(format!("a vehicle time of {since_placed_s} s"));
+    }
+    Ok(t_ns as u64)
 }
 
 /// The lookahead before a learner has handed its actor over, or for good with `lookahead:

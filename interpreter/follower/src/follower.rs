@@ -5,11 +5,25 @@
 //! plant or estimate the state; the caller hands in an estimate each period and applies the
 //! returned input.
 //!
-//! Lab rules (`Controller.cxx`): each step the command with the largest `create_stamp` among
-//! those whose `valid_after` has passed is used, and only that message's points; it is fresh
-//! while `t_now − valid_after < 1 s`, otherwise the car stops ("No new commands received");
-//! an IPS update older than 3 s stops the car ("Lost IPS position reference"); the MPC's
-//! rejections ([`Rejection`]) stop it for that step. Stopping applies the model's stop input.
+//! Lab rules (`Controller.cxx`, `cpm/Reader.hpp`): each step the command with the largest
+//! `create_stamp` among those whose `valid_after` has passed is used (of equal stamps, the one
+//! that arrived last), and only that message's points; it is fresh while
+//! `t_now − valid_after < 1 s`, otherwise the car stops ("No new commands received"); an IPS
+//! update older than 3 s stops the car ("Lost IPS position reference"); the MPC's rejections
+//! ([`Rejection`]) stop it for that step. Stopping applies the model's stop input.
+//!
+//! Times are the lab's integer nanoseconds and compared as integers, as the lab does. The stops
+//! the lab's controller makes itself — no command, a stale one, lost IPS — are decided before
+//! the MPC is called (`Controller.cxx:376-395` switch to its `Stop` state, which sends
+//! `get_stop_signals` without `MpcController::update`): the MPC's input history, warm start
+//! and battery filter stay as they were; only the MPC's own rejections change them
+//! (`mpc.rs`).
+//!
+//! Not followed: the lab's reader reports the age of "no sample at all" as `t_now` itself
+//! (`Reader.hpp:105`), so on a clock that reads less than 1 s the lab's controller would run
+//! its MPC on an empty command (and refuse it, filtering the battery voltage). The lab's
+//! clock is the wall clock; cpmx's vehicle stacks start theirs at 1 s (`cpmx-stack`), so a
+//! follower without a command simply stops.
 
 use thiserror::Error;
 
@@ -21,40 +35,33 @@ use crate::trajectory::Trajectory;
 /// stamp is dropped beyond it; chosen here, the lab's reader keeps all).
 pub const MAX_PENDING_COMMANDS: usize = 32;
 
-/// A trajectory command (the lab's `VehicleCommandTrajectory`, stamps in seconds).
+/// A trajectory command (the lab's `VehicleCommandTrajectory`, stamps in nanoseconds).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrajectoryCommand {
-    /// When the planner created it [s].
-    pub create_stamp_s: f64,
-    /// From when on the vehicle may use it [s].
-    pub valid_after_s: f64,
+    /// When the planner created it [ns].
+    pub create_stamp_ns: u64,
+    /// From when on the vehicle may use it [ns].
+    pub valid_after_ns: u64,
     /// Its points.
     pub trajectory: Trajectory,
 }
 
-/// Why a command was not accepted at all.
-#[derive(Debug, Clone, Copy, PartialEq, Error)]
-pub enum CommandError {
-    /// A stamp is NaN or infinite.
-    #[error("command stamps must be finite")]
-    NonFiniteStamp,
-}
-
 /// Timeouts of the loop.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FollowerConfig {
-    /// A command older than this (since `valid_after`) stops the car [s] (lab: 1).
-    pub command_timeout_s: f64,
-    /// An IPS update older than this stops the car [s] (lab: 3).
-    pub ips_timeout_s: f64,
+    /// A command this old or older (since `valid_after`) stops the car [ns] (lab: 1 s,
+    /// `Controller.hpp:94`).
+    pub command_timeout_ns: u64,
+    /// An IPS update older than this stops the car [ns] (lab: 3 s, `Controller.cxx:376`).
+    pub ips_timeout_ns: u64,
 }
 
 impl Default for FollowerConfig {
     /// The lab's timeouts.
     fn default() -> Self {
         Self {
-            command_timeout_s: 1.0,
-            ips_timeout_s: 3.0,
+            command_timeout_ns: 1_000_000_000,
+            ips_timeout_ns: 3_000_000_000,
         }
     }
 }
@@ -64,8 +71,8 @@ impl Default for FollowerConfig {
 pub struct StateEstimate<const NX: usize> {
     /// The model state (pose, speed, …) at the control time.
     pub state: [f64; NX],
-    /// Time since the last IPS correction [s].
-    pub ips_update_age_s: f64,
+    /// Time since the last IPS correction [ns] (the lab's `IPS_update_age_nanoseconds`).
+    pub ips_update_age_ns: u64,
 }
 
 /// Why the car is being stopped.
@@ -75,16 +82,16 @@ pub enum StopReason {
     #[error("no trajectory command received")]
     NoCommand,
     /// The newest valid command is too old.
-    #[error("no new commands received for {age_s} s")]
+    #[error("no new commands received for {age_ns} ns")]
     StaleCommand {
-        /// Time since its `valid_after` [s].
-        age_s: f64,
+        /// Time since its `valid_after` [ns].
+        age_ns: u64,
     },
     /// The IPS has not corrected the estimate for too long.
-    #[error("lost IPS position reference ({age_s} s)")]
+    #[error("lost IPS position reference ({age_ns} ns)")]
     LostIps {
-        /// Time since the last IPS update [s].
-        age_s: f64,
+        /// Time since the last IPS update [ns].
+        age_ns: u64,
     },
     /// The MPC refused the trajectory or failed.
     #[error(transparent)]
@@ -145,29 +152,20 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Follower<M, NX, NU> {
     }
 
     /// Accepts a command; it is considered from its `valid_after` on.
-    pub fn receive(&mut self, command: TrajectoryCommand) -> Result<(), CommandError> {
-        if !(command.create_stamp_s.is_finite() && command.valid_after_s.is_finite()) {
-            return Err(CommandError::NonFiniteStamp);
-        }
+    pub fn receive(&mut self, command: TrajectoryCommand) {
         self.pending.push(command);
         if self.pending.len() > MAX_PENDING_COMMANDS {
-            let oldest = (0..self.pending.len()).min_by(|&a, &b| {
-                self.pending[a]
-                    .create_stamp_s
-                    .total_cmp(&self.pending[b].create_stamp_s)
-            });
+            let oldest = (0..self.pending.len()).min_by_key(|&i| self.pending[i].create_stamp_ns);
             if let Some(i) = oldest {
                 self.pending.remove(i);
             }
         }
-        Ok(())
     }
 
-    /// One control period at `t_now_s`: the input to apply and the status.
-    pub fn control(&mut self, t_now_s: f64, estimate: &StateEstimate<NX>) -> Output<NU> {
-        self.activate_commands(t_now_s);
-        let decision = self.decide(t_now_s, estimate);
-        let output = match decision {
+    /// One control period at `t_now_ns`: the input to apply and the status.
+    pub fn control(&mut self, t_now_ns: u64, estimate: &StateEstimate<NX>) -> Output<NU> {
+        self.activate_commands(t_now_ns);
+        match self.decide(t_now_ns, estimate) {
             Ok(input) => Output {
                 input,
                 status: Status::Following,
@@ -176,21 +174,21 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Follower<M, NX, NU> {
                 input: self.mpc.model().stop_input(&estimate.state),
                 status: Status::Stopped(reason),
             },
-        };
-        self.mpc.record_applied(output.input);
-        output
+        }
     }
 
-    /// Makes the newest command whose `valid_after` has passed the current one.
-    fn activate_commands(&mut self, t_now_s: f64) {
+    /// Makes the newest command whose `valid_after` has passed the current one (the lab's
+    /// reader: the largest `create_stamp`, of equal ones the later arrival).
+    fn activate_commands(&mut self, t_now_ns: u64) {
         let mut i = 0;
         while i < self.pending.len() {
-            if self.pending[i].valid_after_s <= t_now_s {
-                let candidate = self.pending.swap_remove(i);
+            if self.pending[i].valid_after_ns <= t_now_ns {
+                // In arrival order, so that of equal stamps the later one wins.
+                let candidate = self.pending.remove(i);
                 let newer = self
                     .current
                     .as_ref()
-                    .is_none_or(|c| candidate.create_stamp_s >= c.create_stamp_s);
+                    .is_none_or(|c| candidate.create_stamp_ns >= c.create_stamp_ns);
                 if newer {
                     self.current = Some(candidate);
                 }
@@ -200,21 +198,22 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Follower<M, NX, NU> {
         }
     }
 
-    /// The MPC input, or why the car must stop.
-    fn decide(&mut self, t_now_s: f64, estimate: &StateEstimate<NX>) -> Result<[f64; NU], StopReason> {
+    /// The MPC input, or why the car must stop: the controller's own stops first, without
+    /// calling the MPC, then the MPC's decision.
+    fn decide(&mut self, t_now_ns: u64, estimate: &StateEstimate<NX>) -> Result<[f64; NU], StopReason> {
         let command = self.current.as_ref().ok_or(StopReason::NoCommand)?;
-        let age_s = t_now_s - command.valid_after_s;
-        let fresh = age_s < self.config.command_timeout_s;
+        let age_ns = t_now_ns.saturating_sub(command.valid_after_ns);
+        let fresh = age_ns < self.config.command_timeout_ns;
         if !fresh {
-            return Err(StopReason::StaleCommand { age_s });
+            return Err(StopReason::StaleCommand { age_ns });
         }
-        let ips_recent = estimate.ips_update_age_s <= self.config.ips_timeout_s;
-        if !ips_recent {
+        let ips_lost = estimate.ips_update_age_ns > self.config.ips_timeout_ns;
+        if ips_lost {
             return Err(StopReason::LostIps {
-                age_s: estimate.ips_update_age_s,
+                age_ns: estimate.ips_update_age_ns,
             });
         }
-        let solution = self.mpc.solve(t_now_s, &estimate.state, &command.trajectory)?;
+        let solution = self.mpc.solve(t_now_ns, &estimate.state, &command.trajectory)?;
         Ok(solution.input)
     }
 }

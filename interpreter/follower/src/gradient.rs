@@ -2,7 +2,8 @@
 //! CasADi-generated `casadi_mpc_fn.c`): 20 steps of gradient descent with momentum on the
 //! nonlinear prediction, learning rate 0.4, momentum 0.6, the inputs clipped to their bounds at
 //! the start of every step, warm-started (unshifted) from the previous control period and reset
-//! to 1e-12 after any rejection.
+//! to 1e-12 after any of the MPC's rejections (not after the controller's own stops, which do not
+//! call the MPC; `mpc.rs`).
 //!
 //! One step, with `u` the clipped iterate and `M` the momentum:
 //! `J, g = objective(u), ∇J(u)`; `M ← 0.6·M − g`; `u_next ← u + 0.4·M`. The objective the lab

@@ -1,9 +1,12 @@
 //! Vehicle-side trajectory follower: the CPM Lab's mid-level controller in trajectory mode.
 //!
-//! A planner sends timed reference trajectories ([`TrajectoryCommand`]); every 20 ms the
-//! [`Follower`] picks the newest valid one, applies the lab's stop rules and asks the
-//! [`Mpc`] for the plant input, found by the lab's 20 warm-started gradient steps
-//! ([`Solver::Gradient`], the default) or by an exact QP ([`Solver::Qp`], clarabel). The MPC works over any [`Model`]; [`BicycleModel`] adapts
+//! A planner sends timed reference trajectories ([`TrajectoryCommand`], stamps in integer
+//! nanoseconds as the lab's messages carry them); every 20 ms the [`Follower`] picks the newest
+//! valid one, applies the lab's stop rules and asks the [`Mpc`] for the plant input, found by
+//! the lab's 20 warm-started gradient steps ([`Solver::Gradient`], what [`MpcConfig::lab`]
+//! selects) or by an exact QP ([`Solver::Qp`], clarabel). The MPC keeps the lab's input
+//! history, also across rejections (`mpc.rs`), and samples its reference on the lab's
+//! nanosecond window (`window.rs`). It works over any [`Model`]; [`BicycleModel`] adapts
 //! `cpmx_vehicle::KinematicBicycle`.
 //!
 //! This crate owns following a trajectory. It never steps the plant, estimates states,
@@ -12,8 +15,8 @@
 //! ```text
 //! let model = BicycleModel { bicycle: KinematicBicycle::new(VehicleParams::MU_CAR) };
 //! let mut follower = Follower::new(Mpc::new(model, MpcConfig::lab(BICYCLE_MOVE_WEIGHTS)), FollowerConfig::default());
-//! follower.receive(TrajectoryCommand { create_stamp_s, valid_after_s, trajectory })?;
-//! let out = follower.control(t_now_s, &StateEstimate { state, ips_update_age_s: 0.0 });
+//! follower.receive(TrajectoryCommand { create_stamp_ns, valid_after_ns, trajectory });
+//! let out = follower.control(t_now_ns, &StateEstimate { state, ips_update_age_ns: 0 });
 //! // apply BicycleModel::to_command(&out.input) for 20 ms; out.status says Following / Stopped(reason)
 //! ```
 
@@ -21,10 +24,12 @@ mod follower;
 mod gradient;
 mod model;
 mod mpc;
+mod qp;
 mod trajectory;
+mod window;
 
 pub use follower::{
-    CommandError, Follower, FollowerConfig, MAX_PENDING_COMMANDS, Output, StateEstimate, Status, StopReason,
+    Follower, FollowerConfig, MAX_PENDING_COMMANDS, Output, StateEstimate, Status, StopReason,
     TrajectoryCommand,
 };
 pub use gradient::{GRADIENT_ITERATIONS, LEARNING_RATE, MOMENTUM_RATE, RESET_VALUE, WarmStart};
@@ -33,4 +38,6 @@ pub use mpc::{
     BICYCLE_MOVE_WEIGHTS, CONTROL_MOVES, LAB_MOVE_WEIGHTS, Mpc, MpcConfig, PREDICTION_STEPS, Rejection,
     Solution, Solver,
 };
-pub use trajectory::{Trajectory, TrajectoryError, TrajectoryPoint, TrajectorySample};
+pub use qp::FEEDFORWARD_PULL;
+pub use trajectory::{Trajectory, TrajectoryError, TrajectoryPoint, TrajectorySample, seconds_from_ns};
+pub use window::{prediction_window_ns, sample_time_ns};

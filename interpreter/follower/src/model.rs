@@ -42,7 +42,9 @@ pub trait Model<const NX: usize, const NU: usize> {
     /// Input bounds and rate limits.
     fn input_limits(&self) -> InputLimits<NU>;
 
-    /// The input that brings the vehicle to a halt from `state`.
+    /// The input that brings the vehicle to a halt from `state` (the lab's stop signals): what
+    /// the follower applies when it stops, and what the MPC shifts into its input history after
+    /// a large objective.
     fn stop_input(&self, state: &[f64; NX]) -> [f64; NU];
 
     /// [`Model::step`] with its Jacobians `∂x⁺/∂x` and `∂x⁺/∂u`; by default central
@@ -299,7 +301,7 @@ mod tests {
         };
         let (r, v) = (0.6, 0.5);
         let sample = TrajectorySample {
-            t_s: 0.0,
+            t_ns: 0,
             position_m: [r, 0.0],
             velocity_mps: [0.0, v],
             acceleration_mps2: [-v * v / r, 0.0],

@@ -1,9 +1,13 @@
-//! The CPM Lab's trajectory MPC (§3.3 of the interface notes) as a linear time-varying QP
-//! solved with clarabel, over any [`Model`].
+//! The CPM Lab's trajectory MPC (§3.3 of the interface notes; `MpcController.cxx`) over any
+//! [`Model`]: one control decision, and what the MPC remembers between decisions.
 //!
-//! This module owns one control decision: delay compensation, sampling and checking the
-//! reference window, linearisation, the QP and the lab's objective check. It does not pick
-//! commands or keep time; `follower.rs` does.
+//! This module owns a decision in the lab's order (`MpcController::update`, `:148-195`):
+//! filter the battery voltage, predict the state over the actuation delay, sample and check
+//! the reference window (`window.rs`), optimise — the lab's 20 warm-started gradient steps
+//! (`gradient.rs`, [`Solver::Gradient`], what [`MpcConfig::lab`] selects) or an exact QP
+//! (`qp.rs`, [`Solver::Qp`], clarabel) — and check the objective; and the input history, the
+//! warm start and the filtered battery voltage. It does not pick commands or keep time;
+//! `follower.rs` does.
 //!
 //! # Numbers
 //! Fixed by the lab (`MpcController`): control period 20 ms; delay compensation 3 steps
@@ -14,51 +18,48 @@
 //! when the first point is not before the window, the last point ends before it, |aₓ| or
 //! |a_y| > 20 m/s², |κ| > 50 /m at speed > 0.1 m/s, or the objective ≥ 1.5.
 //!
-//! Chosen here because the lab does not say (its solver is 20 projected-gradient steps on
-//! the nonlinear model): the solver (an exact QP solve with clarabel instead of 20 gradient
-//! steps); linearisation along the model's own prediction from the delay-compensated state
-//! `x̄₀` under the feed-forward inputs `ūₖ` of the reference samples (`x̄ₖ₊₁ = step(x̄ₖ, ūₖ)`,
-//! the model's Jacobians); rate limits as constraints (the lab
-//! has none: first move against the previous input over one control period, later moves
-//! over two MPC steps); move weights for the bicycle ([`BICYCLE_MOVE_WEIGHTS`]); the
-//! objective check evaluates the cost on a nonlinear rollout of the solution; the history
-//! records every applied input, stop inputs included (the lab skips it on rejections).
+//! # The input history, after a rejection too
+//! The lab keeps its last three outputs, oldest first: the delay compensation steps the
+//! measured state through them (`:474-501`) and the newest is the previous input the first
+//! move is penalised against (`:214-215`). `update` shifts them only at its end
+//! (`:186-194`), so what a rejection leaves behind depends on where it happens:
+//! - **a refused reference shifts nothing**: fewer than two points, the first point not before
+//!   the window, the last point before its end, |aₓ| or |a_y| > 20 m/s², |κ| > 50 /m
+//!   (`interpolate_reference_trajectory` returns false, and `update` returns before the shift,
+//!   `:163-173`). The next accepted decision predicts with the outputs from before the
+//!   rejection, however many periods it lasted;
+//! - **a large objective shifts the stop outputs**: `optimize_control_inputs` writes the stop
+//!   signals into the outputs (`:323-334`) and returns to the shift, so they enter the history
+//!   as accepted outputs do;
+//! - both reset the optimiser's warm start to 1e-12 (`reset_optimizer`, `:170`, `:332`).
 //!
-//! Why the prediction and not the reference: linearised about the reference's own
-//! feed-forward states (as cpmx did before), the QP's model starts each step from where the
-//! reference is, not from where the car will be; the residuals `x̄ₖ₊₁ − step(x̄ₖ, ūₖ)` of the
-//! grey-box model's approximate inverse (no p2 speed loss, no speed transient, the servo's
-//! heading offset) then steer the optimum. Through the CPM Lab intersection's left turns the
-//! grey-box twin turned right round (heading error π, CD 0.17–0.22 m against sim-mpc's
-//! 0.008 m; `tests/twin_turns.rs`). The lab's MPC predicts with the nonlinear model from the
-//! measured state; linearising along that prediction follows sim-mpc within 2 mm of CD.
+//! cpmx's own rejections sit where the lab would meet the same input: a non-finite state (in
+//! the lab a NaN objective, which fails `< 1.5`) and a QP that clarabel does not solve are
+//! stops after optimising, as a large objective: warm start reset, stop input shifted in
+//! ([`Rejection::shifts_stop_input`]). Stops that the lab's `Controller` makes before it calls
+//! its MPC (no command, a stale one, lost IPS; `Controller.cxx:376-395`) never reach the MPC:
+//! no shift, no reset, no battery filter step.
 //!
-//! The QP is condensed: the six decision variables are the three moves (`NU` inputs each);
-//! predicted positions are affine in them, and the KKT system has 30 rows for the bicycle
-//! (6 variables, 24 bound and rate rows). A sparse formulation (moves and six states as
-//! variables, dynamics as equalities) would have about 90; it was not measured. One solve
-//! (bicycle, circle) takes ≈ 90 µs in the dev profile and ≈ 72 µs in release on a shared
-//! 2-core machine, most of it in clarabel's 8 interior-point iterations.
+//! # Time
+//! Stamps are integer nanoseconds as in the lab's messages (`TimeStamp{nanoseconds}`); the
+//! window's sample times are the lab's expressions (`window.rs`), and seconds appear only
+//! where the lab converts (the Hermite interpolation, `trajectory.rs`).
 
 use std::collections::VecDeque;
 
-use clarabel::algebra::CscMatrix;
-use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus};
-use nalgebra::{SMatrix, SVector};
 use thiserror::Error;
 
 use crate::gradient::{self, WarmStart};
-use crate::model::{Model, jacobians, position_jacobian};
-use crate::trajectory::{Trajectory, TrajectorySample};
+use crate::model::Model;
+use crate::qp::{self, QpCache};
+use crate::trajectory::Trajectory;
+use crate::window;
 
 /// Prediction steps Hp (lab).
 pub const PREDICTION_STEPS: usize = 6;
 /// Control moves Hu (lab).
 pub const CONTROL_MOVES: usize = 3;
 
-/// Weight of the pull of each move towards the feed-forward input, as a fraction of that
-/// input's move weight (chosen here; the lab's MPC has no such term).
-pub const FEEDFORWARD_PULL: f64 = 0.01;
 /// Move held at each prediction step (lab's blocking `[1, 1, 2, 2, 3, 3]`, 0-based).
 pub(crate) const MOVE_OF_STEP: [usize; PREDICTION_STEPS] = [0, 0, 1, 1, 2, 2];
 
@@ -140,18 +141,20 @@ pub enum Rejection {
     #[error("trajectory has fewer than two points")]
     TooFewPoints,
     /// The first point is not before the prediction window.
-    #[error("the first trajectory point ({first_s} s) is in the future (window starts {window_start_s} s)")]
+    #[error(
+        "the first trajectory point ({first_ns} ns) is in the future (window starts {window_start_ns} ns)"
+    )]
     FirstPointInFuture {
-        /// Time of the first point [s].
-        first_s: f64,
-        /// Start of the prediction window [s].
-        window_start_s: f64,
+        /// Time of the first point [ns].
+        first_ns: u64,
+        /// Start of the prediction window [ns].
+        window_start_ns: u64,
     },
     /// The last point ends before the prediction window does.
-    #[error("insufficient lead time: increase it by {missing_s} s")]
+    #[error("insufficient lead time: increase it by {missing_ns} ns")]
     InsufficientLeadTime {
-        /// How much later the last point must be [s].
-        missing_s: f64,
+        /// How much later the last point must be [ns].
+        missing_ns: u64,
     },
     /// The reference accelerates harder than the limit.
     #[error("large acceleration in reference trajectory: {accel_mps2} m/s²")]
@@ -182,6 +185,25 @@ pub enum Rejection {
     },
 }
 
+impl Rejection {
+    /// Whether the lab shifts its stop outputs into the input history after this rejection:
+    /// after optimising (a large objective, `MpcController.cxx:323-334` then `:186-194`; and
+    /// cpmx's non-finite state and failed QP, which sit there), not after a refused reference
+    /// (`:163-173` return before the shift).
+    pub fn shifts_stop_input(&self) -> bool {
+        match self {
+            Rejection::TooFewPoints
+            | Rejection::FirstPointInFuture { .. }
+            | Rejection::InsufficientLeadTime { .. }
+            | Rejection::LargeAcceleration { .. }
+            | Rejection::LargeCurvature { .. } => false,
+            Rejection::LargeObjective { .. } | Rejection::NonFiniteState | Rejection::SolverFailed { .. } => {
+                true
+            }
+        }
+    }
+}
+
 /// One accepted control decision.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Solution<const NU: usize> {
@@ -210,29 +232,6 @@ pub struct Mpc<M, const NX: usize, const NU: usize> {
     battery_measured_v: Option<f64>,
     /// The low-pass filtered battery voltage the model predicts with [V].
     battery_filtered_v: f64,
-}
-
-/// The clarabel solver of the previous step. Every step's QP has the same sparsity, so
-/// updating P, q and b skips the solver's setup (allocation, ordering, symbolic
-/// factorisation). Equilibration and presolve are off, so a kept solver computes exactly
-/// what a new one would (clarabel has no warm start). A clone starts without one.
-#[derive(Default)]
-struct QpCache(Option<DefaultSolver<f64>>);
-
-impl Clone for QpCache {
-    fn clone(&self) -> Self {
-        Self(None)
-    }
-}
-
-impl std::fmt::Debug for QpCache {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(if self.0.is_some() {
-            "QpCache(solver)"
-        } else {
-            "QpCache(empty)"
-        })
-    }
 }
 
 impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
@@ -273,8 +272,58 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
         &self.config
     }
 
-    /// Records the input the vehicle was just given (call once per control period).
-    pub fn record_applied(&mut self, input: [f64; NU]) {
+    /// The last `delay_steps` inputs the MPC decided (stop inputs after a large objective
+    /// included), oldest first: what the next decision's delay compensation steps through.
+    pub fn input_history(&self) -> impl ExactSizeIterator<Item = &[f64; NU]> + '_ {
+        self.history.iter()
+    }
+
+    /// The input the next decision's first move is penalised against (the newest in the
+    /// history; the lab's `var_u0`).
+    pub fn previous_input(&self) -> &[f64; NU] {
+        &self.previous_input
+    }
+
+    /// The gradient solver's iterate and momentum for the next decision.
+    pub fn warm_start(&self) -> &WarmStart<NU> {
+        &self.warm
+    }
+
+    /// The state after the actuation delay, predicted with the inputs in the history.
+    pub fn compensate_delay(&self, state: &[f64; NX]) -> [f64; NX] {
+        self.history.iter().fold(*state, |x, u| {
+            self.model.step(&x, u, self.config.control_period_s)
+        })
+    }
+
+    /// One decision of the lab's MPC for `state` (measured at `t_now_ns`) following
+    /// `trajectory`: the input to apply, or why the car stops. The input history and the warm
+    /// start change as the lab's do (see the module documentation): an accepted input is
+    /// shifted in; a refused reference leaves the history as it was; a rejection after
+    /// optimising shifts in the model's stop input for `state`; every rejection resets the
+    /// warm start.
+    pub fn solve(
+        &mut self,
+        t_now_ns: u64,
+        state: &[f64; NX],
+        trajectory: &Trajectory,
+    ) -> Result<Solution<NU>, Rejection> {
+        let result = self.decide(t_now_ns, state, trajectory);
+        match &result {
+            Ok(solution) => self.shift_history(solution.input),
+            Err(rejection) => {
+                // `reset_optimizer` (`:170`, `:332`).
+                self.warm = WarmStart::reset();
+                if rejection.shifts_stop_input() {
+                    self.shift_history(self.model.stop_input(state));
+                }
+            }
+        }
+        result
+    }
+
+    /// Shifts `input` into the history as the newest output (`MpcController.cxx:186-194`).
+    fn shift_history(&mut self, input: [f64; NU]) {
         if self.config.delay_steps > 0 {
             self.history.pop_front();
             self.history.push_back(input);
@@ -282,48 +331,38 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
         self.previous_input = input;
     }
 
-    /// The state after the actuation delay, predicted with the inputs already sent.
-    pub fn compensate_delay(&self, state: &[f64; NX]) -> [f64; NX] {
-        self.history.iter().fold(*state, |x, u| {
-            self.model.step(&x, u, self.config.control_period_s)
-        })
-    }
-
-    /// The input for `state` (measured at `t_now_s`) following `trajectory`.
-    pub fn solve(
+    /// The lab's `update` up to its shift: battery filter, delay compensation, reference
+    /// window, optimisation, objective check.
+    fn decide(
         &mut self,
-        t_now_s: f64,
+        t_now_ns: u64,
         state: &[f64; NX],
         trajectory: &Trajectory,
     ) -> Result<Solution<NU>, Rejection> {
-        let result = self.try_solve(t_now_s, state, trajectory);
-        if result.is_err() {
-            // The lab resets its optimizer on every rejection.
-            self.warm = WarmStart::reset();
-        }
-        result
-    }
-
-    fn try_solve(
-        &mut self,
-        t_now_s: f64,
-        state: &[f64; NX],
-        trajectory: &Trajectory,
-    ) -> Result<Solution<NU>, Rejection> {
+        // Filter the battery voltage (`:156`), whatever follows.
         if let Some(measured) = self.battery_measured_v {
             self.battery_filtered_v += self.config.battery_filter_gain * (measured - self.battery_filtered_v);
             self.model.set_battery_voltage_v(self.battery_filtered_v);
         }
+
+        // Sample and check the reference (`:163-173`).
+        let samples = window::reference_window(t_now_ns, trajectory, &self.config)?;
+
+        // Optimise from the delay-compensated state (`:158`, `:178-184`); a non-finite state
+        // would give the lab a NaN objective.
         if !state.iter().all(|v| v.is_finite()) {
             return Err(Rejection::NonFiniteState);
         }
         let x0 = self.compensate_delay(state);
-        let samples = self.reference_window(t_now_s, trajectory)?;
         let solution = match self.config.solver {
-            Solver::Qp => {
-                let moves = self.solve_qp(&x0, &samples)?;
-                self.evaluate(&x0, &samples, &moves)
-            }
+            Solver::Qp => qp::solve(
+                &self.model,
+                &self.config,
+                &x0,
+                &samples,
+                &self.previous_input,
+                &mut self.qp,
+            )?,
             Solver::Gradient => {
                 let reference_m = samples.map(|s| s.position_m);
                 let r = gradient::solve(
@@ -342,6 +381,8 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
                 }
             }
         };
+
+        // Check the objective (`:256`, `:323-334`).
         let acceptable = solution.objective < self.config.max_objective;
         if !acceptable {
             return Err(Rejection::LargeObjective {
@@ -349,299 +390,5 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
             });
         }
         Ok(solution)
-    }
-
-    /// The six reference samples, with the lab's checks.
-    fn reference_window(
-        &self,
-        t_now_s: f64,
-        trajectory: &Trajectory,
-    ) -> Result<[TrajectorySample; PREDICTION_STEPS], Rejection> {
-        let c = &self.config;
-        if trajectory.points().len() < 2 {
-            return Err(Rejection::TooFewPoints);
-        }
-        let window_start_s = t_now_s + c.delay_steps as f64 * c.control_period_s + c.mpc_step_s;
-        let window_end_s = window_start_s + (PREDICTION_STEPS - 1) as f64 * c.mpc_step_s;
-        let starts_before = trajectory.start_s() < window_start_s;
-        if !starts_before {
-            return Err(Rejection::FirstPointInFuture {
-                first_s: trajectory.start_s(),
-                window_start_s,
-            });
-        }
-        if trajectory.end_s() < window_end_s {
-            return Err(Rejection::InsufficientLeadTime {
-                missing_s: window_end_s - trajectory.end_s(),
-            });
-        }
-
-        let mut samples = [TrajectorySample::default(); PREDICTION_STEPS];
-        for (k, slot) in samples.iter_mut().enumerate() {
-            let t_s = window_start_s + k as f64 * c.mpc_step_s;
-            let s = trajectory
-                .sample(t_s)
-                .map_err(|_| Rejection::InsufficientLeadTime { missing_s: 0.0 })?;
-            for a in s.acceleration_mps2 {
-                if a.abs() > c.max_reference_accel_mps2 {
-                    return Err(Rejection::LargeAcceleration { accel_mps2: a });
-                }
-            }
-            let curvature_per_m = s.curvature_per_m();
-            if s.speed_mps() > c.curvature_check_speed_mps && curvature_per_m.abs() > c.max_curvature_per_m {
-                return Err(Rejection::LargeCurvature { curvature_per_m });
-            }
-            *slot = s;
-        }
-        Ok(samples)
-    }
-
-    /// Builds and solves the condensed QP; returns the moves.
-    fn solve_qp(
-        &mut self,
-        x0: &[f64; NX],
-        samples: &[TrajectorySample; PREDICTION_STEPS],
-    ) -> Result<[[f64; NU]; CONTROL_MOVES], Rejection> {
-        let (hessian, gradient) = self.condense(x0, samples);
-        let nz = CONTROL_MOVES * NU;
-
-        // Objective ½zᵀPz + qᵀz with P = 2H, q = 2g (upper triangle, column-major).
-        let mut colptr = Vec::with_capacity(nz + 1);
-        let (mut rowval, mut nzval) = (Vec::new(), Vec::new());
-        colptr.push(0);
-        for j in 0..nz {
-            for i in 0..=j {
-                rowval.push(i);
-                nzval.push(2.0 * hessian[i * nz + j]);
-            }
-            colptr.push(rowval.len());
-        }
-        let p = CscMatrix::new(nz, nz, colptr, rowval, nzval);
-        let q: Vec<f64> = gradient.iter().map(|g| 2.0 * g).collect();
-
-        let (a, b) = self.constraints();
-        let failed = |status: String| Rejection::SolverFailed { status };
-        let solver = match &mut self.qp.0 {
-            Some(solver) => {
-                solver.update_P(&p.nzval).map_err(|e| failed(e.to_string()))?;
-                solver.update_q(&q).map_err(|e| failed(e.to_string()))?;
-                solver.update_b(&b).map_err(|e| failed(e.to_string()))?;
-                solver
-            }
-            empty => {
-                let settings = DefaultSettings {
-                    verbose: false,
-                    equilibrate_enable: false,
-                    presolve_enable: false,
-                    ..DefaultSettings::default()
-                };
-                let cones = [NonnegativeConeT(b.len())];
-                let solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings)
-                    .map_err(|e| failed(e.to_string()))?;
-                empty.insert(solver)
-            }
-        };
-        solver.solve();
-        if !matches!(
-            solver.solution.status,
-            SolverStatus::Solved | SolverStatus::AlmostSolved
-        ) {
-            return Err(failed(format!("{:?}", solver.solution.status)));
-        }
-
-        // Clip the tiny bound violations an interior-point solution may have.
-        let limits = self.model.input_limits();
-        let mut moves = [[0.0; NU]; CONTROL_MOVES];
-        for (j, m) in moves.iter_mut().enumerate() {
-            for (i, u) in m.iter_mut().enumerate() {
-                *u = solver.solution.x[j * NU + i].clamp(limits.lower[i], limits.upper[i]);
-            }
-        }
-        Ok(moves)
-    }
-
-    /// Hessian H (row-major, `nz × nz`) and gradient g of the cost `zᵀHz + 2gᵀz + const`.
-    fn condense(
-        &self,
-        x0: &[f64; NX],
-        samples: &[TrajectorySample; PREDICTION_STEPS],
-    ) -> (Vec<f64>, Vec<f64>) {
-        let c = &self.config;
-        let nz = CONTROL_MOVES * NU;
-        let mut hessian = vec![0.0; nz * nz];
-        let mut gradient = vec![0.0; nz];
-
-        // Linearisation points along the nonlinear model's prediction from x0: ūₖ = the
-        // feed-forward input of sample k (within the bounds), x̄ₖ₊₁ = step(x̄ₖ, ūₖ). (Linearising
-        // about the reference's own feed-forward states instead made the grey-box twin turn
-        // the wrong way: see the module documentation.)
-        let mut nominal = [(*x0, [0.0; NU]); PREDICTION_STEPS + 1];
-        let limits = self.model.input_limits();
-        for k in 0..PREDICTION_STEPS {
-            let (_, mut ur) = self.model.feedforward(&samples[k], &nominal[k].0);
-            for (i, u) in ur.iter_mut().enumerate() {
-                *u = u.clamp(limits.lower[i], limits.upper[i]);
-            }
-            nominal[k].1 = ur;
-            nominal[k + 1].0 = self.model.step(&nominal[k].0, &ur, c.mpc_step_s);
-        }
-
-        // Deviation dxₖ = eₖ + Σⱼ Eₖ[j]·zⱼ, propagated through the linearised steps.
-        let mut e = SVector::<f64, NX>::zeros();
-        let mut blocks = [SMatrix::<f64, NX, NU>::zeros(); CONTROL_MOVES];
-        for k in 0..PREDICTION_STEPS {
-            let (xk, uk) = &nominal[k];
-            let (a, b) = jacobians(&self.model, xk, uk, c.mpc_step_s);
-            let residual =
-                SVector::from(self.model.step(xk, uk, c.mpc_step_s)) - SVector::from(nominal[k + 1].0);
-            e = a * e - b * SVector::from(*uk) + residual;
-            for (j, block) in blocks.iter_mut().enumerate() {
-                *block = a * *block;
-                if j == MOVE_OF_STEP[k] {
-                    *block += b;
-                }
-            }
-
-            // Position error at step k+1: offset + C·dx.
-            let x_next = &nominal[k + 1].0;
-            let cmat = position_jacobian(&self.model, x_next);
-            let p = self.model.position_m(x_next);
-            let pref = samples[k].position_m;
-            let offset = SVector::<f64, 2>::new(p[0] - pref[0], p[1] - pref[1]) + cmat * e;
-            let g: [SMatrix<f64, 2, NU>; CONTROL_MOVES] = blocks.map(|bl| cmat * bl);
-            let w2 = c.position_weights[k] * c.position_weights[k];
-            for (j, gj) in g.iter().enumerate() {
-                let gt_offset = gj.transpose() * offset;
-                for i in 0..NU {
-                    gradient[j * NU + i] += w2 * gt_offset[i];
-                }
-                for (l, gl) in g.iter().enumerate() {
-                    let block = gj.transpose() * gl;
-                    for r in 0..NU {
-                        for s in 0..NU {
-                            hessian[(j * NU + r) * nz + l * NU + s] += w2 * block[(r, s)];
-                        }
-                    }
-                }
-            }
-        }
-
-        // Move penalties Σⱼ R·(zⱼ − zⱼ₋₁)² with z₀ = the previous input.
-        for (i, (&r, &previous)) in c.move_weights.iter().zip(&self.previous_input).enumerate() {
-            for j in 0..CONTROL_MOVES {
-                let d = j * NU + i;
-                hessian[d * nz + d] += r;
-                if j > 0 {
-                    let before = (j - 1) * NU + i;
-                    hessian[before * nz + before] += r;
-                    hessian[d * nz + before] -= r;
-                    hessian[before * nz + d] -= r;
-                }
-            }
-            gradient[i] -= r * previous;
-        }
-
-        // A small pull of every move towards the feed-forward input of its first step, so an
-        // input that has no effect on the positions (the servo of a car at rest) rests at the
-        // feed-forward value instead of wherever the solver leaves it.
-        for (i, &r) in c.move_weights.iter().enumerate() {
-            let rho = FEEDFORWARD_PULL * r;
-            for j in 0..CONTROL_MOVES {
-                let Some(k) = MOVE_OF_STEP.iter().position(|&m| m == j) else {
-                    continue;
-                };
-                let d = j * NU + i;
-                hessian[d * nz + d] += rho;
-                gradient[d] -= rho * nominal[k].1[i];
-            }
-        }
-        (hessian, gradient)
-    }
-
-    /// `A z + s = b, s ≥ 0`: input bounds, then rate limits (finite ones only).
-    fn constraints(&self) -> (CscMatrix<f64>, Vec<f64>) {
-        let c = &self.config;
-        let limits = self.model.input_limits();
-        let nz = CONTROL_MOVES * NU;
-        // Columns as lists of (row, value); rows appended in order.
-        let mut columns: Vec<Vec<(usize, f64)>> = vec![Vec::new(); nz];
-        let mut b = Vec::new();
-        for (v, column) in columns.iter_mut().enumerate() {
-            let i = v % NU;
-            column.push((b.len(), 1.0));
-            b.push(limits.upper[i]);
-            column.push((b.len(), -1.0));
-            b.push(-limits.lower[i]);
-        }
-        for i in 0..NU {
-            if !limits.max_rate_per_s[i].is_finite() {
-                continue;
-            }
-            let previous = self.previous_input[i].clamp(limits.lower[i], limits.upper[i]);
-            for j in 0..CONTROL_MOVES {
-                let interval_s = if j == 0 {
-                    c.control_period_s
-                } else {
-                    2.0 * c.mpc_step_s
-                };
-                let max_move = limits.max_rate_per_s[i] * interval_s;
-                for sign in [1.0, -1.0] {
-                    columns[j * NU + i].push((b.len(), sign));
-                    if j == 0 {
-                        b.push(max_move + sign * previous);
-                    } else {
-                        columns[(j - 1) * NU + i].push((b.len(), -sign));
-                        b.push(max_move);
-                    }
-                }
-            }
-        }
-
-        // Assemble CSC with sorted row indices.
-        let mut colptr = vec![0];
-        let (mut rowval, mut nzval) = (Vec::new(), Vec::new());
-        for column in &mut columns {
-            column.sort_by_key(|&(row, _)| row);
-            for &(row, value) in column.iter() {
-                rowval.push(row);
-                nzval.push(value);
-            }
-            colptr.push(rowval.len());
-        }
-        (CscMatrix::new(b.len(), nz, colptr, rowval, nzval), b)
-    }
-
-    /// Rolls the nonlinear model out with the moves and evaluates the lab's cost.
-    fn evaluate(
-        &self,
-        x0: &[f64; NX],
-        samples: &[TrajectorySample; PREDICTION_STEPS],
-        moves: &[[f64; NU]; CONTROL_MOVES],
-    ) -> Solution<NU> {
-        let c = &self.config;
-        let mut x = *x0;
-        let mut objective = 0.0;
-        let mut predicted_m = [[0.0; 2]; PREDICTION_STEPS];
-        for k in 0..PREDICTION_STEPS {
-            x = self.model.step(&x, &moves[MOVE_OF_STEP[k]], c.mpc_step_s);
-            let p = self.model.position_m(&x);
-            let pref = samples[k].position_m;
-            let w2 = c.position_weights[k] * c.position_weights[k];
-            objective += w2 * ((p[0] - pref[0]).powi(2) + (p[1] - pref[1]).powi(2));
-            predicted_m[k] = p;
-        }
-        let mut before = self.previous_input;
-        for m in moves {
-            for i in 0..NU {
-                objective += c.move_weights[i] * (m[i] - before[i]).powi(2);
-            }
-            before = *m;
-        }
-        Solution {
-            input: moves[0],
-            objective,
-            predicted_m,
-            reference_m: samples.map(|s| s.position_m),
-        }
     }
 }

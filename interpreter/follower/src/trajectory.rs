@@ -4,6 +4,12 @@
 //! This module owns validation of the points and sampling position, velocity and
 //! acceleration at a time. It knows nothing of vehicles or controllers.
 //!
+//! Time: as in the lab's messages (`TimeStamp{nanoseconds: u64}`), a point's time and a query
+//! time are integer nanoseconds; segments are chosen by comparing them as integers, and only
+//! the interpolation converts them to seconds, as `TrajectoryInterpolation.cxx:12-14` does
+//! (`double(ns) / 1e9` for the segment's ends and the query, then `Δt = t_end − t_start`,
+//! `τ = (t − t_start) / Δt`), so that the same stamps give the lab's bits.
+//!
 //! Extrapolation: the lab never extrapolates. A query selects the segment whose end point
 //! is the first point (from the second on) with `t >= query`; the controller rejects a
 //! trajectory that does not cover its window before sampling it. [`Trajectory::sample`]
@@ -12,11 +18,11 @@
 
 use thiserror::Error;
 
-/// One point of a reference trajectory (the lab's `TrajectoryPoint`, time in seconds).
+/// One point of a reference trajectory (the lab's `TrajectoryPoint`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrajectoryPoint {
-    /// Time of the point on the vehicle clock [s].
-    pub t_s: f64,
+    /// Time of the point on the vehicle clock [ns] (the lab's `t().nanoseconds()`).
+    pub t_ns: u64,
     /// Position x in the map frame [m].
     pub x_m: f64,
     /// Position y in the map frame [m].
@@ -33,7 +39,7 @@ pub enum TrajectoryError {
     /// No points at all.
     #[error("trajectory has no points")]
     Empty,
-    /// A field of a point is NaN or infinite.
+    /// A position or velocity of a point is NaN or infinite.
     #[error("trajectory point {index} has a non-finite value")]
     NonFinite {
         /// Index of the offending point.
@@ -46,10 +52,10 @@ pub enum TrajectoryError {
         index: usize,
     },
     /// The query time lies outside `[first point, last point]` (or only one point exists).
-    #[error("time {t_s} s lies outside the trajectory")]
+    #[error("time {t_ns} ns lies outside the trajectory")]
     OutOfRange {
-        /// The query time [s].
-        t_s: f64,
+        /// The query time [ns].
+        t_ns: u64,
     },
 }
 
@@ -62,8 +68,8 @@ pub struct Trajectory {
 /// The interpolated reference at one time.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct TrajectorySample {
-    /// Query time [s].
-    pub t_s: f64,
+    /// Query time [ns].
+    pub t_ns: u64,
     /// Position [m].
     pub position_m: [f64; 2],
     /// Velocity [m/s].
@@ -76,6 +82,16 @@ impl TrajectorySample {
     /// Speed `|v|` [m/s].
     pub fn speed_mps(&self) -> f64 {
         self.velocity_mps[0].hypot(self.velocity_mps[1])
+    }
+
+    /// Speed and signed curvature as the lab's `TrajectoryInterpolation.cxx:59-60` computes
+    /// them: `speed = sqrt(vx² + vy²)`, `κ = (vx·ay − vy·ax)/speed³` (NaN or infinite when
+    /// standing; the lab's check looks at κ only above 0.1 m/s). [m/s], [1/m]
+    pub fn lab_speed_and_curvature(&self) -> (f64, f64) {
+        let [vx, vy] = self.velocity_mps;
+        let [ax, ay] = self.acceleration_mps2;
+        let speed = (vx * vx + vy * vy).sqrt();
+        (speed, (vx * ay - vy * ax) / (speed * speed * speed))
     }
 
     /// Direction of travel `atan2(vy, vx)` [rad] (0 when standing, as `atan2(0, 0)`).
@@ -103,13 +119,11 @@ impl Trajectory {
             return Err(TrajectoryError::Empty);
         }
         for (index, p) in points.iter().enumerate() {
-            let finite = [p.t_s, p.x_m, p.y_m, p.vx_mps, p.vy_mps]
-                .iter()
-                .all(|v| v.is_finite());
+            let finite = [p.x_m, p.y_m, p.vx_mps, p.vy_mps].iter().all(|v| v.is_finite());
             if !finite {
                 return Err(TrajectoryError::NonFinite { index });
             }
-            if index > 0 && p.t_s <= points[index - 1].t_s {
+            if index > 0 && p.t_ns <= points[index - 1].t_ns {
                 return Err(TrajectoryError::NotIncreasing { index });
             }
         }
@@ -121,34 +135,43 @@ impl Trajectory {
         &self.points
     }
 
-    /// Time of the first point [s].
-    pub fn start_s(&self) -> f64 {
-        self.points[0].t_s
+    /// Time of the first point [ns].
+    pub fn start_ns(&self) -> u64 {
+        self.points[0].t_ns
     }
 
-    /// Time of the last point [s].
-    pub fn end_s(&self) -> f64 {
-        self.points[self.points.len() - 1].t_s
+    /// Time of the last point [ns].
+    pub fn end_ns(&self) -> u64 {
+        self.points[self.points.len() - 1].t_ns
     }
 
-    /// Position, velocity and acceleration at `t_s` by the lab's cubic Hermite spline.
-    pub fn sample(&self, t_s: f64) -> Result<TrajectorySample, TrajectoryError> {
-        // The lab's segment: end point = first point from index 1 on with t >= query.
-        let out_of_range = TrajectoryError::OutOfRange { t_s };
-        if !(t_s >= self.start_s() && t_s <= self.end_s()) || self.points.len() < 2 {
-            return Err(out_of_range);
+    /// Position, velocity and acceleration at `t_ns` by the lab's cubic Hermite spline.
+    pub fn sample(&self, t_ns: u64) -> Result<TrajectorySample, TrajectoryError> {
+        // The lab's segment (`MpcController.cxx:415-423`): end point = the first point from
+        // index 1 on with t >= query.
+        if !(self.start_ns()..=self.end_ns()).contains(&t_ns) || self.points.len() < 2 {
+            return Err(TrajectoryError::OutOfRange { t_ns });
         }
-        let end = 1 + self.points[1..].partition_point(|p| p.t_s < t_s);
+        let end = 1 + self.points[1..].partition_point(|p| p.t_ns < t_ns);
         let (p0, p1) = (&self.points[end - 1], &self.points[end]);
-        Ok(hermite(p0, p1, t_s))
+        Ok(hermite(p0, p1, t_ns))
     }
 }
 
-/// The lab's `TrajectoryInterpolation` on one segment (tangents are `v·Δt`).
-fn hermite(p0: &TrajectoryPoint, p1: &TrajectoryPoint, t_s: f64) -> TrajectorySample {
-    let dt = p1.t_s - p0.t_s;
-    let tau = (t_s - p0.t_s) / dt;
-    let (tau2, tau3) = (tau * tau, tau * tau * tau);
+/// A stamp in seconds as the lab converts it (`double(nanoseconds) / 1e9`).
+pub fn seconds_from_ns(t_ns: u64) -> f64 {
+    t_ns as f64 / 1e9
+}
+
+/// The lab's `TrajectoryInterpolation` on one segment (tangents are `v·Δt`), its arithmetic
+/// in its order.
+fn hermite(p0: &TrajectoryPoint, p1: &TrajectoryPoint, t_ns: u64) -> TrajectorySample {
+    let (t_start_s, t_end_s) = (seconds_from_ns(p0.t_ns), seconds_from_ns(p1.t_ns));
+    let t_now_s = seconds_from_ns(t_ns);
+    let dt = t_end_s - t_start_s;
+    let tau = (t_now_s - t_start_s) / dt;
+    let tau2 = tau * tau;
+    let tau3 = tau * tau2;
 
     // Basis, first and second derivatives with respect to tau.
     let basis = [
@@ -178,7 +201,7 @@ fn hermite(p0: &TrajectoryPoint, p1: &TrajectoryPoint, t_s: f64) -> TrajectorySa
     let (x, vx, ax) = axis(p0.x_m, p0.vx_mps, p1.x_m, p1.vx_mps);
     let (y, vy, ay) = axis(p0.y_m, p0.vy_mps, p1.y_m, p1.vy_mps);
     TrajectorySample {
-        t_s,
+        t_ns,
         position_m: [x, y],
         velocity_mps: [vx, vy],
         acceleration_mps2: [ax, ay],
@@ -190,9 +213,11 @@ mod tests {
     use super::*;
     use approx::assert_relative_eq;
 
-    fn point(t_s: f64, x_m: f64, vx_mps: f64) -> TrajectoryPoint {
+    const MS: u64 = 1_000_000;
+
+    fn point(t_ns: u64, x_m: f64, vx_mps: f64) -> TrajectoryPoint {
         TrajectoryPoint {
-            t_s,
+            t_ns,
             x_m,
             y_m: 0.0,
             vx_mps,
@@ -204,39 +229,39 @@ mod tests {
     fn rejects_empty_nan_and_unsorted_points() {
         assert_eq!(Trajectory::new(vec![]), Err(TrajectoryError::Empty));
         assert_eq!(
-            Trajectory::new(vec![point(0.0, f64::NAN, 0.0)]),
+            Trajectory::new(vec![point(0, f64::NAN, 0.0)]),
             Err(TrajectoryError::NonFinite { index: 0 })
         );
         assert_eq!(
-            Trajectory::new(vec![point(0.0, 0.0, 0.0), point(0.0, 1.0, 0.0)]),
+            Trajectory::new(vec![point(0, 0.0, 0.0), point(0, 1.0, 0.0)]),
             Err(TrajectoryError::NotIncreasing { index: 1 })
         );
     }
 
     #[test]
     fn single_point_and_outside_times_are_out_of_range() {
-        let single = Trajectory::new(vec![point(1.0, 0.0, 0.0)]).unwrap();
-        assert!(matches!(
-            single.sample(1.0),
-            Err(TrajectoryError::OutOfRange { .. })
-        ));
-        let two = Trajectory::new(vec![point(0.0, 0.0, 1.0), point(1.0, 1.0, 1.0)]).unwrap();
-        assert!(two.sample(-0.01).is_err());
-        assert!(two.sample(1.01).is_err());
-        assert!(two.sample(f64::NAN).is_err());
+        let single = Trajectory::new(vec![point(1000 * MS, 0.0, 0.0)]).unwrap();
+        assert_eq!(
+            single.sample(1000 * MS),
+            Err(TrajectoryError::OutOfRange { t_ns: 1000 * MS })
+        );
+        let two = Trajectory::new(vec![point(10 * MS, 0.0, 1.0), point(1010 * MS, 1.0, 1.0)]).unwrap();
+        assert!(two.sample(10 * MS - 1).is_err());
+        assert!(two.sample(1010 * MS + 1).is_err());
+        assert!(two.sample(10 * MS).is_ok() && two.sample(1010 * MS).is_ok());
     }
 
     #[test]
     fn reproduces_constant_velocity_and_endpoints() {
         let traj = Trajectory::new(vec![
-            point(0.0, 0.0, 0.5),
-            point(0.1, 0.05, 0.5),
-            point(0.3, 0.15, 0.5),
+            point(0, 0.0, 0.5),
+            point(100 * MS, 0.05, 0.5),
+            point(300 * MS, 0.15, 0.5),
         ])
         .unwrap();
-        for t in [0.0, 0.05, 0.1, 0.17, 0.3] {
-            let s = traj.sample(t).unwrap();
-            assert_relative_eq!(s.position_m[0], 0.5 * t, epsilon = 1e-12);
+        for t_ms in [0, 50, 100, 170, 300] {
+            let s = traj.sample(t_ms * MS).unwrap();
+            assert_relative_eq!(s.position_m[0], 0.5e-3 * t_ms as f64, epsilon = 1e-12);
             assert_relative_eq!(s.velocity_mps[0], 0.5, epsilon = 1e-12);
             assert_relative_eq!(s.acceleration_mps2[0], 0.0, epsilon = 1e-10);
         }
@@ -247,8 +272,9 @@ mod tests {
         // x(t) = t³ − t, v(t) = 3t² − 1: Hermite interpolation of a cubic is exact.
         let f = |t: f64| t * t * t - t;
         let df = |t: f64| 3.0 * t * t - 1.0;
-        let traj = Trajectory::new(vec![point(0.0, f(0.0), df(0.0)), point(0.4, f(0.4), df(0.4))]).unwrap();
-        let s = traj.sample(0.25).unwrap();
+        let traj =
+            Trajectory::new(vec![point(0, f(0.0), df(0.0)), point(400 * MS, f(0.4), df(0.4))]).unwrap();
+        let s = traj.sample(250 * MS).unwrap();
         assert_relative_eq!(s.position_m[0], f(0.25), epsilon = 1e-12);
         assert_relative_eq!(s.velocity_mps[0], df(0.25), epsilon = 1e-12);
         assert_relative_eq!(s.acceleration_mps2[0], 6.0 * 0.25, epsilon = 1e-10);
@@ -258,16 +284,100 @@ mod tests {
     fn curvature_of_a_circle() {
         let r = 0.6;
         let w = 0.5 / r;
-        let p = |t: f64| TrajectoryPoint {
-            t_s: t,
-            x_m: r * (w * t).cos(),
-            y_m: r * (w * t).sin(),
-            vx_mps: -r * w * (w * t).sin(),
-            vy_mps: r * w * (w * t).cos(),
+        let p = |i: u64| {
+            let t = 0.1 * i as f64;
+            TrajectoryPoint {
+                t_ns: i * 100 * MS,
+                x_m: r * (w * t).cos(),
+                y_m: r * (w * t).sin(),
+                vx_mps: -r * w * (w * t).sin(),
+                vy_mps: r * w * (w * t).cos(),
+            }
         };
-        let traj = Trajectory::new((0..5).map(|i| p(0.1 * f64::from(i))).collect()).unwrap();
-        let s = traj.sample(0.15).unwrap();
+        let traj = Trajectory::new((0..5).map(p).collect()).unwrap();
+        let s = traj.sample(150 * MS).unwrap();
         assert_relative_eq!(s.curvature_per_m(), 1.0 / r, max_relative = 1e-3);
         assert_relative_eq!(s.speed_mps(), 0.5, max_relative = 1e-4);
+        let (speed, curvature) = s.lab_speed_and_curvature();
+        assert_relative_eq!(speed, 0.5, max_relative = 1e-4);
+        assert_relative_eq!(curvature, 1.0 / r, max_relative = 1e-3);
+    }
+
+    /// `TrajectoryInterpolation.cxx:12-60` transcribed line by line, for one axis.
+    fn lab_interpolation(t_now_ns: u64, start: &TrajectoryPoint, end: &TrajectoryPoint) -> [f64; 4] {
+        let t_start = start.t_ns as f64 / 1e9;
+        let t_end = end.t_ns as f64 / 1e9;
+        let t_now = t_now_ns as f64 / 1e9;
+        let delta_t = t_end - t_start;
+        let tau = (t_now - t_start) / delta_t;
+        let tau2 = tau * tau;
+        let tau3 = tau * tau2;
+        let position_start_x = start.x_m;
+        let position_end_x = end.x_m;
+        let velocity_start_x = start.vx_mps * delta_t;
+        let velocity_end_x = end.vx_mps * delta_t;
+        let p0 = 2.0 * tau3 - 3.0 * tau2 + 1.0;
+        let m0 = tau3 - 2.0 * tau2 + tau;
+        let p1 = -2.0 * tau3 + 3.0 * tau2;
+        let m1 = tau3 - tau2;
+        let dp0 = 6.0 * tau2 - 6.0 * tau;
+        let dm0 = 3.0 * tau2 - 4.0 * tau + 1.0;
+        let dp1 = -6.0 * tau2 + 6.0 * tau;
+        let dm1 = 3.0 * tau2 - 2.0 * tau;
+        let ddp0 = 12.0 * tau - 6.0;
+        let ddm0 = 6.0 * tau - 4.0;
+        let ddp1 = -12.0 * tau + 6.0;
+        let ddm1 = 6.0 * tau - 2.0;
+        [
+            tau,
+            position_start_x * p0 + velocity_start_x * m0 + position_end_x * p1 + velocity_end_x * m1,
+            (position_start_x * dp0 + velocity_start_x * dm0 + position_end_x * dp1 + velocity_end_x * dm1)
+                / delta_t,
+            (position_start_x * ddp0
+                + velocity_start_x * ddm0
+                + position_end_x * ddp1
+                + velocity_end_x * ddm1)
+                / (delta_t * delta_t),
+        ]
+    }
+
+    /// Far from the clock's origin the lab's conversion to seconds before subtracting rounds
+    /// τ; the interpolation rounds as it does (the same bits), not as a subtraction in whole
+    /// nanoseconds would.
+    #[test]
+    fn interpolates_with_the_labs_conversions_at_any_time() {
+        for base_ns in [
+            0,
+            5_200_000_000,
+            1_234_560_000_000,
+            9_999_980_000_000,
+            1_700_000_000_123_456_789,
+        ] {
+            let a = TrajectoryPoint {
+                t_ns: base_ns + 100 * MS,
+                x_m: 1.25,
+                y_m: 0.0,
+                vx_mps: 0.4,
+                vy_mps: 0.0,
+            };
+            let b = TrajectoryPoint {
+                t_ns: base_ns + 200 * MS,
+                x_m: 1.3,
+                y_m: 0.0,
+                vx_mps: 0.6,
+                vy_mps: 0.0,
+            };
+            let traj = Trajectory::new(vec![a, b]).unwrap();
+            for offset_ns in [100 * MS, 130 * MS + 7, 160 * MS, 200 * MS] {
+                let t_ns = base_ns + offset_ns;
+                let s = traj.sample(t_ns).unwrap();
+                let [_, x, vx, ax] = lab_interpolation(t_ns, &a, &b);
+                assert_eq!(
+                    (s.position_m[0].to_bits(), s.velocity_mps[0].to_bits()),
+                    (x.to_bits(), vx.to_bits())
+                );
+                assert_eq!(s.acceleration_mps2[0].to_bits(), ax.to_bits());
+            }
+        }
     }
 }

@@ -2,12 +2,14 @@
 
 mod common;
 
-use common::{PERIOD_S, circle, command_at, lane_change, run};
+use common::{PERIOD_NS, PERIOD_S, circle, command_at, lane_change, run};
 use cpmx_follower::{
     BICYCLE_MOVE_WEIGHTS, BicycleModel, Follower, FollowerConfig, Mpc, MpcConfig, Rejection, StateEstimate,
     Status, StopReason,
 };
 use cpmx_vehicle::{BicycleState, KinematicBicycle, VehicleParams};
+
+const MS: u64 = 1_000_000;
 
 fn bicycle() -> KinematicBicycle {
     KinematicBicycle::new(VehicleParams::MU_CAR)
@@ -81,13 +83,13 @@ fn compensates_a_known_actuation_delay() {
 fn too_little_lead_time_stops_the_car() {
     let mut f = follower(0);
     // The window needs points until t + 0.05 + 5·0.05 = t + 0.30 s; send 0.2 s of lead.
-    f.receive(command_at(lane_change, 0.0, 0.2)).unwrap();
+    f.receive(command_at(lane_change, 0, 200 * MS));
     let state = start(lane_change);
     let out = f.control(
-        0.0,
+        0,
         &StateEstimate {
             state,
-            ips_update_age_s: 0.0,
+            ips_update_age_ns: 0,
         },
     );
     assert_eq!(out.input, [0.0, 0.0]);
@@ -107,14 +109,14 @@ fn too_little_lead_time_stops_the_car() {
 #[test]
 fn first_point_in_the_future_stops_the_car() {
     let mut f = follower(0);
-    let mut command = command_at(circle, 1.0, 1.0);
-    command.valid_after_s = 0.0;
-    f.receive(command).unwrap();
+    let mut command = command_at(circle, 1000 * MS, 1000 * MS);
+    command.valid_after_ns = 0;
+    f.receive(command);
     let out = f.control(
-        0.0,
+        0,
         &StateEstimate {
             state: start(circle),
-            ips_update_age_s: 0.0,
+            ips_update_age_ns: 0,
         },
     );
     assert!(matches!(
@@ -126,31 +128,30 @@ fn first_point_in_the_future_stops_the_car() {
 #[test]
 fn a_stale_command_stops_the_car() {
     let mut f = follower(0);
-    f.receive(command_at(circle, 0.0, 3.0)).unwrap();
+    f.receive(command_at(circle, 0, 3000 * MS));
     let mut state = start(circle);
-    let mut last = None;
     for n in 0..60 {
-        let t_s = n as f64 * PERIOD_S;
+        let t_ns = n * PERIOD_NS;
         let out = f.control(
-            t_s,
+            t_ns,
             &StateEstimate {
                 state,
-                ips_update_age_s: 0.0,
+                ips_update_age_ns: 0,
             },
         );
         state = plant(&state, &out.input);
         // Fresh while younger than 1 s, then the lab's "No new commands received".
-        if t_s < 1.0 - 1e-9 {
-            assert_eq!(out.status, Status::Following, "at {t_s}");
+        if t_ns < 1000 * MS {
+            assert_eq!(out.status, Status::Following, "at {t_ns} ns");
+        } else {
+            assert_eq!(
+                out.status,
+                Status::Stopped(StopReason::StaleCommand { age_ns: t_ns }),
+                "at {t_ns} ns"
+            );
+            assert_eq!(out.input, [0.0, 0.0]);
         }
-        last = Some(out);
     }
-    let last = last.unwrap();
-    assert!(matches!(
-        last.status,
-        Status::Stopped(StopReason::StaleCommand { .. })
-    ));
-    assert_eq!(last.input, [0.0, 0.0]);
 }
 
 #[test]
@@ -158,27 +159,35 @@ fn no_command_and_lost_ips_stop_the_car() {
     let mut f = follower(0);
     let estimate = StateEstimate {
         state: start(circle),
-        ips_update_age_s: 0.0,
+        ips_update_age_ns: 0,
     };
     assert_eq!(
-        f.control(0.0, &estimate).status,
+        f.control(0, &estimate).status,
         Status::Stopped(StopReason::NoCommand)
     );
-    f.receive(command_at(circle, 0.0, 1.0)).unwrap();
-    let lost = StateEstimate {
-        ips_update_age_s: 3.5,
+    f.receive(command_at(circle, 0, 1000 * MS));
+    // The lab stops on an IPS age above 3 s (`> 3000000000ull`), not at 3 s.
+    let at_limit = StateEstimate {
+        ips_update_age_ns: 3000 * MS,
         ..estimate
     };
-    assert!(matches!(
-        f.control(0.02, &lost).status,
-        Status::Stopped(StopReason::LostIps { .. })
-    ));
+    assert_eq!(f.control(20 * MS, &at_limit).status, Status::Following);
+    let lost = StateEstimate {
+        ips_update_age_ns: 3000 * MS + 1,
+        ..estimate
+    };
+    assert_eq!(
+        f.control(40 * MS, &lost).status,
+        Status::Stopped(StopReason::LostIps {
+            age_ns: 3000 * MS + 1
+        })
+    );
     let nan = StateEstimate {
         state: [f64::NAN; 5],
         ..estimate
     };
     assert!(matches!(
-        f.control(0.04, &nan).status,
+        f.control(60 * MS, &nan).status,
         Status::Stopped(StopReason::Rejected(Rejection::NonFiniteState))
     ));
 }
@@ -186,19 +195,31 @@ fn no_command_and_lost_ips_stop_the_car() {
 #[test]
 fn a_command_waits_for_its_valid_after_and_the_newest_wins() {
     let mut f = follower(0);
-    let mut later = command_at(circle, 0.0, 2.0);
-    later.create_stamp_s = 0.1;
-    later.valid_after_s = 0.5;
-    f.receive(later).unwrap();
-    f.receive(command_at(circle, 0.0, 2.0)).unwrap();
+    let mut later = command_at(circle, 0, 2000 * MS);
+    later.create_stamp_ns = 100 * MS;
+    later.valid_after_ns = 500 * MS;
+    f.receive(later);
+    f.receive(command_at(circle, 0, 2000 * MS));
     let estimate = StateEstimate {
         state: start(circle),
-        ips_update_age_s: 0.0,
+        ips_update_age_ns: 0,
     };
-    f.control(0.0, &estimate);
-    assert_eq!(f.current_command().unwrap().valid_after_s, 0.0);
-    f.control(0.5, &estimate);
-    assert_eq!(f.current_command().unwrap().valid_after_s, 0.5);
+    f.control(0, &estimate);
+    assert_eq!(f.current_command().unwrap().valid_after_ns, 0);
+    f.control(500 * MS - 1, &estimate);
+    assert_eq!(f.current_command().unwrap().valid_after_ns, 0);
+    f.control(500 * MS, &estimate);
+    assert_eq!(f.current_command().unwrap().valid_after_ns, 500 * MS);
+    // Of two commands with the same creation stamp, the later arrival wins (`Reader.hpp:116`).
+    let mut first = command_at(circle, 600 * MS, 2000 * MS);
+    let mut second = first.clone();
+    first.create_stamp_ns = 600 * MS;
+    second.create_stamp_ns = 600 * MS;
+    second.trajectory = command_at(lane_change, 600 * MS, 2000 * MS).trajectory;
+    f.receive(first);
+    f.receive(second.clone());
+    f.control(600 * MS, &estimate);
+    assert_eq!(f.current_command(), Some(&second));
 }
 
 #[test]
@@ -223,9 +244,9 @@ fn a_kept_solver_gives_the_bits_of_a_new_one() {
         MpcConfig::lab(BICYCLE_MOVE_WEIGHTS),
     );
     for n in 0..20 {
-        let t_s = n as f64 * 0.1;
-        let command = command_at(lane_change, t_s, 1.0);
-        let (p, v) = lane_change(t_s);
+        let t_ns = n * 100 * MS;
+        let command = command_at(lane_change, t_ns, 1000 * MS);
+        let (p, v) = lane_change(n as f64 * 0.1);
         let state = [
             p[0] + 0.01,
             p[1] - 0.02,
@@ -234,10 +255,9 @@ fn a_kept_solver_gives_the_bits_of_a_new_one() {
             0.01 * n as f64,
         ];
         // A clone starts without a solver, so it builds a new one.
-        let fresh = kept.clone().solve(t_s, &state, &command.trajectory).unwrap();
-        let reused = kept.solve(t_s, &state, &command.trajectory).unwrap();
+        let fresh = kept.clone().solve(t_ns, &state, &command.trajectory).unwrap();
+        let reused = kept.solve(t_ns, &state, &command.trajectory).unwrap();
         assert_eq!(fresh.input.map(f64::to_bits), reused.input.map(f64::to_bits));
-        kept.record_applied(reused.input);
     }
 }
 
@@ -249,7 +269,7 @@ fn solve_time() {
         BicycleModel { bicycle: bicycle() },
         MpcConfig::lab(BICYCLE_MOVE_WEIGHTS),
     );
-    let command = command_at(circle, 1.0, 1.0);
+    let command = command_at(circle, 1000 * MS, 1000 * MS);
     let (p, v) = circle(1.0);
     let state = [p[0], p[1], v[1].atan2(v[0]), 0.5, 0.2];
     // Least mean over batches: robust against other processes on a shared machine.
@@ -257,7 +277,7 @@ fn solve_time() {
         .map(|_| {
             let started = std::time::Instant::now();
             for _ in 0..100 {
-                std::hint::black_box(mpc.solve(1.0, &state, &command.trajectory).unwrap());
+                std::hint::black_box(mpc.solve(1000 * MS, &state, &command.trajectory).unwrap());
             }
             started.elapsed() / 100
         })

@@ -3,8 +3,8 @@
 //! actuation delay, on-car sensing and the 50 Hz MPC trajectory follower (`stack.rs`). The twin
 //! engine drives several from the planner, `cpmx lab emulate` from trajectories received over
 //! DDS, `cpmx train` in a `control: trajectory` fidelity; none owns the vehicle. Also here: how
-//! plans are timed for the vehicles (`timing.rs`) and how a randomised fidelity is drawn
-//! (`randomise.rs`), one rule for every driver of the vehicles.
+//! plans are timed for the vehicles on their nanosecond clock (`timing.rs`) and how a
+//! randomised fidelity is drawn (`randomise.rs`), one rule for every driver of the vehicles.
 
 mod plants;
 mod randomise;
@@ -13,9 +13,13 @@ mod timing;
 
 pub use plants::GreyBoxMpcModel;
 pub use randomise::{draw_fidelity, draw_value};
-pub use stack::{CONTROL_PERIOD_S, STATE_VALID_AFTER_S, StampedState, VehicleStack};
+pub use stack::{
+    CONTROL_PERIOD_NS, CONTROL_PERIOD_S, STATE_VALID_AFTER_NS, STATE_VALID_AFTER_S, StampedState,
+    VehicleStack,
+};
 pub use timing::{
-    VEHICLE_LEAD_S, anchor_s, anchored_time_s, control_periods, max_state_age_s, trajectory_points,
+    RUN_START_NS, VEHICLE_LEAD_NS, VEHICLE_LEAD_S, anchor_ns, anchored_time_ns, control_periods, duration_ns,
+    max_state_age_ns, trajectory_points,
 };
 
 /// Where one agent starts.

@@ -379,10 +379,12 @@ impl Model<4, 2> for GreyBoxMpcModel {
         }
     }
 
-    /// The lab's stop signals (`Controller::get_stop_signals`): a proportional brake on the
-    /// measured speed, throttle = clip(0.5 · (0 − v), −1, 1), servo 0.
+    /// The lab's stop signals (`Controller::get_stop_signals`, `Controller.cxx:453-471`): a
+    /// proportional brake on the measured speed, throttle = clip(0.5 · (0 − v), −1, 1), servo 0,
+    /// clipped as the lab clips (`fmax(-1, fmin(1, ·))`, which takes a NaN to 1).
+    #[allow(clippy::manual_clamp)] // `clamp` keeps a NaN, the lab's clip does not
     fn stop_input(&self, state: &[f64; 4]) -> [f64; 2] {
-        [(STOP_BRAKE_GAIN * (0.0 - state[3])).clamp(-1.0, 1.0), 0.0]
+        [(STOP_BRAKE_GAIN * (0.0 - state[3])).min(1.0).max(-1.0), 0.0]
     }
 }
 
@@ -397,7 +399,7 @@ mod tests {
     /// A straight run into a left arc of radius 0.525 m at 0.5 m/s, points every 0.1 s.
     fn left_turn() -> Vec<TrajectoryPoint> {
         let (speed, radius) = (0.5, 0.525);
-        (0..80)
+        (0..80u64)
             .map(|k| {
                 let t = k as f64 * 0.1;
                 let s = speed * t;
@@ -408,7 +410,7 @@ mod tests {
                     (1.0 + radius * a.sin(), radius * (1.0 - a.cos()), a)
                 };
                 TrajectoryPoint {
-                    t_s: t,
+                    t_ns: k * 100_000_000,
                     x_m: x,
                     y_m: y,
                     vx_mps: speed * yaw.cos(),
@@ -437,34 +439,30 @@ mod tests {
             FollowerConfig::default(),
         );
         let points = left_turn();
-        follower
-            .receive(TrajectoryCommand {
-                create_stamp_s: 0.0,
-                valid_after_s: 0.0,
-                trajectory: Trajectory::new(points.clone()).unwrap(),
-            })
-            .unwrap();
         let mut state = [0.0, 0.0, 0.0, 0.5];
         let mut worst: f64 = 0.0;
-        for k in 0..300 {
-            let t = k as f64 * 0.02;
+        for k in 0..300u64 {
+            let t_ns = k * 20_000_000;
             if k % 5 == 0 {
                 let command = TrajectoryCommand {
-                    create_stamp_s: t,
-                    valid_after_s: t,
+                    create_stamp_ns: t_ns,
+                    valid_after_ns: t_ns,
                     trajectory: Trajectory::new(points.clone()).unwrap(),
                 };
-                follower.receive(command).unwrap();
+                follower.receive(command);
             }
             let out = follower.control(
-                t,
+                t_ns,
                 &StateEstimate {
                     state,
-                    ips_update_age_s: 0.0,
+                    ips_update_age_ns: 0,
                 },
             );
             state = plant.step(&state, &out.input, 0.02).state;
-            let reference = Trajectory::new(points.clone()).unwrap().sample(t + 0.02).unwrap();
+            let reference = Trajectory::new(points.clone())
+                .unwrap()
+                .sample(t_ns + 20_000_000)
+                .unwrap();
             let err = (state[0] - reference.position_m[0]).hypot(state[1] - reference.position_m[1]);
             worst = worst.max(err);
         }

@@ -11,6 +11,11 @@
 //! real car's estimate holds at its stamp; the lab's simulated vehicles stamp the post-step
 //! pose with the step's start, 20 ms early, which would make every plan anchored at its state's
 //! time (`twin.rs`) start 20 ms·v ahead of the car and the cars drive ~20 % faster than planned.
+//!
+//! Time: the vehicle's clock is integer nanoseconds (`timing.rs`), starting at
+//! [`RUN_START_NS`]; the follower gets it as the lab's controller gets its `t_now`. The
+//! on-car sensing keeps seconds since the run's start (from the nanoseconds, exactly
+//! rounded), and the IPS age it reports is rounded back to whole nanoseconds for the follower.
 
 use cpmx_follower::{
     Follower, FollowerConfig, Mpc, MpcConfig, Solver, StateEstimate, Status, TrajectoryCommand,
@@ -30,13 +35,18 @@ use rand_chacha::ChaCha20Rng;
 
 use crate::InitialState;
 use crate::plants::{GreyBoxPlant, KinematicPlant, Plant};
+use crate::timing::{RUN_START_NS, duration_ns};
 
 /// The period of the vehicle-side loop [s] (the µCar's 50 Hz).
 pub const CONTROL_PERIOD_S: f64 = 0.02;
+/// The period of the vehicle-side loop [ns] (the lab's `period_nanoseconds`).
+pub const CONTROL_PERIOD_NS: u64 = 20_000_000;
 
 /// A vehicle's state becomes valid this long after its creation [s] (the lab's vehicles
 /// stamp `valid_after = create + 60 ms`, `cpm::stamp_message(vehicleState, t_now, 60000000)`).
 pub const STATE_VALID_AFTER_S: f64 = 0.06;
+/// [`STATE_VALID_AFTER_S`] in nanoseconds.
+pub const STATE_VALID_AFTER_NS: u64 = 60_000_000;
 
 /// How many published states a vehicle keeps for the middleware to choose from.
 const PUBLISHED_STATES: usize = 8;
@@ -44,19 +54,19 @@ const PUBLISHED_STATES: usize = 8;
 /// A state as a vehicle publishes it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StampedState {
-    /// The time its pose holds: the end of the 20 ms step that produced it [s].
-    pub create_s: f64,
+    /// The time its pose holds: the end of the 20 ms step that produced it [ns].
+    pub create_ns: u64,
     /// Pose and odometer speed as estimated on the car, steering σ = σ_max · servo command.
     pub state: BicycleState,
-    /// Time since the newest IPS fix the car received was measured, at `create_s` [s]
+    /// Time since the newest IPS fix the car received was measured, at `create_ns` [ns]
     /// (the lab's `IPS_update_age_nanoseconds`; 0 with ideal sensing).
-    pub ips_update_age_s: f64,
+    pub ips_update_age_ns: u64,
 }
 
 impl StampedState {
-    /// When the middleware may list it [s].
-    pub fn valid_after_s(&self) -> f64 {
-        self.create_s + STATE_VALID_AFTER_S
+    /// When the middleware may list it [ns].
+    pub fn valid_after_ns(&self) -> u64 {
+        self.create_ns + STATE_VALID_AFTER_NS
     }
 }
 
@@ -120,14 +130,14 @@ impl VehicleStack {
     }
 
     /// Hands the follower a new trajectory (kept until it is valid, as on the car).
-    pub fn receive(&mut self, points: Vec<TrajectoryPoint>, create_stamp_s: f64, valid_after_s: f64) {
-        each!(self, v => v.receive(points, create_stamp_s, valid_after_s))
+    pub fn receive(&mut self, points: Vec<TrajectoryPoint>, create_stamp_ns: u64, valid_after_ns: u64) {
+        each!(self, v => v.receive(points, create_stamp_ns, valid_after_ns))
     }
 
-    /// One 20 ms step starting at `now_s`: estimate, follow, delay, move, sense. Returns the
+    /// One 20 ms step starting at `now_ns`: estimate, follow, delay, move, sense. Returns the
     /// follower's status.
-    pub fn step(&mut self, now_s: f64) -> Status {
-        each!(self, v => v.step(now_s))
+    pub fn step(&mut self, now_ns: u64) -> Status {
+        each!(self, v => v.step(now_ns))
     }
 
     /// What the vehicle reports now: its estimate (the truth with ideal sensing), with the
@@ -136,10 +146,11 @@ impl VehicleStack {
         each!(self, v => v.reported_state())
     }
 
-    /// The state the lab's middleware lists at `t_now_s`: the newest published state whose
-    /// `valid_after` has passed (before the first step, the start, stamped to be valid at 0).
-    pub fn listed_state(&self, t_now_s: f64) -> StampedState {
-        each!(self, v => v.listed_state(t_now_s))
+    /// The state the lab's middleware lists at `t_now_ns`: the newest published state whose
+    /// `valid_after` has passed (before the first step, the start, stamped to be valid at the
+    /// run's start).
+    pub fn listed_state(&self, t_now_ns: u64) -> StampedState {
+        each!(self, v => v.listed_state(t_now_ns))
     }
 
     /// The follower's current command (plant inputs).
@@ -208,62 +219,61 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
             sensing,
             rng: ChaCha20Rng::from_seed(stream_key(run_seed, &format!("sensing/{agent}"))),
         };
-        // The vehicle stood at its start before the run: that state is valid at time 0 (for a
-        // start with speed, it is 60 ms early).
-        vehicle.publish(-STATE_VALID_AFTER_S);
+        // The vehicle stood at its start before the run: that state is valid at the run's
+        // start (for a start with speed, it is 60 ms early).
+        vehicle.publish(RUN_START_NS - STATE_VALID_AFTER_NS);
         Ok(vehicle)
     }
 
-    /// Publishes the current report stamped `create_s`.
-    fn publish(&mut self, create_s: f64) {
+    /// Publishes the current report stamped `create_ns`.
+    fn publish(&mut self, create_ns: u64) {
         let state = self.reported_state();
-        let ips_update_age_s = self.ips_update_age_s(create_s);
+        let ips_update_age_ns = self.ips_update_age_ns(create_ns);
         self.published.push_back(StampedState {
-            create_s,
+            create_ns,
             state,
-            ips_update_age_s,
+            ips_update_age_ns,
         });
         if self.published.len() > PUBLISHED_STATES {
             self.published.pop_front();
         }
     }
 
-    fn listed_state(&self, t_now_s: f64) -> StampedState {
-        // Stamps are sums of 20 ms steps: compare with a nanosecond's tolerance.
+    fn listed_state(&self, t_now_ns: u64) -> StampedState {
         self.published
             .iter()
             .rev()
-            .find(|s| s.valid_after_s() <= t_now_s + 1e-9)
+            .find(|s| s.valid_after_ns() <= t_now_ns)
             .or(self.published.front())
             .copied()
             .unwrap_or(StampedState {
-                create_s: t_now_s,
+                create_ns: t_now_ns,
                 state: self.reported_state(),
-                ips_update_age_s: self.ips_update_age_s(t_now_s),
+                ips_update_age_ns: self.ips_update_age_ns(t_now_ns),
             })
     }
 
-    /// Time since the newest IPS fix that reached the car was measured [s]: what the lab's
+    /// Time since the newest IPS fix that reached the car was measured [ns]: what the lab's
     /// controller stops on after 3 s; 0 with ideal sensing (the car always knows its pose).
-    fn ips_update_age_s(&self, now_s: f64) -> f64 {
-        self.sensing
-            .as_ref()
-            .map_or(0.0, |sensing| sensing.ips_update_age_s(now_s))
+    fn ips_update_age_ns(&self, now_ns: u64) -> u64 {
+        self.sensing.as_ref().map_or(0, |sensing| {
+            duration_ns(sensing.ips_update_age_s(sensing_time_s(now_ns)))
+        })
     }
 
-    fn receive(&mut self, points: Vec<TrajectoryPoint>, create_stamp_s: f64, valid_after_s: f64) {
+    fn receive(&mut self, points: Vec<TrajectoryPoint>, create_stamp_ns: u64, valid_after_ns: u64) {
         // A malformed trajectory is dropped; the car keeps (or times out on) its previous
         // command, as in the lab.
         if let Ok(trajectory) = cpmx_follower::Trajectory::new(points) {
-            let _ = self.follower.receive(TrajectoryCommand {
-                create_stamp_s,
-                valid_after_s,
+            self.follower.receive(TrajectoryCommand {
+                create_stamp_ns,
+                valid_after_ns,
                 trajectory,
             });
         }
     }
 
-    fn step(&mut self, now_s: f64) -> Status {
+    fn step(&mut self, now_ns: u64) -> Status {
         let estimate = match &self.sensing {
             Some(sensing) => {
                 let e = sensing.estimate();
@@ -272,10 +282,10 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
             None => self.state,
         };
         let output = self.follower.control(
-            now_s,
+            now_ns,
             &StateEstimate {
                 state: estimate,
-                ips_update_age_s: self.ips_update_age_s(now_s),
+                ips_update_age_ns: self.ips_update_age_ns(now_ns),
             },
         );
         let input = match &mut self.delay {
@@ -296,9 +306,14 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
                 yaw_increment_rad: cpmx_sensing::wrap_angle_rad(after.yaw_rad - before.yaw_rad),
                 speed_mps: self.plant.speed_mps(&self.state),
             };
-            sensing.step(now_s + CONTROL_PERIOD_S, after, &reading, &mut self.rng);
+            sensing.step(
+                sensing_time_s(now_ns + CONTROL_PERIOD_NS),
+                after,
+                &reading,
+                &mut self.rng,
+            );
         }
-        self.publish(now_s + CONTROL_PERIOD_S);
+        self.publish(now_ns + CONTROL_PERIOD_NS);
         output.status
     }
 
@@ -334,6 +349,12 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
     }
 }
 
+/// The on-car sensing's time for the vehicle clock's `t_ns`: seconds since the run's start
+/// (negative before it), from whole nanoseconds.
+fn sensing_time_s(t_ns: u64) -> f64 {
+    (t_ns as f64 - RUN_START_NS as f64) / 1e9
+}
+
 fn on_car_sensing(s: &SensingModel<f64>, pose: Pose2, speed_mps: f64) -> Result<OnCarSensing, String> {
     let ips = IpsParams {
         rate_hz: s.rate_hz,
@@ -355,6 +376,8 @@ mod tests {
     use cpmx_follower::StopReason;
     use cpmx_spec::model::{ActuationModel, Control, GreyBoxModel, SimulatedFidelity};
 
+    const MS: u64 = 1_000_000;
+
     fn twin_without_sensing() -> DrawnFidelity {
         SimulatedFidelity {
             control: Control::Trajectory,
@@ -369,15 +392,16 @@ mod tests {
         }
     }
 
-    /// A left arc of radius 0.5 m at 0.5 m/s from the origin, heading +x, points every 0.1 s.
+    /// A left arc of radius 0.5 m at 0.5 m/s from the origin, heading +x, points every 0.1 s
+    /// from the run's start.
     fn left_arc() -> Vec<TrajectoryPoint> {
         let (speed, radius) = (0.5, 0.5);
-        (0..30)
+        (0..30u64)
             .map(|k| {
                 let t = k as f64 * 0.1;
                 let a = speed * t / radius;
                 TrajectoryPoint {
-                    t_s: t,
+                    t_ns: RUN_START_NS + k * 100 * MS,
                     x_m: radius * a.sin(),
                     y_m: radius * (1.0 - a.cos()),
                     vx_mps: speed * a.cos(),
@@ -404,10 +428,13 @@ mod tests {
     fn a_vehicle_reports_its_current_servo_command_as_sigma_max_times_servo() {
         let vehicle = VehicleParams::MU_CAR;
         let mut stack = VehicleStack::new(&twin_without_sensing(), vehicle, &start(), 1, 0).unwrap();
-        stack.receive(left_arc(), 0.0, 0.0);
+        stack.receive(left_arc(), RUN_START_NS, RUN_START_NS);
         let mut servos = Vec::new();
         for k in 0..10 {
-            assert_eq!(stack.step(f64::from(k) * CONTROL_PERIOD_S), Status::Following);
+            assert_eq!(
+                stack.step(RUN_START_NS + k * CONTROL_PERIOD_NS),
+                Status::Following
+            );
             let servo = stack.command()[1];
             servos.push(servo);
             let reported = stack.reported_state();
@@ -446,14 +473,14 @@ mod tests {
         }
     }
 
-    /// Straight along +x at 0.5 m/s, points every 0.1 s for 1.5 s from `from_s`.
-    fn straight(from_s: f64) -> Vec<TrajectoryPoint> {
+    /// Straight along +x at 0.5 m/s, points every 0.1 s for 1.5 s from `from_ns`.
+    fn straight(from_ns: u64) -> Vec<TrajectoryPoint> {
         (0..16)
             .map(|k| {
-                let t = from_s + f64::from(k) * 0.1;
+                let t_ns = from_ns + k * 100 * MS;
                 TrajectoryPoint {
-                    t_s: t,
-                    x_m: 0.5 * t,
+                    t_ns,
+                    x_m: 0.5 * (t_ns - RUN_START_NS) as f64 * 1e-9,
                     y_m: 0.0,
                     vx_mps: 0.5,
                     vy_mps: 0.0,
@@ -464,19 +491,19 @@ mod tests {
 
     /// Drives 4 s along a fresh straight trajectory every 0.1 s; the statuses and the
     /// reported IPS ages of every step.
-    fn drive_straight(fidelity: &DrawnFidelity) -> (Vec<Status>, Vec<f64>) {
+    fn drive_straight(fidelity: &DrawnFidelity) -> (Vec<Status>, Vec<u64>) {
         let mut stack = VehicleStack::new(fidelity, VehicleParams::MU_CAR, &start(), 9, 0).unwrap();
         let (mut statuses, mut ages) = (Vec::new(), Vec::new());
         for k in 0..200 {
-            let now_s = f64::from(k) * CONTROL_PERIOD_S;
+            let now_ns = RUN_START_NS + k * CONTROL_PERIOD_NS;
             if k % 5 == 0 {
-                stack.receive(straight(now_s), now_s, now_s);
+                stack.receive(straight(now_ns), now_ns, now_ns);
             }
-            statuses.push(stack.step(now_s));
+            statuses.push(stack.step(now_ns));
             ages.push(
                 stack
-                    .listed_state(now_s + CONTROL_PERIOD_S + STATE_VALID_AFTER_S)
-                    .ips_update_age_s,
+                    .listed_state(now_ns + CONTROL_PERIOD_NS + STATE_VALID_AFTER_NS)
+                    .ips_update_age_ns,
             );
         }
         (statuses, ages)
@@ -488,27 +515,32 @@ mod tests {
     #[test]
     fn a_car_that_loses_its_positions_stops_after_3_s() {
         let (statuses, ages) = drive_straight(&twin_with_ips(1.0));
-        for (k, status) in statuses.iter().enumerate() {
-            let now_s = f64::from(k as u32) * CONTROL_PERIOD_S;
+        for (k, status) in (0..).zip(&statuses) {
+            // Since the run's start, the last fix: the lab stops above 3 s, not at 3 s.
+            let since_start_ns = k * CONTROL_PERIOD_NS;
             let lost = matches!(status, Status::Stopped(StopReason::LostIps { .. }));
-            assert_eq!(lost, now_s > 3.0 + 1e-9, "at {now_s} s: {status:?}");
-            assert!((ages[k] - (now_s + CONTROL_PERIOD_S)).abs() < 1e-9, "{}", ages[k]);
+            assert_eq!(
+                lost,
+                since_start_ns > 3_000 * MS,
+                "at {since_start_ns} ns: {status:?}"
+            );
+            assert_eq!(ages[k as usize], since_start_ns + CONTROL_PERIOD_NS);
         }
 
         let (statuses, ages) = drive_straight(&twin_with_ips(0.05));
         assert!(statuses.iter().all(|s| *s == Status::Following), "{statuses:?}");
         // The start counts as a fix until the first frame arrives (at 80 ms, 60 ms old).
         assert!(
-            ages[2..].iter().all(|&a| (0.06 - 1e-9..0.2).contains(&a)),
+            ages[2..].iter().all(|&a| (60 * MS..200 * MS).contains(&a)),
             "{ages:?}"
         );
         assert!(
-            ages.iter().any(|&a| a > 0.07),
+            ages.iter().any(|&a| a > 70 * MS),
             "a dropped frame makes the age grow"
         );
 
         let (_, ages) = drive_straight(&twin_without_sensing());
-        assert!(ages.iter().all(|&a| a == 0.0), "ideal sensing: {ages:?}");
+        assert!(ages.iter().all(|&a| a == 0), "ideal sensing: {ages:?}");
     }
 
     /// The middleware lists the newest state whose `valid_after = create + 60 ms` has passed;
@@ -517,21 +549,29 @@ mod tests {
     fn the_middleware_lists_states_60_ms_after_their_creation() {
         let vehicle = VehicleParams::MU_CAR;
         let mut stack = VehicleStack::new(&twin_without_sensing(), vehicle, &start(), 1, 0).unwrap();
-        let initial = stack.listed_state(0.0);
-        assert_eq!(initial.create_s, -STATE_VALID_AFTER_S);
+        let initial = stack.listed_state(RUN_START_NS);
+        assert_eq!(initial.create_ns, RUN_START_NS - STATE_VALID_AFTER_NS);
         assert_eq!((initial.state.x_m, initial.state.speed_mps), (0.0, 0.5));
-        stack.receive(left_arc(), 0.0, 0.0);
+        stack.receive(left_arc(), RUN_START_NS, RUN_START_NS);
         let mut reports = Vec::new();
         for k in 0..5 {
-            let now_s = f64::from(k) * CONTROL_PERIOD_S;
-            stack.step(now_s);
-            reports.push((now_s + CONTROL_PERIOD_S, stack.reported_state()));
+            let now_ns = RUN_START_NS + k * CONTROL_PERIOD_NS;
+            stack.step(now_ns);
+            reports.push((now_ns + CONTROL_PERIOD_NS, stack.reported_state()));
         }
-        // At the tick 0.1 s the states of 0.06, 0.08 and 0.1 are not valid yet.
-        let listed = stack.listed_state(0.1);
-        assert_eq!(listed.create_s, reports[1].0);
+        // At the tick 100 ms after the start the states of 60, 80 and 100 ms are not valid yet;
+        // the state of 40 ms is from 100 ms on, not a nanosecond earlier.
+        let listed = stack.listed_state(RUN_START_NS + 100 * MS);
+        assert_eq!(listed.create_ns, reports[1].0);
         assert_eq!(listed.state, reports[1].1);
-        assert_eq!(stack.listed_state(0.08).create_s, reports[0].0);
-        assert_eq!(stack.listed_state(0.07).create_s, -STATE_VALID_AFTER_S);
+        assert_eq!(
+            stack.listed_state(RUN_START_NS + 100 * MS - 1).create_ns,
+            reports[0].0
+        );
+        assert_eq!(stack.listed_state(RUN_START_NS + 80 * MS).create_ns, reports[0].0);
+        assert_eq!(
+            stack.listed_state(RUN_START_NS + 70 * MS).create_ns,
+            RUN_START_NS - STATE_VALID_AFTER_NS
+        );
     }
 }

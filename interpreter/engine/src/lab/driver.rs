@@ -6,8 +6,9 @@
 //! the planner's bicycle states (`mapping`: position and yaw unchanged, σ = σ_max · servo),
 //! the twin's planner rolls the run's policy out, and every vehicle gets one
 //! `VehicleCommandTrajectory`, created and valid at the tick, whose points start at the
-//! state's `create_stamp` (the lab's states are at least 60 ms old; `cpmx_stack::anchor_s`) and run
-//! Hp·dt from there (checked to cover the vehicles' lead time). Every tick's states are the
+//! state's `create_stamp` (the lab's states are at least 60 ms old; `cpmx_stack::anchor_ns`)
+//! and run Hp·dt from there in whole nanoseconds on the lab's clock (checked to cover the
+//! vehicles' lead time). Every tick's states are the
 //! run's recording, with times relative to the first tick, each moved by its velocity over its
 //! age to the tick. The run ends after
 //! `timing.steps` ticks, or earlier on a stop trigger or a `StopRequest`; a lab that falls
@@ -35,11 +36,11 @@ use cpmx_spec::model::{Fidelity, LabFidelity};
 use cpmx_vehicle::{BicycleState, VehicleParams};
 
 use super::mapping::{policy_state, recorded_sample};
-use super::{MIN_TRAJECTORY_POINTS, VEHICLE_LEAD_S, discovery_config, ns_from_s, s_since, stamp_ns, timeout};
+use super::{MIN_TRAJECTORY_POINTS, VEHICLE_LEAD_S, discovery_config, ns_from_s, s_since, timeout};
 use crate::engine::{Engine, RunError, RunInputs};
-use crate::twin::{plan_anchored, planner};
+use crate::twin::planner;
 use cpmx_stack::STATE_VALID_AFTER_S;
-use cpmx_stack::{anchor_s, max_state_age_s};
+use cpmx_stack::{anchor_ns, anchored_time_ns, max_state_age_ns};
 
 /// How often the driver polls its readers while it waits.
 const POLL_INTERVAL: Duration = Duration::from_millis(1);
@@ -99,7 +100,7 @@ impl Engine for LabEngine {
             policy: inputs.policy()?,
             steps: spec.timing.steps as usize,
             dt_s,
-            max_age_s: max_state_age_s(planner_spec.prediction_horizon, dt_s),
+            max_age_ns: max_state_age_ns(planner_spec.prediction_horizon, ns_from_s(dt_s)),
             created_ns: vec![None; inputs.starts.len()],
             last_states: inputs
                 .starts
@@ -220,8 +221,8 @@ struct Drive<'a> {
     policy: Box<dyn cpmx_policy::Policy>,
     steps: usize,
     dt_s: f64,
-    /// The oldest state a plan may start from (`cpmx_stack::max_state_age_s`) [s].
-    max_age_s: f64,
+    /// The oldest state a plan may start from (`cpmx_stack::max_state_age_ns`) [ns].
+    max_age_ns: u64,
     /// Per agent: the `create_stamp` of its last state (none before the first).
     created_ns: Vec<Option<u64>>,
     /// Per agent: the state of the last list that had it (the start before the first).
@@ -349,8 +350,9 @@ impl Drive<'_> {
             .zip(&self.created_ns)
             .map(|(s, created)| {
                 let mut sample = recorded_sample(s, &self.vehicle);
-                let age_s = created.map_or(0.0, |ns| s_since(ns, list.t_now));
-                if (0.0..=self.max_age_s).contains(&age_s) {
+                let age_ns = created.map_or(Some(0), |ns| list.t_now.checked_sub(ns));
+                if let Some(age_ns) = age_ns.filter(|age_ns| *age_ns <= self.max_age_ns) {
+                    let age_s = age_ns as f64 / 1e9;
                     sample.x_m += sample.velocity_mps[0] * age_s;
                     sample.y_m += sample.velocity_mps[1] * age_s;
                 }
@@ -359,23 +361,12 @@ impl Drive<'_> {
             .collect();
         self.recording.samples.push(recorded);
 
-        // Plan from the lab's states, each trajectory anchored at its state's time; all are
-        // created and valid at the tick.
-        let anchors: Vec<f64> = self
-            .created_ns
-            .iter()
-            .map(|created| match created {
-                Some(ns) => anchor_s(s_since(origin_ns, *ns), t_s, self.max_age_s),
-                None => t_s,
-            })
-            .collect();
-        let trajectories = plan_anchored(
-            &mut self.planner,
-            self.policy.as_mut(),
-            &self.last_states,
-            &self.paths,
-            &anchors,
-        )?;
+        // Plan from the lab's states, each trajectory anchored at its state's time on the lab's
+        // clock; all are created and valid at the tick.
+        let trajectories = self
+            .planner
+            .plan(self.policy.as_mut(), &self.last_states, &self.paths, 0.0)?;
+        let step_ns = ns_from_s(self.dt_s);
         let stamp = TimeStamp {
             nanoseconds: list.t_now,
         };
@@ -384,25 +375,31 @@ impl Drive<'_> {
             .vehicle_ids
             .iter()
             .zip(&trajectories)
-            .map(|(id, trajectory)| VehicleCommandTrajectory {
-                vehicle_id: *id,
-                header: Header {
-                    create_stamp: stamp,
-                    valid_after_stamp: stamp,
-                },
-                trajectory_points: lab_points(trajectory, origin_ns),
+            .zip(&self.created_ns)
+            .map(|((id, trajectory), created)| {
+                let anchor = created.map_or(list.t_now, |ns| anchor_ns(ns, list.t_now, self.max_age_ns));
+                VehicleCommandTrajectory {
+                    vehicle_id: *id,
+                    header: Header {
+                        create_stamp: stamp,
+                        valid_after_stamp: stamp,
+                    },
+                    trajectory_points: lab_points(trajectory, anchor, step_ns),
+                }
             })
             .collect())
     }
 }
 
-/// A planned trajectory as the lab's points, stamped on the lab's clock.
-fn lab_points(trajectory: &PlannedTrajectory, origin_ns: u64) -> Vec<TrajectoryPoint> {
+/// A planned trajectory as the lab's points: point `k` at `anchor_ns + k·step_ns` on the
+/// lab's clock (`cpmx_stack::anchored_time_ns`, as the twin times its vehicles' points).
+fn lab_points(trajectory: &PlannedTrajectory, anchor_ns: u64, step_ns: u64) -> Vec<TrajectoryPoint> {
     trajectory
         .iter()
-        .map(|p| TrajectoryPoint {
+        .enumerate()
+        .map(|(k, p)| TrajectoryPoint {
             t: TimeStamp {
-                nanoseconds: stamp_ns(origin_ns, p.t_s),
+                nanoseconds: anchored_time_ns(anchor_ns, k, step_ns),
             },
             px: p.x_m,
             py: p.y_m,
@@ -483,8 +480,8 @@ mod tests {
 
     #[test]
     fn points_are_stamped_on_the_labs_clock() {
-        let point = cpmx_planner::PlannedPoint {
-            t_s: 0.3,
+        let point = |t_s| cpmx_planner::PlannedPoint {
+            t_s,
             x_m: 1.0,
             y_m: 2.0,
             yaw_rad: 0.0,
@@ -492,8 +489,14 @@ mod tests {
             speed_mps: 0.5,
             steering_rad: 0.0,
         };
-        let points = lab_points(&vec![point], 5_000_000_000);
-        assert_eq!(points[0].t.nanoseconds, 5_300_000_000);
+        // Anchored at a state 60 ms before the tick; the planner's own times do not matter.
+        let anchor_ns = 1_764_000_000_123_456_789 - 60_000_000;
+        let points = lab_points(&vec![point(0.0), point(0.1), point(0.2)], anchor_ns, 100_000_000);
+        let stamps: Vec<u64> = points.iter().map(|p| p.t.nanoseconds).collect();
+        assert_eq!(
+            stamps,
+            [anchor_ns, anchor_ns + 100_000_000, anchor_ns + 200_000_000]
+        );
         assert_eq!((points[0].px, points[0].vx), (1.0, 0.5));
     }
 }

@@ -13,11 +13,13 @@
 //! Time is simulated and lock-step, as the lab's `--simulated_time` mode: the clock advances
 //! by `timing.dt` only when every vehicle's trajectory for the tick arrived, so a run is as
 //! fast as the driver and does not depend on the machine's load. Stamps are nanoseconds from
-//! the wall-clock time at the run's start. Each list holds, per vehicle, the newest state
-//! valid at the tick, stamped as the lab's vehicles stamp it (`create` = the start of the
-//! 20 ms step that produced it, `valid_after = create + 60 ms`; `VehicleStack::listed_state`),
-//! as the twin engine's planner sees it, so a run matches the twin engine's run of the same
-//! fidelity step for step.
+//! the wall-clock time at the run's start; the vehicles keep the twin's clock (nanoseconds from
+//! `cpmx_stack::RUN_START_NS`), and every stamp crosses between the two by the same whole
+//! number of nanoseconds, so the vehicles see the times a twin run gives them. Each list holds,
+//! per vehicle, the newest state valid at the tick, stamped as the twin's vehicles stamp it
+//! (`create` = the time its pose holds, the end of the 20 ms step that produced it,
+//! `valid_after = create + 60 ms`; `VehicleStack::listed_state`), as the twin engine's planner
+//! sees it, so a run matches the twin engine's run of the same fidelity step for step.
 //!
 //! Which run: the driver puts its run seed into the announcements' `next_start_stamp`; the
 //! emulator looks the seed up in the spec's matrix (runs that differ only in fidelity share
@@ -42,11 +44,11 @@ use cpmx_spec::model::{Control, Fidelity, LabFidelity, OnCollision, SimulatedFid
 use cpmx_spec::{CheckedSpec, RunPlan};
 
 use super::mapping::lab_state;
-use super::{discovery_config, hlc_vehicle_id, ns_from_s, s_since, stamp_ns, timeout};
+use super::{discovery_config, hlc_vehicle_id, ns_from_s, timeout};
 use crate::experiment::Experiment;
 use crate::starts::InitialState;
-use cpmx_stack::{CONTROL_PERIOD_S, StampedState, VehicleStack};
-use cpmx_stack::{anchored_time_s, control_periods};
+use cpmx_stack::control_periods;
+use cpmx_stack::{CONTROL_PERIOD_NS, CONTROL_PERIOD_S, RUN_START_NS, StampedState, VehicleStack};
 
 /// How often the emulator polls its readers.
 const POLL_INTERVAL: Duration = Duration::from_millis(1);
@@ -300,6 +302,7 @@ impl<'a> Emulator<'a> {
             })?;
         let origin_ns = wall_clock_ns();
         let dt_s = spec.timing.dt;
+        let dt_ns = self.substeps as u64 * CONTROL_PERIOD_NS;
         let period_ms = ns_from_s(dt_s) / 1_000_000;
         let active_vehicle_ids: Vec<i32> = ids.iter().map(|id| i32::from(*id)).collect();
         endpoints.commands.take()?;
@@ -308,9 +311,9 @@ impl<'a> Emulator<'a> {
         let mut ended = None;
         for tick in 0..spec.timing.steps {
             // Report the vehicles' states and wait for their trajectories.
-            let t_s = (f64::from(tick) * dt_s * 1e9).round() / 1e9;
-            let t_now = origin_ns + ns_from_s(t_s);
-            let listed: Vec<StampedState> = vehicles.iter().map(|v| v.listed_state(t_s)).collect();
+            let tick_ns = RUN_START_NS + u64::from(tick) * dt_ns;
+            let t_now = lab_ns(origin_ns, tick_ns);
+            let listed: Vec<StampedState> = vehicles.iter().map(|v| v.listed_state(tick_ns)).collect();
             let list = VehicleStateList {
                 t_now,
                 period_ms,
@@ -318,12 +321,12 @@ impl<'a> Emulator<'a> {
                     .iter()
                     .zip(ids)
                     .map(|(s, id)| VehicleState {
-                        ips_update_age_nanoseconds: ns_from_s(s.ips_update_age_s),
+                        ips_update_age_nanoseconds: s.ips_update_age_ns,
                         ..lab_state(
                             *id,
                             &s.state,
-                            stamp_ns(origin_ns, s.create_s),
-                            stamp_ns(origin_ns, s.valid_after_s()),
+                            lab_ns(origin_ns, s.create_ns),
+                            lab_ns(origin_ns, s.valid_after_ns()),
                             &vehicle,
                         )
                     })
@@ -343,12 +346,12 @@ impl<'a> Emulator<'a> {
             ticks += 1;
 
             // The trajectories take effect and the vehicles run until the next tick.
-            for ((v, command), state) in vehicles.iter_mut().zip(commands).zip(&listed) {
+            for (v, command) in vehicles.iter_mut().zip(commands) {
                 let points = command
                     .trajectory_points
                     .iter()
                     .map(|p| TrajectoryPoint {
-                        t_s: on_grid(s_since(origin_ns, p.t.nanoseconds), &[state.create_s, t_s], dt_s),
+                        t_ns: vehicle_ns(origin_ns, p.t.nanoseconds),
                         x_m: p.px,
                         y_m: p.py,
                         vx_mps: p.vx,
@@ -357,14 +360,14 @@ impl<'a> Emulator<'a> {
                     .collect();
                 v.receive(
                     points,
-                    s_since(origin_ns, command.header.create_stamp.nanoseconds),
-                    s_since(origin_ns, command.header.valid_after_stamp.nanoseconds),
+                    vehicle_ns(origin_ns, command.header.create_stamp.nanoseconds),
+                    vehicle_ns(origin_ns, command.header.valid_after_stamp.nanoseconds),
                 );
             }
-            for sub in 0..self.substeps {
-                let now_s = t_s + sub as f64 * CONTROL_PERIOD_S;
+            for sub in 0..self.substeps as u64 {
+                let now_ns = tick_ns + sub * CONTROL_PERIOD_NS;
                 for v in &mut vehicles {
-                    v.step(now_s);
+                    v.step(now_ns);
                 }
             }
             if spec.on_collision == OnCollision::EndRun
@@ -420,21 +423,17 @@ fn exchange(
     }
 }
 
-/// A point's time `point_s`, read from whole nanoseconds, as the planner computed it when it
-/// lies on one of the grids `anchor + j·dt` (within a nanosecond; the anchors: the listed
-/// state's time, the tick): the twin engine's follower gets the planner's own times
-/// (`cpmx_stack::anchored_time_s`), and so do the emulator's vehicles.
-fn on_grid(point_s: f64, anchors_s: &[f64], dt_s: f64) -> f64 {
-    for &anchor in anchors_s {
-        let j = ((point_s - anchor) / dt_s).round();
-        if j >= 0.0 {
-            let grid_s = anchored_time_s(anchor, j as usize, dt_s);
-            if (grid_s - point_s).abs() < 1e-9 {
-                return grid_s;
-            }
-        }
-    }
-    point_s
+/// The lab's stamp of the vehicles' time `vehicle_ns`: the run's start is `origin_ns`
+/// (saturating at the ends of the lab's clock).
+fn lab_ns(origin_ns: u64, vehicle_ns: u64) -> u64 {
+    let lab = i128::from(origin_ns) + i128::from(vehicle_ns) - i128::from(RUN_START_NS);
+    lab.clamp(0, i128::from(u64::MAX)) as u64
+}
+
+/// The vehicles' time of the lab's stamp `lab_ns` ([`lab_ns`] the other way).
+fn vehicle_ns(origin_ns: u64, lab_ns: u64) -> u64 {
+    let vehicle = i128::from(RUN_START_NS) + i128::from(lab_ns) - i128::from(origin_ns);
+    vehicle.clamp(0, i128::from(u64::MAX)) as u64
 }
 
 /// Nanoseconds since the Unix epoch (the lab's time base), 1 s if the clock is before it.
@@ -451,15 +450,22 @@ mod tests {
     use super::*;
 
     #[test]
-    fn point_times_snap_to_the_planners_grid_only_within_a_nanosecond() {
-        let (tick_s, dt_s) = (0.3, 0.1);
-        let planned_s = tick_s + 7.0 * dt_s;
-        let from_ns = s_since(5, 5 + ns_from_s(planned_s));
-        assert_eq!(on_grid(from_ns, &[tick_s], dt_s), planned_s);
-        assert_eq!(on_grid(1.05, &[tick_s], dt_s), 1.05);
-        let anchor_s = tick_s - 0.06;
-        let planned_s = anchored_time_s(anchor_s, 3, dt_s);
-        let from_ns = s_since(5, 5 + ns_from_s(planned_s));
-        assert_eq!(on_grid(from_ns, &[anchor_s, tick_s], dt_s), planned_s);
+    fn stamps_cross_between_the_lab_and_the_vehicles_by_whole_nanoseconds() {
+        let origin_ns = 1_764_000_000_123_456_789;
+        for vehicle in [
+            0,
+            RUN_START_NS - 60_000_000,
+            RUN_START_NS,
+            RUN_START_NS + 12_345_678_901,
+        ] {
+            assert_eq!(vehicle_ns(origin_ns, lab_ns(origin_ns, vehicle)), vehicle);
+        }
+        assert_eq!(lab_ns(origin_ns, RUN_START_NS), origin_ns);
+        assert_eq!(
+            lab_ns(origin_ns, RUN_START_NS - 60_000_000),
+            origin_ns - 60_000_000
+        );
+        // Before the vehicles' clock starts: its first nanosecond.
+        assert_eq!(vehicle_ns(origin_ns, 0), 0);
     }
 }

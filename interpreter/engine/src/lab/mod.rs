@@ -96,16 +96,7 @@ pub(crate) fn timeout(lab: &LabFidelity) -> Duration {
 
 /// A time span in seconds as whole nanoseconds (negative spans are 0).
 pub(crate) fn ns_from_s(span_s: f64) -> u64 {
-    // `as` saturates and maps NaN to 0.
-    (span_s * 1e9).round() as u64
-}
-
-/// The stamp `offset_s` after `origin_ns` (before it when negative), saturating at the ends
-/// of the lab's clock.
-pub(crate) fn stamp_ns(origin_ns: u64, offset_s: f64) -> u64 {
-    // `as` saturates and maps NaN to 0.
-    let offset_ns = (offset_s * 1e9).round() as i128;
-    (i128::from(origin_ns) + offset_ns).clamp(0, i128::from(u64::MAX)) as u64
+    cpmx_stack::duration_ns(span_s)
 }
 
 /// Seconds from `origin_ns` to `stamp_ns` (negative when before).
@@ -164,9 +155,7 @@ mod tests {
         assert_eq!(s_since(origin_ns, t_ns), 4.9);
         assert_eq!(s_since(t_ns, origin_ns), -4.9);
         assert_eq!(ns_from_s(-1.0), 0);
-        assert_eq!(stamp_ns(origin_ns, -0.06), origin_ns - 60_000_000);
-        assert_eq!(s_since(origin_ns, stamp_ns(origin_ns, -0.06)), -0.06);
-        assert_eq!(stamp_ns(5, -1.0), 0);
+        assert_eq!(s_since(origin_ns, origin_ns - 60_000_000), -0.06);
         assert_eq!(ns_from_s(f64::NAN), 0);
         assert_eq!(hlc_vehicle_id("hlc_7"), Some(7));
         assert_eq!(hlc_vehicle_id("hlc_x"), None);

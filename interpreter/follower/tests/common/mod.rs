@@ -3,6 +3,8 @@
 
 #![allow(dead_code)] // each test binary uses a subset
 
+pub mod greybox;
+
 use std::collections::VecDeque;
 
 use cpmx_follower::{
@@ -11,6 +13,10 @@ use cpmx_follower::{
 
 /// Control period of the loop [s].
 pub const PERIOD_S: f64 = 0.02;
+/// Control period of the loop [ns].
+pub const PERIOD_NS: u64 = 20_000_000;
+/// Spacing of the planner's points [ns].
+pub const POINT_SPACING_NS: u64 = 100_000_000;
 
 /// A reference motion: position and velocity at a time.
 pub type Reference = fn(f64) -> ([f64; 2], [f64; 2]);
@@ -41,17 +47,16 @@ pub fn lane_change(t_s: f64) -> ([f64; 2], [f64; 2]) {
     ([0.5 + v * t_s, 1.0 + y], [v, vy])
 }
 
-/// The command a planner sends at `t_s`: points every 0.1 s on the absolute grid from
-/// 0.2 s before to `lead_s` after, valid at once.
-pub fn command_at(reference: Reference, t_s: f64, lead_s: f64) -> TrajectoryCommand {
-    let first = (t_s / 0.1).floor() as i64 - 2;
-    let last = ((t_s + lead_s) / 0.1).ceil() as i64;
+/// The command a planner sends at `t_ns`: points every 0.1 s on the absolute grid from
+/// 0.2 s before (not before 0) to `lead_ns` after, valid at once.
+pub fn command_at(reference: Reference, t_ns: u64, lead_ns: u64) -> TrajectoryCommand {
+    let first = (t_ns / POINT_SPACING_NS).saturating_sub(2);
+    let last = (t_ns + lead_ns).div_ceil(POINT_SPACING_NS);
     let points = (first..=last)
         .map(|i| {
-            let t = i as f64 * 0.1;
-            let (p, v) = reference(t);
+            let (p, v) = reference(i as f64 * 0.1);
             TrajectoryPoint {
-                t_s: t,
+                t_ns: i * POINT_SPACING_NS,
                 x_m: p[0],
                 y_m: p[1],
                 vx_mps: v[0],
@@ -60,8 +65,8 @@ pub fn command_at(reference: Reference, t_s: f64, lead_s: f64) -> TrajectoryComm
         })
         .collect();
     TrajectoryCommand {
-        create_stamp_s: t_s,
-        valid_after_s: t_s,
+        create_stamp_ns: t_ns,
+        valid_after_ns: t_ns,
         trajectory: Trajectory::new(points).expect("grid points are valid"),
     }
 }
@@ -113,21 +118,19 @@ pub fn run<M: Model<NX, NU>, const NX: usize, const NU: usize>(
         states: Vec::new(),
         outputs: Vec::new(),
     };
-    for n in 0..steps {
-        let t_s = n as f64 * PERIOD_S;
+    for n in 0..steps as u64 {
+        let t_ns = n * PERIOD_NS;
         if n % 5 == 0 {
-            follower
-                .receive(command_at(reference, t_s, 1.0))
-                .expect("finite stamps");
+            follower.receive(command_at(reference, t_ns, 1_000_000_000));
         }
         let output = follower.control(
-            t_s,
+            t_ns,
             &StateEstimate {
                 state,
-                ips_update_age_s: 0.0,
+                ips_update_age_ns: 0,
             },
         );
-        let (p_ref, _) = reference(t_s);
+        let (p_ref, _) = reference(n as f64 * PERIOD_S);
         out.errors_m
             .push((state[0] - p_ref[0]).hypot(state[1] - p_ref[1]));
         out.states.push(state);
