@@ -32,7 +32,7 @@ pub use lanelet::{Adjacent, DrivingDirection, Incoming, Intersection, Lanelet, L
 pub use map::{Bounds, Map, MapFormat, MapKind, PathSet};
 pub use nearest::{PathIndex, SegmentGrid};
 pub use numerics::Numerics;
-pub use paths::{PathBuilder, SharedRule};
+pub use paths::{CentreRule, PathBuilder, SharedRule};
 pub use polyline::{Point, Polyline, SegmentDistance};
 
 /// A reference path: the lane an agent follows, with its own-lane and shared (road) boundaries.
@@ -44,7 +44,8 @@ pub struct ReferencePath {
     pub lanelet_ids: Vec<LaneletId>,
     /// Whether it is a closed loop (its last centre-line point repeats the first).
     pub is_loop: bool,
-    /// Point-wise mean of the own-lane boundaries.
+    /// Point-wise mean of the own-lane boundaries (SigmaRL's recipe), or on Lanelet2 maps the
+    /// lanelets' centre lines (Lanelet2's) joined.
     pub center_line: Polyline,
     /// Own-lane left boundary.
     pub left_boundary: Polyline,
