@@ -5,7 +5,8 @@
 //! This crate owns geometry of the road. It knows nothing of vehicles' dynamics, policies or
 //! metrics; it never reads a spec.
 //!
-//! Modules: `commonroad` and `osm` read map files into [`Lanelet`]s; `paths` builds
+//! Modules: `commonroad` and `osm` read map files into [`Lanelet`]s (`osm` as the
+//! `lanelet2` library reads them and its routing graph connects them); `paths` builds
 //! reference paths with SigmaRL's recipe; `cpm_lab` holds SigmaRL's hard-coded tables of the
 //! CPM Lab map; `generic` numbers paths of other maps; `builtin` writes this project's maps;
 //! `map` ties them into [`Map`]; `nearest` and `geometry` answer the simulator's and the
