@@ -12,8 +12,8 @@ has them, as cpmx reads them. Then the map is loaded from a copy whose lat/lon a
 inverse projection of the local coordinates, so that Lanelet2 orients its lanelets in
 them, and the points are set to them exactly.
 
-CommonRoad maps (``.xml``) are read with ``commonroad-io``: every lanelet's successors,
-neighbours and centre-line length.
+CommonRoad maps (``.xml``) are read with ``commonroad-io``: every lanelet's types and
+users, successors, neighbours and centre-line length.
 
 Usage: ``python map_reference.py MAP...``; prints one JSON object keyed by the paths.
 """
@@ -189,6 +189,8 @@ def commonroad_map(path: str) -> Entry:
         entries.append(
             {
                 "id": int(lanelet.lanelet_id),
+                "types": sorted(t.value for t in lanelet.lanelet_type),
+                "users": sorted(u.value for u in lanelet.user_one_way),
                 "following": sorted(int(s) for s in lanelet.successor),
                 "left": sides["left"],
                 "right": sides["right"],
