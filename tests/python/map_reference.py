@@ -24,6 +24,7 @@ import contextlib
 import itertools
 import json
 import math
+import os
 import sys
 import tempfile
 import warnings
@@ -164,6 +165,9 @@ def lanelet2_map(path: str) -> Entry:
 
 def commonroad_map(path: str) -> Entry:
     """Return commonroad-io's reading of a CommonRoad XML file."""
+    # commonroad-io's generated protobuf code (its protobuf reader, unused here) needs
+    # protobuf 3.20's pure-Python descriptors when a newer protobuf is installed beside it.
+    os.environ.setdefault("PROTOCOL_BUFFERS_PYTHON_IMPLEMENTATION", "python")
     from commonroad.common.file_reader import (  # type: ignore[import-untyped]
         CommonRoadFileReader,
     )
