@@ -295,6 +295,7 @@ fn intersection() -> Result<Map, MapError> {
             Some(Adjacent {
                 id,
                 direction: DrivingDirection::Opposite,
+                lane_change: Some(false),
             })
         };
         if let Some(l) = lanelets.get_mut(arm) {
@@ -316,6 +317,7 @@ fn intersection() -> Result<Map, MapError> {
         intersections,
         paths: Some(paths),
         notes: Vec::new(),
+        centre: crate::paths::CentreRule::PointwiseMean,
     })
 }
 

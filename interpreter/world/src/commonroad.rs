@@ -241,7 +241,11 @@ fn parse_lanelet(
                         });
                     }
                 };
-                let adjacent = Some(Adjacent { id: r, direction });
+                let adjacent = Some(Adjacent {
+                    id: r,
+                    direction,
+                    lane_change: None,
+                });
                 if tag == "adjacentLeft" {
                     lanelet.adjacent_left = adjacent;
                 } else {

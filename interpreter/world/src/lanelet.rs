@@ -32,9 +32,13 @@ pub struct Adjacent {
     pub id: LaneletId,
     /// Its driving direction relative to this lanelet.
     pub direction: DrivingDirection,
+    /// Whether a vehicle may change to it: on Lanelet2 maps as the routing graph decides from
+    /// the shared bound's line type (`Some(false)` for an oncoming lane); `None` where the
+    /// format's reader does not decide (CommonRoad).
+    pub lane_change: Option<bool>,
 }
 
-/// One lanelet: two boundaries with the same number of points and its neighbours.
+/// One lanelet: two boundaries in driving direction, its centre line and its neighbours.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Lanelet {
     /// Its id.
@@ -43,7 +47,8 @@ pub struct Lanelet {
     pub left_boundary: Polyline,
     /// Right boundary (in driving direction).
     pub right_boundary: Polyline,
-    /// Point-wise mean of the boundaries.
+    /// Centre line: the point-wise mean of the boundaries (CommonRoad, whose boundaries have
+    /// the same number of points), or Lanelet2's centre line (Lanelet2 maps).
     pub center_line: Polyline,
     /// Line marking of the left boundary (`solid`, `dashed`, ... as written), if any.
     pub left_line_marking: Option<String>,

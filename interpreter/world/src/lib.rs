@@ -5,7 +5,8 @@
 //! This crate owns geometry of the road. It knows nothing of vehicles' dynamics, policies or
 //! metrics; it never reads a spec.
 //!
-//! Modules: `commonroad` and `osm` read map files into [`Lanelet`]s; `paths` builds
+//! Modules: `commonroad` and `osm` read map files into [`Lanelet`]s (`osm` as the
+//! `lanelet2` library reads them and its routing graph connects them); `paths` builds
 //! reference paths with SigmaRL's recipe; `cpm_lab` holds SigmaRL's hard-coded tables of the
 //! CPM Lab map; `generic` numbers paths of other maps; `builtin` writes this project's maps;
 //! `map` ties them into [`Map`]; `nearest` and `geometry` answer the simulator's and the
@@ -32,7 +33,7 @@ pub use lanelet::{Adjacent, DrivingDirection, Incoming, Intersection, Lanelet, L
 pub use map::{Bounds, Map, MapFormat, MapKind, PathSet};
 pub use nearest::{PathIndex, SegmentGrid};
 pub use numerics::Numerics;
-pub use paths::{PathBuilder, SharedRule};
+pub use paths::{CentreRule, PathBuilder, SharedRule};
 pub use polyline::{Point, Polyline, SegmentDistance};
 
 /// A reference path: the lane an agent follows, with its own-lane and shared (road) boundaries.
@@ -44,7 +45,8 @@ pub struct ReferencePath {
     pub lanelet_ids: Vec<LaneletId>,
     /// Whether it is a closed loop (its last centre-line point repeats the first).
     pub is_loop: bool,
-    /// Point-wise mean of the own-lane boundaries.
+    /// Point-wise mean of the own-lane boundaries (SigmaRL's recipe), or on Lanelet2 maps the
+    /// lanelets' centre lines (Lanelet2's) joined.
     pub center_line: Polyline,
     /// Own-lane left boundary.
     pub left_boundary: Polyline,

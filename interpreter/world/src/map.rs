@@ -14,7 +14,7 @@ use crate::error::{LineIndex, MapError, PathError};
 use crate::lanelet::{Intersection, Lanelet, LaneletId};
 use crate::nearest::PathIndex;
 use crate::numerics::Numerics;
-use crate::paths::{PathBuilder, SharedRule};
+use crate::paths::{CentreRule, PathBuilder, SharedRule};
 use crate::polyline::{Point, dist};
 use crate::{commonroad, generic, osm};
 
@@ -107,6 +107,8 @@ pub struct Map {
     indexes: BTreeMap<usize, OnceLock<PathIndex>>,
     /// What the loader read but did not use.
     notes: Vec<String>,
+    /// How paths' centre lines are made (Lanelet2 maps join the lanelets' own).
+    centre: CentreRule,
 }
 
 /// The parts a loader or built-in map hands over.
@@ -121,6 +123,8 @@ pub(crate) struct MapParts {
     pub paths: Option<Vec<ReferencePath>>,
     /// What the loader read but did not use.
     pub notes: Vec<String>,
+    /// How paths' centre lines are made.
+    pub centre: CentreRule,
 }
 
 impl Map {
@@ -177,6 +181,7 @@ impl Map {
                     regions: BTreeMap::new(),
                     paths: None,
                     notes: osm.notes,
+                    centre: CentreRule::LaneletCentreLines,
                 }
             }
             _ => {
@@ -196,6 +201,7 @@ impl Map {
                     intersections: cr.intersections,
                     paths: None,
                     notes: cr.notes,
+                    centre: CentreRule::PointwiseMean,
                 }
             }
         };
@@ -245,6 +251,7 @@ impl Map {
             paths: BTreeMap::new(),
             indexes: BTreeMap::new(),
             notes: parts.notes,
+            centre: parts.centre,
         };
         if map.kind == MapKind::Generic {
             let numbering = generic::generic_path_lanelets(&map.all_lanelets);
@@ -352,7 +359,7 @@ impl Map {
         } else {
             SharedRule::Adjacency
         };
-        PathBuilder::new(&self.all_lanelets, self.numerics, rule)
+        PathBuilder::new(&self.all_lanelets, self.numerics, rule).with_centre_rule(self.centre)
     }
 
     fn set_paths(&mut self, paths: Vec<ReferencePath>) {

@@ -2,6 +2,8 @@
 //! `_get_reference_path`; recipe in the reference README, section 1, steps 2-6): own
 //! boundaries concatenated, centre line as their point-wise mean, loop test, shared (road)
 //! boundaries blended with an overlap of 4 where they do not connect, loops re-closed.
+//! On Lanelet2 maps the centre line is the lanelets' own (Lanelet2's) centre lines joined
+//! instead ([`CentreRule`]), since their boundaries need not have equal point counts.
 //! It knows nothing of any particular map's numbering.
 
 use std::collections::{HashMap, HashSet};
@@ -29,9 +31,20 @@ pub enum SharedRule<'a> {
     /// piece (right boundary of the group's last lanelet). Lanelets in no group fall back to
     /// [`SharedRule::Adjacency`].
     Groups(&'a [&'a [LaneletId]]),
-    /// The outermost same-direction neighbours: follow `adjacent_left` (same direction) to the
-    /// leftmost lanelet and `adjacent_right` to the rightmost one.
+    /// The outermost same-direction neighbours a vehicle may change to: follow
+    /// `adjacent_left` (same direction, lane change not forbidden) to the leftmost lanelet and
+    /// `adjacent_right` to the rightmost one.
     Adjacency,
+}
+
+/// How a path's centre line is made from its lanelets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CentreRule {
+    /// SigmaRL's: the point-wise mean of the concatenated own boundaries (which must then have
+    /// the same number of points).
+    PointwiseMean,
+    /// The lanelets' centre lines joined (Lanelet2 maps, whose centre lines are Lanelet2's).
+    LaneletCentreLines,
 }
 
 /// The lanelets of a map, looked up by id, and how paths are computed on them.
@@ -40,16 +53,24 @@ pub struct PathBuilder<'a> {
     lanelets: HashMap<LaneletId, &'a Lanelet>,
     numerics: Numerics,
     shared: SharedRule<'a>,
+    centre: CentreRule,
 }
 
 impl<'a> PathBuilder<'a> {
-    /// A builder over `lanelets`.
+    /// A builder over `lanelets` (centre lines as SigmaRL's point-wise mean).
     pub fn new(lanelets: &'a [Lanelet], numerics: Numerics, shared: SharedRule<'a>) -> Self {
         Self {
             lanelets: lanelets.iter().map(|l| (l.id, l)).collect(),
             numerics,
             shared,
+            centre: CentreRule::PointwiseMean,
         }
+    }
+
+    /// The same builder with centre lines made by `centre`.
+    pub fn with_centre_rule(mut self, centre: CentreRule) -> Self {
+        self.centre = centre;
+        self
     }
 
     /// Builds path `id` through `lanelet_ids`, checking that each lanelet is a successor of the
@@ -84,23 +105,30 @@ impl<'a> PathBuilder<'a> {
         let mut right: Vec<Point> = Vec::new();
         let mut left_shared: Vec<Point> = Vec::new();
         let mut right_shared: Vec<Point> = Vec::new();
+        let mut joined_centre: Vec<Point> = Vec::new();
         for lanelet in &lanelets {
             let (left_of, right_of) = self.shared_sources(lanelet);
             append(n, &mut left, &lanelet.left_boundary.points, false);
             append(n, &mut right, &lanelet.right_boundary.points, false);
             append(n, &mut left_shared, &left_of.left_boundary.points, true);
             append(n, &mut right_shared, &right_of.right_boundary.points, true);
+            if self.centre == CentreRule::LaneletCentreLines {
+                append(n, &mut joined_centre, &lanelet.center_line.points, false);
+            }
         }
 
         // Centre line and loop test (steps 3 and 4).
-        if left.len() != right.len() {
-            return Err(PathError::BoundaryMismatch {
-                id,
-                left: left.len(),
-                right: right.len(),
-            });
-        }
-        let center: Vec<Point> = left.iter().zip(&right).map(|(&l, &r)| n.mean(l, r)).collect();
+        let center: Vec<Point> = match self.centre {
+            CentreRule::LaneletCentreLines => joined_centre,
+            CentreRule::PointwiseMean if left.len() != right.len() => {
+                return Err(PathError::BoundaryMismatch {
+                    id,
+                    left: left.len(),
+                    right: right.len(),
+                });
+            }
+            CentreRule::PointwiseMean => left.iter().zip(&right).map(|(&l, &r)| n.mean(l, r)).collect(),
+        };
         let is_loop = match (center.first(), center.last()) {
             (Some(&a), Some(&b)) => n.distance(a, b) <= LOOP_TOLERANCE_M,
             _ => false,
@@ -149,7 +177,11 @@ impl<'a> PathBuilder<'a> {
         let mut seen = HashSet::from([lanelet.id]);
         while let Some(adj) = next(current) {
             match self.lanelets.get(&adj.id) {
-                Some(&l) if adj.direction == DrivingDirection::Same && seen.insert(l.id) => {
+                Some(&l)
+                    if adj.direction == DrivingDirection::Same
+                        && adj.lane_change != Some(false)
+                        && seen.insert(l.id) =>
+                {
                     current = l;
                 }
                 _ => break,

@@ -83,7 +83,11 @@ fn the_example_map_loads_with_lanelet2_semantics() {
 
     // What is not read is said.
     let notes = map.notes().join("\n");
-    for what in ["regulatory elements", "areas (multipolygon)", "not for cars"] {
+    for what in [
+        "regulatory elements",
+        "areas (multipolygon)",
+        "a vehicle may not pass",
+    ] {
         assert!(notes.contains(what), "{notes}");
     }
 

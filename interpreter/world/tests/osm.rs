@@ -13,7 +13,11 @@ fn reads_lanelets_topology_and_paths() {
 
     let a = map.lanelet(100).expect("100");
     assert_eq!(a.left_boundary.points, vec![[0.0, 0.15], [1.0, 0.15]]);
-    assert_eq!(a.center_line.points, vec![[0.0, 0.075], [1.0, 0.075]]);
+    // Lanelet2's centre line advances one bound at a time (the left first on ties).
+    assert_eq!(
+        a.center_line.points,
+        vec![[0.0, 0.075], [0.5, 0.075], [1.0, 0.075]]
+    );
     assert_eq!(a.successors, vec![101]);
     assert_eq!(a.left_line_marking.as_deref(), Some("solid"));
     assert_eq!(a.right_line_marking.as_deref(), Some("dashed"));
@@ -22,26 +26,28 @@ fn reads_lanelets_topology_and_paths() {
         Some(Adjacent {
             id,
             direction: DrivingDirection::Same,
+            lane_change: Some(true),
         })
     };
     assert_eq!(a.adjacent_right, same(102));
     assert_eq!(map.lanelet(102).expect("102").adjacent_left, same(100));
 
-    // Way 13 runs backwards and has 3 nodes: reversed, and the left boundary resampled.
+    // Way 13 runs backwards and has 3 nodes: driven inverted (it lies right of the left
+    // way); the left boundary keeps its 2 nodes.
     let b = map.lanelet(101).expect("101");
     assert_eq!(b.predecessors, vec![100]);
     assert_eq!(b.right_boundary.points, vec![[1.0, 0.0], [1.5, 0.0], [2.0, 0.0]]);
-    assert_eq!(
-        b.left_boundary.points,
-        vec![[1.0, 0.15], [1.5, 0.15], [2.0, 0.15]]
-    );
+    assert_eq!(b.left_boundary.points, vec![[1.0, 0.15], [2.0, 0.15]]);
+    assert_eq!(b.center_line.len(), 4);
 
     // Generic numbering: chains from lanelets without predecessors, by id.
     assert_eq!(map.valid_path_ids(), vec![0, 1]);
     let p0 = map.reference_path(0).expect("path 0");
     assert_eq!(p0.lanelet_ids, vec![100, 101]);
     assert!(!p0.is_loop);
-    assert_eq!(p0.center_line.len(), 4);
+    // The lanelets' centre lines joined (3 + 4 points, the joint once).
+    assert_eq!(p0.center_line.len(), 6);
+    assert!((p0.center_line.length_m() - 2.0).abs() < 1e-12);
     // The road of 100 includes 102 to its right.
     assert_eq!(p0.right_boundary_shared.points[0], [0.0, -0.15]);
     assert_eq!(map.reference_path(1).expect("path 1").lanelet_ids, vec![102]);
@@ -58,10 +64,10 @@ fn projects_lat_lon_without_local_tags() {
     </osm>"#;
     let map = Map::from_str(text, MapFormat::Auto).expect("loads");
     let l = map.lanelet(5).expect("5");
+    // Node 2 as lanelet2 1.2.3's `UtmProjector(Origin(49.999998, 6.0))` projects it.
     let [x, y] = l.left_boundary.points[1];
-    let expected_x = 6_378_137.0 * 1e-5f64.to_radians() * 49.999999f64.to_radians().cos();
-    assert!((x - expected_x).abs() < 1e-6, "{x} vs {expected_x}");
-    assert!((y - 6_378_137.0 * 2e-6f64.to_radians()).abs() < 1e-6, "{y}");
+    assert!((x - 0.725_425_867).abs() < 1e-6, "{x}");
+    assert!((y - 0.193_551_173).abs() < 1e-6, "{y}");
 }
 
 #[test]

@@ -285,27 +285,28 @@ fn josm_map_with_negative_ids_and_lanelet2_semantics() {
     assert_eq!(map.lanelet(-10).expect("-10").successors, vec![-11]);
     assert_eq!(map.lanelet(back).expect("back").successors, Vec::<i64>::new());
     assert_eq!(map.lanelet(back).expect("back").predecessors, Vec::<i64>::new());
-    // The lat/lon projection: 0.0001 deg of longitude at 49 deg north, 0.00003 deg of latitude.
+    // Lat/lon projected as lanelet2's `UtmProjector` at the south-west corner (lat 48.99999,
+    // lon 8.4) projects them: nodes -4 and -5 (lanelet -10's left bound), as lanelet2 1.2.3
+    // gives them.
     let l = map.lanelet(-10).expect("-10");
-    // South-west corner: lat 48.99999, lon 8.4; middle latitude 49.000015.
-    let east_m = 6_378_137.0 * 0.0001_f64.to_radians() * 49.000_015_f64.to_radians().cos();
-    assert!(
-        (l.left_boundary.points[1][0] - east_m).abs() < 1e-6,
-        "{:?}",
-        l.left_boundary
-    );
-    let north_m = 6_378_137.0 * 0.00004_f64.to_radians();
-    assert!(
-        (l.left_boundary.points[0][1] - north_m).abs() < 1e-6,
-        "{:?}",
-        l.left_boundary
-    );
+    for (got, want) in l
+        .left_boundary
+        .points
+        .iter()
+        .zip([[0.035_143_924, 4.446_576_536], [7.349_336_677, 4.388_772_945]])
+    {
+        assert!(
+            (got[0] - want[0]).abs() < 1e-6 && (got[1] - want[1]).abs() < 1e-6,
+            "{:?}",
+            l.left_boundary
+        );
+    }
     // Paths: the chain -10 -> -11, then the reverse on its own.
     let paths: Vec<Vec<i64>> = map.reference_paths().map(|p| p.lanelet_ids.clone()).collect();
     assert_eq!(paths, vec![vec![-10, -11], vec![back]]);
     let notes = map.notes().join("\n");
     for what in [
-        "1 lanelets not for cars skipped (crosswalks, walkways, bicycle or bus lanes): -12",
+        "1 lanelets a vehicle may not pass skipped (Lanelet2's German rules: crosswalks, walkways, bicycle or bus lanes): -12",
         "1 two-way lanelets",
         "1 regulatory elements",
         "1 regulatory_element members",
