@@ -15,10 +15,9 @@ use cpmx_world::ReferencePath;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha20Rng;
 
-const REFERENCE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/reference");
 
 fn paths() -> Vec<ReferencePath> {
-    sigmarl_intersection_paths(&PathBuf::from(format!("{REFERENCE}/maps/cpm.xml"))).expect("map")
+    sigmarl_intersection_paths(&cpmx_testdata::reference_file("maps/cpm.xml")).expect("map")
 }
 
 const PAPER_PLANNER: PlannerParams = PlannerParams {
