@@ -5,7 +5,7 @@
 
 mod support;
 
-use support::{cpmx_in as cpmx, root, temp, walk};
+use support::{cpmx_in as cpmx, temp, walk};
 
 use std::path::{Path, PathBuf};
 

@@ -106,7 +106,7 @@ fn every_spec_fragment_in_the_docs_fits_a_spec() {
                 continue;
             }
             let base = block.marker("base").unwrap_or(DEFAULT_BASE);
-            let parse = |text: &str, what: &str| -> Option<Value> {
+            let mut parse = |text: &str, what: &str| -> Option<Value> {
                 serde_saphyr::from_str::<Value>(text)
                     .map_err(|e| failures.push(format!("{at}: {what} is not YAML: {e}")))
                     .ok()
@@ -157,6 +157,16 @@ fn every_command_in_the_docs_runs_or_parses() {
                 continue;
             }
             let expected: Option<i32> = block.marker("exit").map(|c| c.parse().expect("exit: N"));
+            if console
+                && let Some((i, first)) = block.body.lines().enumerate().find(|(_, l)| !l.trim().is_empty())
+                && !first.starts_with("$ ")
+            {
+                failures.push(format!(
+                    "{}:{}: a console block starts with `$ COMMAND`, not `{first}`",
+                    page.name,
+                    block.line + 1 + i
+                ));
+            }
             for command in shell::commands(&block.body, block.line + 1, console) {
                 let at = format!("{}:{}", page.name, command.line);
                 let program = command.program();
@@ -237,7 +247,15 @@ fn every_cpmx_command_named_in_the_text_parses() {
             let words: Vec<&str> = code.split_whitespace().collect();
             // A command's name alone (`cpmx run`, `cpmx lab emulate`) is checked as a synopsis.
             let name_only = words.len() <= if words.get(1) == Some(&"lab") { 3 } else { 2 };
-            let synopsis = name_only || code.contains('[') || code.contains('|') || code.contains("...");
+            let synopsis = name_only
+                || code.contains('[')
+                || code.contains('|')
+                || code.contains("...")
+                || words.iter().any(|w| is_placeholder(w));
+            if words.get(1).is_some_and(|w| is_placeholder(w)) {
+                // `cpmx ARGS`: cpmx with any arguments; nothing to check.
+                continue;
+            }
             if !synopsis {
                 parsed += 1;
                 let run = scratch.bash(&code, true);
@@ -258,7 +276,7 @@ fn every_cpmx_command_named_in_the_text_parses() {
                 continue;
             }
             for flag in words.iter().filter_map(|w| flag_of(w)) {
-                if !help.stdout.contains(&format!("{flag} ")) && !help.stdout.contains(&format!("{flag}=")) {
+                if !help.output.contains(&format!("{flag} ")) && !help.output.contains(&format!("{flag}=")) {
                     failures.push(format!("{at}: `cpmx {}` has no flag {flag}", sub.join(" ")));
                 }
             }
@@ -342,6 +360,17 @@ fn is_run(block: &Block, command: &str) -> bool {
         None => false,
         Some(prefix) => !command.starts_with(prefix.as_str()),
     })
+}
+
+/// Whether a synopsis word is a placeholder: `SPEC`, `DIR...`, `N`, `RECORDING.csv`,
+/// `stdlib:NAME`, `K/N` (its upper-case part names what the reader puts there).
+fn is_placeholder(word: &str) -> bool {
+    let word = word.trim_matches(['[', ']', '(', ')', '.', ',']);
+    let word = word.rsplit(['=', ':']).next().unwrap_or_default();
+    let stem = word.split('.').next().unwrap_or_default();
+    !stem.starts_with('-')
+        && stem.chars().any(|c| c.is_ascii_uppercase())
+        && stem.chars().all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_' || c == '/')
 }
 
 /// The flag of a synopsis word: `--out` of `[--out`, `--only` of `--only=a`.
@@ -467,13 +496,13 @@ struct Scratch {
 /// What a command did.
 struct Ran {
     code: Option<i32>,
-    stdout: String,
-    stderr: String,
+    /// Its standard output and error in the order it wrote them, as a terminal shows them.
+    output: String,
 }
 
 impl Ran {
     fn both(&self) -> String {
-        format!("{}{}", self.stdout, self.stderr)
+        self.output.clone()
     }
 }
 
@@ -505,7 +534,8 @@ impl Scratch {
     /// argument parser.
     fn bash(&self, command: &str, parse_only: bool) -> Ran {
         let path = format!("{}:{}", self.bin.display(), std::env::var("PATH").unwrap_or_default());
-        let (out, err) = (self.repo.join("../stdout"), self.repo.join("../stderr"));
+        let out = self.repo.join("../output");
+        let file = std::fs::File::create(&out).unwrap();
         let mut child = std::process::Command::new("bash")
             .args(["-c", command])
             .current_dir(&self.repo)
@@ -514,8 +544,8 @@ impl Scratch {
             .env_remove("CPMX_DATA")
             .env("CPMX_PARSE_ONLY", if parse_only { "1" } else { "0" })
             .stdin(Stdio::null())
-            .stdout(std::fs::File::create(&out).unwrap())
-            .stderr(std::fs::File::create(&err).unwrap())
+            .stdout(file.try_clone().unwrap())
+            .stderr(file)
             .spawn()
             .expect("bash runs");
         let deadline = Instant::now() + COMMAND_BUDGET;
@@ -532,8 +562,7 @@ impl Scratch {
         };
         Ran {
             code: status.and_then(|s| s.code()),
-            stdout: std::fs::read_to_string(out).unwrap_or_default(),
-            stderr: std::fs::read_to_string(err).unwrap_or_default(),
+            output: std::fs::read_to_string(out).unwrap_or_default(),
         }
     }
 }
@@ -549,5 +578,15 @@ fn copy_dir(from: &Path, to: &Path) {
         } else {
             std::fs::copy(&path, &target).unwrap();
         }
+    }
+}
+
+#[test]
+fn placeholders_make_a_synopsis() {
+    for word in ["SPEC", "DIR...", "N]", "RECORDING.csv", "stdlib:NAME", "K/N]", "ARGS"] {
+        assert!(is_placeholder(word), "{word}");
+    }
+    for word in ["--out", "seed=1,3", "experiments/at25.yaml", "fidelity=sim-mpc", "run", "1"] {
+        assert!(!is_placeholder(word), "{word}");
     }
 }

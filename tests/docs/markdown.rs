@@ -109,7 +109,10 @@ impl Page {
                 _ if !text.trim().is_empty() => paragraphs.push((line, text.to_owned())),
                 _ => {}
             }
-            last = line;
+            // A blank line ends the paragraph: the next line is not `last + 1`.
+            if !text.trim().is_empty() {
+                last = line;
+            }
         }
         let mut out = Vec::new();
         for (first, paragraph) in paragraphs {

@@ -3,7 +3,6 @@
 //! the shaping terms SigmaRL's training reward lacks (speed, centre line) follow their
 //! definitions.
 
-use std::path::PathBuf;
 
 use cpmx_env::{CentreLineTerm, EnvConfig, SpeedTerm, StepResult, VecEnv, sigmarl_intersection_paths};
 use cpmx_world::ReferencePath;

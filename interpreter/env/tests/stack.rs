@@ -3,7 +3,6 @@
 //! results on any number of threads, and a saved state restores by replay to exactly the same
 //! continuation.
 
-use std::path::PathBuf;
 
 use cpmx_env::{EnvConfig, Plant, StackPlant, StepResult, VecEnv, sigmarl_intersection_paths};
 use cpmx_planner::{PlannerParams, SteeringAfterHc};
