@@ -19,6 +19,16 @@ pub fn reference() -> PathBuf {
     cpmx_testdata::reference()
 }
 
+/// The first line of a failure that may come from missing reference data: the line naming the
+/// folder when it is not there, nothing when it is.
+pub fn reference_note() -> String {
+    if cpmx_testdata::reference_available() {
+        String::new()
+    } else {
+        format!("{}\n", cpmx_testdata::missing(&cpmx_testdata::reference_dir()))
+    }
+}
+
 /// The Python interpreter of the test venv (`CPMX_PYTHON`, set by `scripts/test`), or `None`
 /// after saying on stderr that the calling test is skipped; with `CPMX_REQUIRE_PYTHON=1` a
 /// missing interpreter fails the test instead.
