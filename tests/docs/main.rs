@@ -172,19 +172,16 @@ fn every_command_in_the_docs_runs_or_parses() {
                 let program = command.program();
                 let first = program.first().copied().unwrap_or_default();
                 if !is_run(&block, &command.text) {
+                    // What a command that is not run names in the repository exists.
+                    for missing in missing_repository_files(&command.text) {
+                        failures.push(format!("{at}: `{missing}` does not exist"));
+                    }
                     if command.runs_cpmx() {
                         parsed += 1;
                         let text = command.text.trim_end_matches('&').trim_end();
                         let run = scratch.bash(text, true);
                         if run.code != Some(0) {
                             failures.push(format!("{at}: cpmx does not parse `{text}`:\n{}", run.both()));
-                        }
-                        for spec in command.text.split_whitespace().filter(|w| w.ends_with(".yaml")) {
-                            if (spec.starts_with("experiments/") || spec.starts_with("examples/"))
-                                && !scratch.repo.join(spec).is_file()
-                            {
-                                failures.push(format!("{at}: `{spec}` does not exist"));
-                            }
                         }
                     } else if first == "cargo" {
                         cargo += 1;
@@ -352,6 +349,20 @@ fn every_link_in_the_docs_resolves() {
     }
     eprintln!("docs: {links} links followed");
     report(&failures, false);
+}
+
+/// The files of the repository a command names (`experiments/…`, `examples/…`, `scripts/…`,
+/// `python/…`, `docs/…`) that do not exist.
+fn missing_repository_files(command: &str) -> Vec<String> {
+    const FOLDERS: [&str; 6] = ["experiments/", "examples/", "scripts/", "python/", "docs/", "tests/"];
+    command
+        .split_whitespace()
+        .map(|w| w.trim_matches(['\'', '"']))
+        .map(|w| w.split_once('=').map_or(w, |(_, value)| value))
+        .filter(|w| FOLDERS.iter().any(|f| w.starts_with(f)) && !w.contains('*'))
+        .filter(|w| !root().join(w).exists())
+        .map(str::to_owned)
+        .collect()
 }
 
 /// Whether a command of `block` runs (no `not run` marker covers it).
