@@ -17,6 +17,7 @@ use std::fmt::Write as _;
 
 use cpmx_recording::Recording;
 use cpmx_report::{Metric, RunRecord, Summary, distribution_svg};
+use cpmx_spec::model::GroupKey;
 use cpmx_vehicle::VehicleParams;
 use cpmx_world::Map;
 
@@ -104,16 +105,32 @@ pub fn report_html(page: &Page<'_>) -> String {
 
     // Distributions, and the training's learning curves.
     out.push_str("<section id=\"distributions\"><h2>Metric distributions</h2><div class=\"panels\">\n");
+    let policies = data::distinct(page.runs.iter().map(|run| &run.record.plan.policy));
     for metric in Metric::ALL {
-        out.push_str("<figure>");
-        out.push_str(&distribution_svg(page.summary, metric));
-        out.push_str("</figure>\n");
+        let svg = distribution_svg(page.summary, metric);
+        // A drawing much wider than a column (many groups) takes a row of its own.
+        let width_px = svg_width_px(&svg).unwrap_or(0.0);
+        let _ = write!(
+            out,
+            "<figure class=\"panel{}\" style=\"--natural-width: {width_px}px\">",
+            if width_px > 600.0 { " wide" } else { "" }
+        );
+        out.push_str(&svg);
+        let _ = writeln!(
+            out,
+            "<figcaption>{}</figcaption></figure>",
+            tables::escape(&distribution_caption(page.summary, metric, &policies))
+        );
     }
     out.push_str("</div></section>\n");
     if !page.learning_curves.is_empty() {
-        out.push_str(
-            "<section id=\"training\"><h2>Training</h2><p>episode_reward_mean per iteration.</p>\
-             <canvas id=\"learning-curves\" width=\"900\" height=\"360\"></canvas></section>\n",
+        let names: Vec<&str> = page.learning_curves.iter().map(|c| c.name.as_str()).collect();
+        let _ = writeln!(
+            out,
+            "<section id=\"training\"><h2>Training</h2><div class=\"panels\"><figure class=\"panel wide\">\
+             <canvas id=\"learning-curves\" style=\"aspect-ratio: 2.5\"></canvas><figcaption>episode_reward_mean per \
+             iteration of the policies this folder trained: {}</figcaption></figure></div></section>",
+            tables::escape(&names.join(", "))
         );
     }
 
@@ -124,4 +141,40 @@ pub fn report_html(page: &Page<'_>) -> String {
         "<script id=\"cpmx-data\" type=\"application/json\">{json}</script>\n<script>\n{SCRIPT}</script>\n</body>\n</html>\n"
     );
     out
+}
+
+/// The caption of a distribution: what a column is, and which policies it shows.
+fn distribution_caption(summary: &Summary, metric: Metric, policies: &[&str]) -> String {
+    let axes: Vec<&str> = summary
+        .group_by
+        .iter()
+        .map(|axis| match axis {
+            GroupKey::Fidelity => "fidelity",
+            GroupKey::Policy => "policy",
+            GroupKey::InitialConfiguration => "initial configuration",
+        })
+        .collect();
+    let list = policies.join(", ");
+    let which = if policies.is_empty() {
+        "No runs yet.".to_owned()
+    } else if summary.group_by.contains(&GroupKey::Policy) {
+        format!("A column per policy: {list}.")
+    } else if policies.len() == 1 {
+        format!("Policy {list}.")
+    } else {
+        format!("Each column pools the policies {list}.")
+    };
+    format!(
+        "{} of every run, a column per row of the summary ({}). {which}",
+        metric.label(),
+        axes.join(" · ")
+    )
+}
+
+/// The `width` of an SVG's root element [px].
+fn svg_width_px(svg: &str) -> Option<f64> {
+    let tag = &svg[svg.find("<svg")?..];
+    let tag = &tag[..tag.find('>')?];
+    let start = tag.find(" width=\"")? + " width=\"".len();
+    tag[start..start + tag[start..].find('"')?].parse().ok()
 }

@@ -9,8 +9,10 @@ use crate::Summary;
 use crate::metric::Metric;
 use crate::table::fixed;
 
-/// Width of one group's column [px].
+/// Width of one group's column [px], at least: columns widen to fill the drawing.
 const COLUMN_PX: f64 = 110.0;
+/// The narrowest drawing [px] (about the width a page shows it at, so text keeps its size).
+const MIN_WIDTH_PX: f64 = 420.0;
 /// Height of the value axis [px].
 const PLOT_PX: f64 = 240.0;
 /// Space left of the axis for tick labels [px].
@@ -25,7 +27,9 @@ const LEGEND: &str = "dots: runs; solid: mean; dashed: IQM";
 /// The SVG of `metric`'s per-run values in every group of `summary`.
 pub fn distribution_svg(summary: &Summary, metric: Metric) -> String {
     let axis = Axis::of(summary, metric);
-    let width_px = (LEFT_PX + COLUMN_PX * summary.groups.len().max(1) as f64 + 20.0).max(300.0);
+    let columns = summary.groups.len().max(1) as f64;
+    let width_px = (LEFT_PX + COLUMN_PX * columns + 20.0).max(MIN_WIDTH_PX);
+    let column_px = (width_px - LEFT_PX - 20.0) / columns;
     let mut out = open(width_px, TOP_PX + PLOT_PX + BOTTOM_PX);
     let title = format!(
         "{} {} [{}]",
@@ -51,7 +55,7 @@ pub fn distribution_svg(summary: &Summary, metric: Metric) -> String {
         let Some(m) = group.metric(metric) else {
             continue;
         };
-        let centre_px = LEFT_PX + COLUMN_PX * (index as f64 + 0.5);
+        let centre_px = LEFT_PX + column_px * (index as f64 + 0.5);
         let _ = writeln!(
             out,
             "<g class=\"group\" data-group=\"{}\">",
@@ -126,8 +130,9 @@ struct Axis {
 }
 
 impl Axis {
-    /// The range of every finite value of `metric`, padded by 5 % (a constant or missing
-    /// sample gets a small range around it).
+    /// The range of every finite value of `metric`, padded by 5 %. A constant metric gets
+    /// the range from zero to its value (a metric that is zero everywhere, or has no defined
+    /// value, gets [0, 1]): a flat sample shows as flat, at its true size.
     fn of(summary: &Summary, metric: Metric) -> Axis {
         let values = summary
             .groups
@@ -138,14 +143,22 @@ impl Axis {
         let (low, high) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
             (l.min(v), h.max(v))
         });
-        if low > high {
-            return Axis { low: 0.0, high: 1.0 };
-        }
-        let pad = if high > low {
-            0.05 * (high - low)
+        Axis::around(low, high)
+    }
+
+    /// The axis of values from `low` to `high` (`low > high`: no value).
+    fn around(low: f64, high: f64) -> Axis {
+        let (low, high) = if low > high {
+            (0.0, 1.0)
+        } else if low == high {
+            match low {
+                0.0 => (0.0, 1.0),
+                v => (v.min(0.0), v.max(0.0)),
+            }
         } else {
-            (0.1 * low.abs()).max(1e-3)
+            (low, high)
         };
+        let pad = 0.05 * (high - low);
         Axis {
             low: low - pad,
             high: high + pad,
@@ -209,6 +222,25 @@ mod tests {
     fn jitter_stays_in_its_lane() {
         assert!((0..100).map(jitter).all(|j| (-0.5..0.5).contains(&j)));
         assert_eq!(jitter(0), -0.5);
+    }
+
+    #[test]
+    fn constant_metrics_get_an_axis_of_their_size() {
+        let range = |low, high| {
+            let a = Axis::around(low, high);
+            (a.low, a.high)
+        };
+        // Zero everywhere, and no value at all: [0, 1] (padded).
+        assert_eq!(range(0.0, 0.0), (-0.05, 1.05));
+        assert_eq!(range(f64::INFINITY, f64::NEG_INFINITY), (-0.05, 1.05));
+        // A constant: from zero to it.
+        let (low, high) = range(0.4, 0.4);
+        assert!((low + 0.02).abs() < 1e-12 && (high - 0.42).abs() < 1e-12, "{low} {high}");
+        let (low, high) = range(-2.0, -2.0);
+        assert!((low + 2.1).abs() < 1e-12 && (high - 0.1).abs() < 1e-12, "{low} {high}");
+        // Varying values: their range, padded.
+        let (low, high) = range(1.0, 3.0);
+        assert!((low - 0.9).abs() < 1e-12 && (high - 3.1).abs() < 1e-12);
     }
 
     #[test]

@@ -1,7 +1,9 @@
 //! Plots as hand-written SVG text: the map with each agent's trajectory, and the per-run
 //! distribution of a metric per group.
 //!
-//! This module owns the SVG helpers (number format, colours, escaping). Coordinates are
+//! This module owns the SVG helpers (number format, colours, escaping). Agents and groups
+//! take Okabe–Ito's colour-blind-safe colours; events (collisions, lane violations) are
+//! drawn in black and grey, which no agent takes. Coordinates are
 //! written with one decimal of a pixel, so the bytes are stable; no fonts are embedded
 //! (text uses the viewer's sans-serif).
 
@@ -11,11 +13,16 @@ mod trajectory;
 pub use distribution::distribution_svg;
 pub use trajectory::trajectory_svg;
 
-/// Agent colours (the Tableau 10 palette), cycled.
-const PALETTE: [&str; 10] = [
-    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
-    "#17becf",
+/// Agent and group colours: Okabe–Ito's without black (as `cpmx-env`'s `render.rs` draws
+/// agents), distinguishable with every common colour-vision deficiency; cycled.
+const PALETTE: [&str; 7] = [
+    "#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442",
 ];
+
+/// The ink of collision marks (no agent's colour).
+const COLLISION_INK: &str = "#000000";
+/// The ink of lane-violation marks (no agent's colour).
+const VIOLATION_INK: &str = "#404040";
 
 /// The colour of agent or group `index`.
 fn colour(index: usize) -> &'static str {
@@ -94,7 +101,8 @@ mod tests {
         assert_eq!(px(12.345), "12.3");
         assert_eq!(path_data([(0.0, 1.0), (2.0, 3.0)]), "M0.0 1.0 L2.0 3.0");
         assert_eq!(escape("a<b & \"c\""), "a&lt;b &amp; &quot;c&quot;");
-        assert_eq!(colour(11), colour(1));
+        assert_eq!(colour(8), colour(1));
+        assert!(!PALETTE.contains(&COLLISION_INK) && !PALETTE.contains(&VIOLATION_INK));
     }
 
     #[test]
