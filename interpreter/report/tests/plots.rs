@@ -69,8 +69,32 @@ fn trajectory_plot_has_one_path_per_agent_and_marks_events() {
     let doc = roxmltree::Document::parse(&svg).unwrap();
     assert_eq!(count(&doc, "path", "trajectory"), 3);
     assert_eq!(count(&doc, "circle", "start"), 3);
+    // Events in inks no agent takes, unfilled or translucent: they hide no trajectory.
     assert_eq!(count(&doc, "polygon", "collision"), 2);
-    assert_eq!(count(&doc, "polygon", "violation"), 1);
+    assert_eq!(count(&doc, "path", "collision-mark"), 1);
+    assert_eq!(count(&doc, "circle", "violation"), 1);
+    assert_eq!(count(&doc, "path", "violation-band"), 1);
+    let agent_inks: Vec<&str> = doc
+        .descendants()
+        .filter(|n| n.attribute("class") == Some("trajectory"))
+        .filter_map(|n| n.attribute("stroke"))
+        .collect();
+    for class in ["collision", "collision-mark", "violation", "violation-band"] {
+        for mark in doc.descendants().filter(|n| n.attribute("class") == Some(class)) {
+            assert!(matches!(mark.attribute("fill"), None | Some("none")), "{class} is not filled");
+            let ink = mark.attribute("stroke").unwrap();
+            assert!(!agent_inks.contains(&ink), "{class} drawn in an agent's colour {ink}");
+        }
+    }
+    // The trajectories are drawn over the bands, the crosses and rings over the trajectories.
+    let position = |class: &str| {
+        doc.descendants()
+            .position(|n| n.attribute("class") == Some(class))
+            .unwrap()
+    };
+    assert!(position("violation-band") < position("trajectory"));
+    assert!(position("trajectory") < position("collision-mark"));
+    assert!(position("trajectory") < position("violation"));
     assert_eq!(count(&doc, "path", "ref-path"), 3);
     let lanelets = doc
         .descendants()
@@ -104,7 +128,8 @@ fn out_of_range_event_samples_are_skipped() {
     let svg = trajectory_svg(&map, &recording, &metrics, &VehicleParams::MU_CAR);
     let doc = roxmltree::Document::parse(&svg).unwrap();
     assert_eq!(count(&doc, "polygon", "collision"), 0);
-    assert_eq!(count(&doc, "polygon", "violation"), 0);
+    assert_eq!(count(&doc, "circle", "violation"), 0);
+    assert_eq!(count(&doc, "path", "violation-band"), 0);
 }
 
 #[test]
@@ -153,4 +178,33 @@ fn distribution_plot_of_nothing_is_still_svg() {
     let doc = roxmltree::Document::parse(&svg).unwrap();
     assert_eq!(count(&doc, "circle", "run"), 0);
     assert_eq!(count(&doc, "line", "mean"), 0);
+}
+
+#[test]
+fn a_metric_zero_everywhere_gets_an_axis_from_zero_to_one_and_says_so() {
+    let zeros = vec![
+        common::record("sim", "p", "i", 1, [0.0; 4], 0.0),
+        common::record("sim", "p", "i", 2, [0.0; 4], 0.0),
+    ];
+    let summary = summarize(
+        "zeros",
+        &zeros,
+        &common::report(&[GroupKey::Fidelity]),
+        &Origins::default(),
+    );
+    let svg = distribution_svg(&summary, Metric::CraA);
+    let doc = roxmltree::Document::parse(&svg).unwrap();
+    let ticks: Vec<f64> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("text") && n.attribute("text-anchor") == Some("end"))
+        .filter(|n| n.attribute("class").is_none())
+        .filter_map(|n| n.text()?.parse().ok())
+        .collect();
+    assert_eq!(ticks.first(), Some(&0.0), "{ticks:?}");
+    assert_eq!(ticks.last(), Some(&1.0), "{ticks:?}");
+    let constant = doc
+        .descendants()
+        .find(|n| n.attribute("class") == Some("constant"))
+        .expect("the value written");
+    assert_eq!(constant.text(), Some("every run: 0.00"));
 }

@@ -24,7 +24,9 @@ const BOTTOM_PX: f64 = 50.0;
 /// The legend line under the title.
 const LEGEND: &str = "dots: runs; solid: mean; dashed: IQM";
 
-/// The SVG of `metric`'s per-run values in every group of `summary`.
+/// The SVG of `metric`'s per-run values in every group of `summary`. A metric with one value
+/// in every run (zero everywhere, say) is drawn on an axis from zero to that value (0 to 1
+/// for zero) and the value is written beside the legend.
 pub fn distribution_svg(summary: &Summary, metric: Metric) -> String {
     let axis = Axis::of(summary, metric);
     let columns = summary.groups.len().max(1) as f64;
@@ -49,6 +51,15 @@ pub fn distribution_svg(summary: &Summary, metric: Metric) -> String {
         "<text x=\"{}\" y=\"34\" font-size=\"10\">{LEGEND}</text>",
         px(LEFT_PX)
     );
+    if let Some(value) = axis.constant {
+        let _ = writeln!(
+            out,
+            "<text class=\"constant\" x=\"{}\" y=\"34\" text-anchor=\"end\" font-size=\"11\" font-weight=\"bold\">\
+             every run: {}</text>",
+            px(width_px - 20.0),
+            fixed(value, metric.decimals())
+        );
+    }
     value_axis(&mut out, &axis, width_px);
 
     for (index, group) in summary.groups.iter().enumerate() {
@@ -127,6 +138,8 @@ fn jitter(j: usize) -> f64 {
 struct Axis {
     low: f64,
     high: f64,
+    /// The one value of every run, when there is exactly one.
+    constant: Option<f64>,
 }
 
 impl Axis {
@@ -148,6 +161,7 @@ impl Axis {
 
     /// The axis of values from `low` to `high` (`low > high`: no value).
     fn around(low: f64, high: f64) -> Axis {
+        let constant = (low == high).then_some(low);
         let (low, high) = if low > high {
             (0.0, 1.0)
         } else if low == high {
@@ -162,6 +176,7 @@ impl Axis {
         Axis {
             low: low - pad,
             high: high + pad,
+            constant,
         }
     }
 
@@ -241,6 +256,9 @@ mod tests {
         // Varying values: their range, padded.
         let (low, high) = range(1.0, 3.0);
         assert!((low - 0.9).abs() < 1e-12 && (high - 3.1).abs() < 1e-12);
+        assert_eq!(Axis::around(0.0, 0.0).constant, Some(0.0));
+        assert_eq!(Axis::around(1.0, 3.0).constant, None);
+        assert_eq!(Axis::around(f64::INFINITY, f64::NEG_INFINITY).constant, None);
     }
 
     #[test]

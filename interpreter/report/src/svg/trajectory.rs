@@ -36,7 +36,9 @@ pub fn trajectory_svg(
 ) -> String {
     // Put the states in the metrics' frame and time grid.
     let states = metric_states(recording, metrics);
-    let frame = Frame::new(map, &states);
+    let mut frame = Frame::new(map, &states);
+    let lines = legend_lines(recording.agent_count(), frame.width_px - 2.0 * MARGIN_PX);
+    frame.lower_by(LEGEND_LINE_PX * (lines.len() - 1) as f64);
     let mut out = open(frame.width_px, frame.height_px);
     let _ = writeln!(
         out,
@@ -146,7 +148,7 @@ pub fn trajectory_svg(
             );
         }
     }
-    legend(&mut out, recording.agent_count());
+    legend(&mut out, &lines);
     scale_bar(&mut out, &frame);
     out.push_str("</svg>\n");
     out
@@ -239,63 +241,109 @@ fn outline(
     Some(frame.to_px(s.x_m, s.y_m))
 }
 
-/// The legend in the top margin: each agent's colour (up to the palette's length), then the
-/// event marks.
-fn legend(out: &mut String, agents: usize) {
-    // Sans-serif at 11 px: about 6 px a character.
-    let text_px = |text: &str| 6.0 * text.chars().count() as f64;
-    let y = MARGIN_PX / 2.0 + 2.0;
-    let mut x = MARGIN_PX;
-    out.push_str("<g class=\"legend\" font-size=\"11\">\n");
-    for agent in 0..agents.min(PALETTE.len()) {
-        let label = format!("agent {agent}");
-        let _ = writeln!(
-            out,
-            "<path d=\"M{} {y0} L{} {y0}\" stroke=\"{}\" stroke-width=\"3\"/><text x=\"{}\" y=\"{y1}\">{label}</text>",
-            px(x),
-            px(x + 14.0),
-            colour(agent),
-            px(x + 18.0),
-            y0 = px(y),
-            y1 = px(y + 4.0)
-        );
-        x += 18.0 + text_px(&label) + 12.0;
+/// Height of one line of the legend [px].
+const LEGEND_LINE_PX: f64 = 16.0;
+
+/// A mark the legend explains.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Entry {
+    Agent(usize),
+    Violation,
+    Collision,
+}
+
+impl Entry {
+    fn label(self) -> String {
+        match self {
+            Entry::Agent(agent) => format!("agent {agent}"),
+            Entry::Violation => "lane violation (band: its stretch)".into(),
+            Entry::Collision => "collision (vehicles outlined)".into(),
+        }
     }
-    let violation = "lane violation (band: its stretch)";
-    let _ = writeln!(
-        out,
-        "<path d=\"M{} {y0} L{} {y0}\" stroke=\"{VIOLATION_INK}\" stroke-opacity=\"0.25\" stroke-width=\"7\" stroke-linecap=\"round\"/>\
-         <circle cx=\"{}\" cy=\"{y0}\" r=\"5\" fill=\"none\" stroke=\"{VIOLATION_INK}\" stroke-width=\"1.5\"/>\
-         <text x=\"{}\" y=\"{y1}\">{violation}</text>",
-        px(x + 4.0),
-        px(x + 20.0),
-        px(x + 4.0),
-        px(x + 28.0),
-        y0 = px(y),
-        y1 = px(y + 4.0)
-    );
-    x += 28.0 + text_px(violation) + 12.0;
-    let _ = writeln!(
-        out,
-        "<path d=\"M{} {} L{} {} M{} {} L{} {}\" stroke=\"{COLLISION_INK}\" stroke-width=\"2.5\"/>\
-         <text x=\"{}\" y=\"{}\">collision (vehicles outlined)</text>",
-        px(x),
-        px(y - 5.0),
-        px(x + 10.0),
-        px(y + 5.0),
-        px(x),
-        px(y + 5.0),
-        px(x + 10.0),
-        px(y - 5.0),
-        px(x + 16.0),
-        px(y + 4.0)
-    );
+
+    /// Its width on a line [px]: a 20 px icon, the label (sans-serif at 11 px, about 6 px a
+    /// character) and a gap.
+    fn width_px(self) -> f64 {
+        28.0 + 6.0 * self.label().chars().count() as f64 + 12.0
+    }
+
+    /// The icon, 20 px wide from `x`, centred on `y`, and the label.
+    fn draw(self, out: &mut String, x: f64, y: f64) {
+        let (y0, ty) = (px(y), px(y + 4.0));
+        let _ = match self {
+            Entry::Agent(agent) => write!(
+                out,
+                "<path d=\"M{} {y0} L{} {y0}\" stroke=\"{}\" stroke-width=\"3\"/>",
+                px(x + 2.0),
+                px(x + 18.0),
+                colour(agent)
+            ),
+            Entry::Violation => write!(
+                out,
+                "<path d=\"M{} {y0} L{} {y0}\" stroke=\"{VIOLATION_INK}\" stroke-opacity=\"0.25\" stroke-width=\"7\" \
+                 stroke-linecap=\"round\"/><circle cx=\"{}\" cy=\"{y0}\" r=\"5\" fill=\"none\" stroke=\"{VIOLATION_INK}\" \
+                 stroke-width=\"1.5\"/>",
+                px(x + 4.0),
+                px(x + 18.0),
+                px(x + 5.0)
+            ),
+            Entry::Collision => write!(
+                out,
+                "<path d=\"M{} {} L{} {} M{} {} L{} {}\" stroke=\"{COLLISION_INK}\" stroke-width=\"2.5\"/>",
+                px(x + 5.0),
+                px(y - 5.0),
+                px(x + 15.0),
+                px(y + 5.0),
+                px(x + 5.0),
+                px(y + 5.0),
+                px(x + 15.0),
+                px(y - 5.0)
+            ),
+        };
+        let _ = writeln!(out, "<text x=\"{}\" y=\"{ty}\">{}</text>", px(x + 24.0), self.label());
+    }
+}
+
+/// The legend's entries (each agent's colour, up to the palette's length, then the event
+/// marks) in lines no wider than `width_px`.
+fn legend_lines(agents: usize, width_px: f64) -> Vec<Vec<Entry>> {
+    let entries = (0..agents.min(PALETTE.len()))
+        .map(Entry::Agent)
+        .chain([Entry::Violation, Entry::Collision]);
+    let mut lines: Vec<Vec<Entry>> = vec![Vec::new()];
+    let mut used_px = 0.0;
+    for entry in entries {
+        let line = lines.last_mut().expect("a line");
+        if !line.is_empty() && used_px + entry.width_px() > width_px {
+            lines.push(vec![entry]);
+            used_px = entry.width_px();
+        } else {
+            line.push(entry);
+            used_px += entry.width_px();
+        }
+    }
+    lines
+}
+
+/// The legend in the top margin, one line under another.
+fn legend(out: &mut String, lines: &[Vec<Entry>]) {
+    out.push_str("<g class=\"legend\" font-size=\"11\">\n");
+    for (n, line) in lines.iter().enumerate() {
+        let y = MARGIN_PX / 2.0 + 2.0 + n as f64 * LEGEND_LINE_PX;
+        let mut x = MARGIN_PX;
+        for &entry in line {
+            entry.draw(out, x, y);
+            x += entry.width_px();
+        }
+    }
     out.push_str("</g>\n");
 }
 
 /// Map metres to SVG pixels, y up, scaled to fit the largest drawing.
 struct Frame {
     bounds: Bounds,
+    /// The top margin (the legend's lines) [px].
+    top_px: f64,
     scale_px_per_m: f64,
     width_px: f64,
     height_px: f64,
@@ -320,16 +368,23 @@ impl Frame {
             ((MAX_WIDTH_PX - 2.0 * MARGIN_PX) / width_m).min((MAX_HEIGHT_PX - 2.0 * MARGIN_PX) / height_m);
         Frame {
             bounds,
+            top_px: MARGIN_PX,
             scale_px_per_m,
             width_px: width_m * scale_px_per_m + 2.0 * MARGIN_PX,
             height_px: height_m * scale_px_per_m + 2.0 * MARGIN_PX,
         }
     }
 
+    /// Room for `extra_px` more of the top margin: the drawing moves down, the frame grows.
+    fn lower_by(&mut self, extra_px: f64) {
+        self.top_px += extra_px;
+        self.height_px += extra_px;
+    }
+
     fn to_px(&self, x_m: f64, y_m: f64) -> (f64, f64) {
         (
             MARGIN_PX + (x_m - self.bounds.min_x_m) * self.scale_px_per_m,
-            MARGIN_PX + (self.bounds.max_y_m - y_m) * self.scale_px_per_m,
+            self.top_px + (self.bounds.max_y_m - y_m) * self.scale_px_per_m,
         )
     }
 
