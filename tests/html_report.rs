@@ -168,6 +168,8 @@ struct Figure {
     left: i64,
     top: i64,
     width: i64,
+    /// The width of its canvas or SVG.
+    drawing: i64,
 }
 
 /// What the page measured of its layout in a `width_px` wide window at `scale` device pixels
@@ -178,6 +180,8 @@ struct Layout {
     overflow: i64,
     canvas_scale: f64,
     figures: Vec<Figure>,
+    /// The text of every figure's caption.
+    captions: Vec<String>,
 }
 
 fn layout(browser: &Path, page: &Path, width_px: u32, scale: u32) -> Layout {
@@ -208,7 +212,7 @@ fn layout(browser: &Path, page: &Path, width_px: u32, scale: u32) -> Layout {
         .split(';')
         .map(|figure| {
             let fields: Vec<&str> = figure.split(' ').collect();
-            let [section, left, top, width] = fields[..] else {
+            let [section, left, top, width, drawing] = fields[..] else {
                 panic!("a figure's measure: `{figure}`");
             };
             Figure {
@@ -216,10 +220,17 @@ fn layout(browser: &Path, page: &Path, width_px: u32, scale: u32) -> Layout {
                 left: left.parse().unwrap(),
                 top: top.parse().unwrap(),
                 width: width.parse().unwrap(),
+                drawing: drawing.parse().unwrap(),
             }
         })
         .collect();
+    let captions = dom
+        .split("<figcaption>")
+        .skip(1)
+        .map(|rest| rest[..rest.find("</figcaption>").unwrap_or(rest.len())].to_owned())
+        .collect();
     Layout {
+        captions,
         viewport: number("data-viewport-width") as i64,
         overflow: number("data-overflow-x") as i64,
         canvas_scale: number("data-canvas-scale"),
@@ -268,6 +279,7 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
     }
     for f in &wide.figures {
         assert!(f.width >= 400, "a figure {} px wide at 1,400 px: {f:?}", f.width);
+        assert!(f.drawing >= f.width - 40, "a drawing narrower than its figure: {f:?}");
     }
     let rows_wide = rows(&wide.figures);
     for section in sections {
@@ -292,6 +304,12 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
         wide.viewport
     );
 
+    // Every figure says whose runs it shows: the folder's one policy, by name.
+    assert_eq!(wide.captions.len(), wide.figures.len(), "{:?}", wide.captions);
+    for caption in &wide.captions {
+        assert!(caption.contains("baseline"), "a caption without its policy: {caption}");
+    }
+
     // A phone's 600 px: one figure a row, each nearly the page's width.
     let narrow = layout(&browser, &page, 600, 1);
     assert_eq!(narrow.viewport, 600, "the window's width");
@@ -304,6 +322,7 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
             "a figure {} px wide at 600 px: {f:?}",
             f.width
         );
+        assert!(f.drawing >= f.width - 40, "a drawing narrower than its figure: {f:?}");
     }
     assert!(
         rows(&narrow.figures).values().all(|row| row.len() == 1),

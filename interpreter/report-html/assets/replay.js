@@ -413,7 +413,8 @@
 
   // What a headless check reads back about the layout: the viewport's width, how far the page
   // overflows it sideways, the canvases' resolution (backing-store pixels per CSS pixel, the
-  // least of them) and every figure as "section left top width" (CSS pixels).
+  // least of them) and every figure as "section left top width drawing-width" (CSS pixels;
+  // the drawing is the figure's canvas or SVG).
   function measureLayout() {
     const root = document.documentElement;
     document.body.dataset.viewportWidth = String(root.clientWidth);
@@ -422,7 +423,10 @@
     document.body.dataset.canvasScale = scales.length ? Math.min(...scales).toFixed(2) : "0";
     document.body.dataset.figures = [...document.querySelectorAll("figure")].map((figure) => {
       const r = figure.getBoundingClientRect(), section = figure.closest("section");
-      return [section ? section.id : "", Math.round(r.left), Math.round(r.top + window.scrollY), Math.round(r.width)].join(" ");
+      const drawing = figure.querySelector("canvas, svg");
+      const drawn = drawing ? drawing.getBoundingClientRect().width : 0;
+      return [section ? section.id : "", Math.round(r.left), Math.round(r.top + window.scrollY), Math.round(r.width),
+        Math.round(drawn)].join(" ");
     }).join(";");
   }
 

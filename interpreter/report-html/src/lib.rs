@@ -92,14 +92,17 @@ pub fn report_html(page: &Page<'_>) -> String {
          <p>For each initial configuration: the setup with each agent's reference path, then per row of the summary \
          (fidelity and policy unless the spec pools) the run whose CD is closest to that row's mean (as the \
          paper chooses its Figure 3). \
-         Red: collision events; orange: lane violations.</p>\n<div id=\"figure3-body\"></div></section>\n\
+         Agents take colour-blind-safe colours (Okabe and Ito's); lane violations and collision events are marked \
+         in inks no agent takes, without hiding the trajectories.</p>\n\
+         <div id=\"figure3-legend\" class=\"legend\"></div>\n<div id=\"figure3-body\"></div></section>\n\
          <section id=\"replay\"><h2>Replay</h2>\n<p>The runs of one policy, initial configuration and \
          repetition in every fidelity, in sync (the paired design). Choose a run in the table below.</p>\n\
          <div class=\"controls\"><button id=\"play\" type=\"button\">Play</button>\
          <input id=\"scrub\" type=\"range\" min=\"0\" max=\"0\" value=\"0\" aria-label=\"time\">\
          <label>speed <select id=\"speed\"><option>0.5</option><option selected>1</option><option>2</option>\
          <option>4</option><option>8</option></select>×</label> <span id=\"clock\">t = 0.0 s</span>\
-         <span id=\"replay-title\"></span></div>\n<div id=\"replay-body\" class=\"panels\"></div></section>\n\
+         <span id=\"replay-title\"></span></div>\n<div id=\"replay-legend\" class=\"legend\"></div>\n\
+         <div id=\"replay-body\" class=\"panels\"></div></section>\n\
          <section id=\"runs\"><h2>Runs</h2><div id=\"runs-body\"></div></section>\n",
     );
 
@@ -177,4 +180,54 @@ fn svg_width_px(svg: &str) -> Option<f64> {
     let tag = &tag[..tag.find('>')?];
     let start = tag.find(" width=\"")? + " width=\"".len();
     tag[start..start + tag[start..].find('"')?].parse().ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The quoted `#RRGGBB` colours of the script's line that starts with `start`.
+    fn script_colours(start: &str) -> Vec<String> {
+        let line = SCRIPT
+            .lines()
+            .map(str::trim)
+            .find(|line| line.starts_with(start))
+            .unwrap_or_else(|| panic!("the script has `{start}`"));
+        line.split('"')
+            .filter(|part| part.starts_with('#'))
+            .map(str::to_uppercase)
+            .collect()
+    }
+
+    #[test]
+    fn the_script_draws_agents_and_events_in_the_plots_colours() {
+        let upper = |colours: &[&str]| colours.iter().map(|c| c.to_uppercase()).collect::<Vec<_>>();
+        let agents = script_colours("const COLOURS");
+        assert_eq!(agents, upper(&cpmx_report::AGENT_COLOURS));
+        let inks = script_colours("const COLLISION_INK");
+        assert_eq!(inks, upper(&[cpmx_report::COLLISION_INK, cpmx_report::VIOLATION_INK]));
+        assert!(inks.iter().all(|ink| !agents.contains(ink)), "no event ink is an agent's colour");
+    }
+
+    #[test]
+    fn distribution_captions_name_the_policies() {
+        use cpmx_spec::model::{Bootstrap, ReportSpec, Statistic};
+        let summary = |group_by| {
+            let report = ReportSpec {
+                group_by,
+                statistics: vec![Statistic::Mean],
+                bootstrap: Bootstrap { resamples: 10, seed: 1 },
+                compare: None,
+            };
+            cpmx_report::summarize("captions", &[], &report, &cpmx_report::Origins::default())
+        };
+        let by_policy = summary(vec![GroupKey::Fidelity, GroupKey::Policy]);
+        let pooled = summary(vec![GroupKey::Fidelity]);
+        let caption = distribution_caption(&by_policy, Metric::Cd, &["a", "b"]);
+        assert!(caption.ends_with("A column per policy: a, b."), "{caption}");
+        let caption = distribution_caption(&pooled, Metric::Cd, &["a", "b"]);
+        assert!(caption.ends_with("Each column pools the policies a, b."), "{caption}");
+        let caption = distribution_caption(&pooled, Metric::Cd, &["a"]);
+        assert!(caption.ends_with("Policy a."), "{caption}");
+    }
 }

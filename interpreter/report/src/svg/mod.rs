@@ -14,19 +14,20 @@ pub use distribution::distribution_svg;
 pub use trajectory::trajectory_svg;
 
 /// Agent and group colours: Okabe–Ito's without black (as `cpmx-env`'s `render.rs` draws
-/// agents), distinguishable with every common colour-vision deficiency; cycled.
-const PALETTE: [&str; 7] = [
+/// agents), distinguishable with every common colour-vision deficiency; cycled. `report.html`'s
+/// script draws agents in the same colours (a test of `cpmx-report-html` keeps them equal).
+pub const AGENT_COLOURS: [&str; 7] = [
     "#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442",
 ];
 
 /// The ink of collision marks (no agent's colour).
-const COLLISION_INK: &str = "#000000";
+pub const COLLISION_INK: &str = "#000000";
 /// The ink of lane-violation marks (no agent's colour).
-const VIOLATION_INK: &str = "#404040";
+pub const VIOLATION_INK: &str = "#404040";
 
 /// The colour of agent or group `index`.
 fn colour(index: usize) -> &'static str {
-    PALETTE[index % PALETTE.len()]
+    AGENT_COLOURS[index % AGENT_COLOURS.len()]
 }
 
 /// A pixel coordinate with one decimal (`-0.0` written as `0.0`).
@@ -102,7 +103,7 @@ mod tests {
         assert_eq!(path_data([(0.0, 1.0), (2.0, 3.0)]), "M0.0 1.0 L2.0 3.0");
         assert_eq!(escape("a<b & \"c\""), "a&lt;b &amp; &quot;c&quot;");
         assert_eq!(colour(8), colour(1));
-        assert!(!PALETTE.contains(&COLLISION_INK) && !PALETTE.contains(&VIOLATION_INK));
+        assert!(!AGENT_COLOURS.contains(&COLLISION_INK) && !AGENT_COLOURS.contains(&VIOLATION_INK));
     }
 
     #[test]

@@ -13,7 +13,7 @@ use cpmx_recording::{AgentSample, Recording};
 use cpmx_vehicle::{VehicleParams, footprint_corners};
 use cpmx_world::{Bounds, Map, Point};
 
-use super::{COLLISION_INK, PALETTE, VIOLATION_INK, colour, open, path_data, px};
+use super::{COLLISION_INK, AGENT_COLOURS, VIOLATION_INK, colour, open, path_data, px};
 
 /// The largest drawing [px]: any map, from the 4.5 m lab to a few hundred metres, is scaled
 /// to fit (keeping its aspect ratio), with a scale bar.
@@ -307,7 +307,7 @@ impl Entry {
 /// The legend's entries (each agent's colour, up to the palette's length, then the event
 /// marks) in lines no wider than `width_px`.
 fn legend_lines(agents: usize, width_px: f64) -> Vec<Vec<Entry>> {
-    let entries = (0..agents.min(PALETTE.len()))
+    let entries = (0..agents.min(AGENT_COLOURS.len()))
         .map(Entry::Agent)
         .chain([Entry::Violation, Entry::Collision]);
     let mut lines: Vec<Vec<Entry>> = vec![Vec::new()];
