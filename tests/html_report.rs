@@ -199,8 +199,16 @@ fn layout(browser: &Path, page: &Path, width_px: u32, scale: u32) -> Layout {
         ],
     );
     let dom = String::from_utf8_lossy(&dom.stdout).into_owned();
-    assert_eq!(body_attribute(&dom, "data-ready").as_deref(), Some("1"), "{dom:.2000}");
-    assert_eq!(body_attribute(&dom, "data-errors"), None, "script errors: {dom:.2000}");
+    assert_eq!(
+        body_attribute(&dom, "data-ready").as_deref(),
+        Some("1"),
+        "{dom:.2000}"
+    );
+    assert_eq!(
+        body_attribute(&dom, "data-errors"),
+        None,
+        "script errors: {dom:.2000}"
+    );
     let number = |name: &str| -> f64 {
         body_attribute(&dom, name)
             .unwrap_or_else(|| panic!("the page wrote {name}"))
@@ -268,7 +276,11 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
     let wide = layout(&browser, &page, 1400, 2);
     assert_eq!(wide.viewport, 1400, "the window's width");
     assert_eq!(wide.overflow, 0, "nothing wider than the window");
-    assert!(wide.canvas_scale >= 1.99, "canvases drawn at 2 px per CSS px: {}", wide.canvas_scale);
+    assert!(
+        wide.canvas_scale >= 1.99,
+        "canvases drawn at 2 px per CSS px: {}",
+        wide.canvas_scale
+    );
     let sections = ["figure3", "replay", "distributions"];
     for section in sections {
         assert!(
@@ -279,7 +291,10 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
     }
     for f in &wide.figures {
         assert!(f.width >= 400, "a figure {} px wide at 1,400 px: {f:?}", f.width);
-        assert!(f.drawing >= f.width - 40, "a drawing narrower than its figure: {f:?}");
+        assert!(
+            f.drawing >= f.width - 40,
+            "a drawing narrower than its figure: {f:?}"
+        );
     }
     let rows_wide = rows(&wide.figures);
     for section in sections {
@@ -287,7 +302,10 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
             .iter()
             .filter(|((s, _), row)| *s == section && row.len() >= 2)
             .count();
-        assert!(shared >= 1, "no two figures of {section} share a row: {rows_wide:?}");
+        assert!(
+            shared >= 1,
+            "no two figures of {section} share a row: {rows_wide:?}"
+        );
     }
     let widest = rows_wide
         .values()
@@ -307,7 +325,10 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
     // Every figure says whose runs it shows: the folder's one policy, by name.
     assert_eq!(wide.captions.len(), wide.figures.len(), "{:?}", wide.captions);
     for caption in &wide.captions {
-        assert!(caption.contains("baseline"), "a caption without its policy: {caption}");
+        assert!(
+            caption.contains("baseline"),
+            "a caption without its policy: {caption}"
+        );
     }
 
     // A phone's 600 px: one figure a row, each nearly the page's width.
@@ -322,7 +343,10 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
             "a figure {} px wide at 600 px: {f:?}",
             f.width
         );
-        assert!(f.drawing >= f.width - 40, "a drawing narrower than its figure: {f:?}");
+        assert!(
+            f.drawing >= f.width - 40,
+            "a drawing narrower than its figure: {f:?}"
+        );
     }
     assert!(
         rows(&narrow.figures).values().all(|row| row.len() == 1),

@@ -154,7 +154,11 @@ fn figure3(runs: &[PageRun<'_>], summary: &cpmx_report::Summary) -> Vec<Value> {
         .map(|configuration| {
             let of_configuration = |i: &usize| runs[*i].record.plan.initial_configuration == configuration;
             let setup = (0..runs.len()).find(of_configuration);
-            let policies = distinct((0..runs.len()).filter(of_configuration).map(|i| &runs[i].record.plan.policy));
+            let policies = distinct(
+                (0..runs.len())
+                    .filter(of_configuration)
+                    .map(|i| &runs[i].record.plan.policy),
+            );
             let representatives: Vec<Value> = summary
                 .groups
                 .iter()

@@ -205,8 +205,14 @@ mod tests {
         let agents = script_colours("const COLOURS");
         assert_eq!(agents, upper(&cpmx_report::AGENT_COLOURS));
         let inks = script_colours("const COLLISION_INK");
-        assert_eq!(inks, upper(&[cpmx_report::COLLISION_INK, cpmx_report::VIOLATION_INK]));
-        assert!(inks.iter().all(|ink| !agents.contains(ink)), "no event ink is an agent's colour");
+        assert_eq!(
+            inks,
+            upper(&[cpmx_report::COLLISION_INK, cpmx_report::VIOLATION_INK])
+        );
+        assert!(
+            inks.iter().all(|ink| !agents.contains(ink)),
+            "no event ink is an agent's colour"
+        );
     }
 
     #[test]
@@ -216,7 +222,10 @@ mod tests {
             let report = ReportSpec {
                 group_by,
                 statistics: vec![Statistic::Mean],
-                bootstrap: Bootstrap { resamples: 10, seed: 1 },
+                bootstrap: Bootstrap {
+                    resamples: 10,
+                    seed: 1,
+                },
                 compare: None,
             };
             cpmx_report::summarize("captions", &[], &report, &cpmx_report::Origins::default())
@@ -226,7 +235,10 @@ mod tests {
         let caption = distribution_caption(&by_policy, Metric::Cd, &["a", "b"]);
         assert!(caption.ends_with("A column per policy: a, b."), "{caption}");
         let caption = distribution_caption(&pooled, Metric::Cd, &["a", "b"]);
-        assert!(caption.ends_with("Each column pools the policies a, b."), "{caption}");
+        assert!(
+            caption.ends_with("Each column pools the policies a, b."),
+            "{caption}"
+        );
         let caption = distribution_caption(&pooled, Metric::Cd, &["a"]);
         assert!(caption.ends_with("Policy a."), "{caption}");
     }

@@ -81,9 +81,15 @@ fn trajectory_plot_has_one_path_per_agent_and_marks_events() {
         .collect();
     for class in ["collision", "collision-mark", "violation", "violation-band"] {
         for mark in doc.descendants().filter(|n| n.attribute("class") == Some(class)) {
-            assert!(matches!(mark.attribute("fill"), None | Some("none")), "{class} is not filled");
+            assert!(
+                matches!(mark.attribute("fill"), None | Some("none")),
+                "{class} is not filled"
+            );
             let ink = mark.attribute("stroke").unwrap();
-            assert!(!agent_inks.contains(&ink), "{class} drawn in an agent's colour {ink}");
+            assert!(
+                !agent_inks.contains(&ink),
+                "{class} drawn in an agent's colour {ink}"
+            );
         }
     }
     // The trajectories are drawn over the bands, the crosses and rings over the trajectories.

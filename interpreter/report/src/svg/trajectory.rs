@@ -13,7 +13,7 @@ use cpmx_recording::{AgentSample, Recording};
 use cpmx_vehicle::{VehicleParams, footprint_corners};
 use cpmx_world::{Bounds, Map, Point};
 
-use super::{COLLISION_INK, AGENT_COLOURS, VIOLATION_INK, colour, open, path_data, px};
+use super::{AGENT_COLOURS, COLLISION_INK, VIOLATION_INK, colour, open, path_data, px};
 
 /// The largest drawing [px]: any map, from the 4.5 m lab to a few hundred metres, is scaled
 /// to fit (keeping its aspect ratio), with a scale bar.
@@ -300,7 +300,12 @@ impl Entry {
                 px(y - 5.0)
             ),
         };
-        let _ = writeln!(out, "<text x=\"{}\" y=\"{ty}\">{}</text>", px(x + 24.0), self.label());
+        let _ = writeln!(
+            out,
+            "<text x=\"{}\" y=\"{ty}\">{}</text>",
+            px(x + 24.0),
+            self.label()
+        );
     }
 }
 
