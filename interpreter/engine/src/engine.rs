@@ -82,6 +82,18 @@ impl RunInputs<'_> {
         Ok(AgentPaths::new(paths))
     }
 
+    /// What the agents know of each other through the fidelity's `communication` and
+    /// `perception` layers, drawing from the run's streams of those names.
+    pub fn neighbour_knowledge(&self) -> cpmx_sensing::NeighbourKnowledge {
+        let fidelity = self.fidelity;
+        cpmx_stack::neighbour_knowledge(
+            self.starts.len(),
+            fidelity.and_then(|f| f.communication.as_ref()),
+            fidelity.and_then(|f| f.perception.as_ref()),
+            |name| stream_key(self.plan.seed, name),
+        )
+    }
+
     /// How the run's policy acts (`action: sample` or the mean) and its `policy` stream.
     fn action_mode(&self, sample: bool) -> (cpmx_policy::ActionMode, ChaCha20Rng) {
         let mode = if sample {

@@ -195,7 +195,8 @@ pub fn run_matrix(
     let plans = selected_plans(checked, request)?;
 
     // Refuse fidelities this build cannot run before doing anything.
-    for (name, fidelity) in &checked.spec.fidelities {
+    for (name, point) in &checked.fidelity_points {
+        let fidelity = &point.fidelity;
         if plans.iter().any(|p| &p.fidelity == name)
             && let Err(e) = cpmx_engine::engine_for(name, fidelity)
         {
