@@ -498,3 +498,40 @@ fn training_in_the_labs_control_architecture_is_deterministic_and_its_actors_run
         }
     }
 }
+
+#[test]
+fn a_policy_not_trained_yet_refuses_its_runs_and_lets_the_others_run() {
+    let dir = scratch("train-not-yet");
+    let spec = small_spec(&dir, 2);
+    let text = std::fs::read_to_string(&spec).unwrap().replace(
+        "policies:\n",
+        "policies:\n  - {name: baseline, builtin: lane-follow}\n",
+    );
+    std::fs::write(&spec, text).unwrap();
+    let run = |only: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_cpmx"))
+            .args([
+                "run",
+                spec.to_str().unwrap(),
+                "--out",
+                dir.join("run").to_str().unwrap(),
+            ])
+            .args(only)
+            .arg("--data")
+            .arg(reference())
+            .env_remove("CPMX_DATA")
+            .output()
+            .expect("cpmx runs")
+    };
+    let refused = run(&[]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("policy `trained` names the actor trained with seed 7, which was not found"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("--only policy="), "{stderr}");
+    assert!(!dir.join("run").exists(), "nothing is written for a refused run");
+    let table = ok(&run(&["--only", "policy=baseline"]));
+    assert!(table.contains("baseline"), "{table}");
+}

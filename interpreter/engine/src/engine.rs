@@ -29,6 +29,10 @@ pub enum RunError {
          with cpmx.run(spec, policies={{\"{0}\": callable}})"
     )]
     Unbound(String),
+    #[error(
+        "policy `{policy}` names the actor trained with seed {seed}, which was not found: run `cpmx train` first"
+    )]
+    NotTrained { policy: String, seed: u64 },
     #[error("the spec has no initial configuration `{0}`")]
     UnknownConfiguration(String),
     #[error("fidelity `{0}` cannot run in this build: {1}")]
@@ -159,6 +163,12 @@ impl RunInputs<'_> {
                     .clone()
                     .ok_or_else(|| RunError::Unbound(self.plan.policy.clone()))?;
                 Box::new(ExternalPolicy::new(decider, *observation))
+            }
+            PreparedPolicy::NotTrained { seed } => {
+                return Err(RunError::NotTrained {
+                    policy: self.plan.policy.clone(),
+                    seed: *seed,
+                });
             }
             PreparedPolicy::LaneFollow(p) => Box::new(LaneFollow::new(LaneFollowParams {
                 target_speed_mps: p.target_speed,

@@ -78,6 +78,11 @@ pub enum PreparedPolicy {
         decider: Option<Arc<dyn cpmx_policy::Decider>>,
     },
     LaneFollow(cpmx_spec::model::LaneFollowParams),
+    /// An `mlp: {trained}` policy whose actor is not there yet: the experiment still prepares
+    /// (so runs of the other policies can go ahead), and a run of this one fails saying so.
+    NotTrained {
+        seed: u64,
+    },
 }
 
 /// Everything a run needs that does not depend on the run.
@@ -168,7 +173,10 @@ impl Experiment {
         let vehicle = vehicle_params(&spec.vehicle);
         let mut policies = Vec::new();
         for (policy, weights) in spec.policies.iter().zip(&checked.resources.weights) {
-            let mut prepared = prepare_policy(policy, weights.as_deref())?;
+            let mut prepared = match prepare_policy(policy, weights.as_deref()) {
+                Err(PrepareError::NotTrained { seed, .. }) => PreparedPolicy::NotTrained { seed },
+                other => other?,
+            };
             if let PreparedPolicy::Process { dir, .. } = &mut prepared {
                 dir.clone_from(&checked.resources.spec_dir);
             }
@@ -228,6 +236,17 @@ impl Experiment {
             .iter()
             .filter(|(_, p)| matches!(p, PreparedPolicy::External { decider: None, .. }))
             .map(|(n, _)| n.as_str())
+            .collect()
+    }
+
+    /// The `mlp: {trained}` policies whose actors are not there yet, with their seeds.
+    pub fn not_trained(&self) -> Vec<(&str, u64)> {
+        self.policies
+            .iter()
+            .filter_map(|(n, p)| match p {
+                PreparedPolicy::NotTrained { seed } => Some((n.as_str(), *seed)),
+                _ => None,
+            })
             .collect()
     }
 

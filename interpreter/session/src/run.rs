@@ -227,6 +227,20 @@ pub fn run_matrix(
             )),
         });
     }
+    if let Some((policy, seed)) = experiment
+        .not_trained()
+        .into_iter()
+        .find(|(name, _)| plans.iter().any(|p| p.policy == *name))
+    {
+        return Err(RunError::Invalid {
+            message: format!(
+                "policy `{policy}` names the actor trained with seed {seed}, which was not found"
+            ),
+            help: Some(format!(
+                "run `cpmx train` first, or leave it out with `--only policy=...` (the other policies than `{policy}`)"
+            )),
+        });
+    }
     let out = request
         .out
         .clone()
