@@ -5,7 +5,11 @@
 # unsharded `cpmx train` gives, and the spec's `mlp: {trained}` policies find their actors in it.
 #
 #   sbatch --array=1-6 examples/slurm/train-array-job.sh experiments/at25.yaml out/at25-train
-#   # requeued or preempted tasks continue where they stopped (--resume)
+#   # requeued or preempted tasks continue where they stopped (--resume); add
+#   # --open-mode=append to keep the log of the first attempt
+#
+# The data path reaches the tasks as CPMX_DATA (sbatch exports the environment):
+#   CPMX_DATA=path/to/reference sbatch --array=1-6 ...
 #
 #SBATCH --job-name=cpmx-train
 #SBATCH --cpus-per-task=2
