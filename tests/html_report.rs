@@ -40,16 +40,23 @@ fn browser() -> Option<PathBuf> {
 }
 
 /// The run folder of `examples/sim-to-twin.yaml` (built-in intersection, one policy, three
-/// fidelities), written once for all tests of this file into the target's temporary folder,
-/// where its page and the screenshots stay for people to look at.
+/// fidelities) with the twin's actuation delay swept over three values (so the page has
+/// sensitivity curves), written once for all tests of this file into the target's temporary
+/// folder, where its page and the screenshots stay for people to look at.
 fn folder() -> &'static Path {
     static FOLDER: OnceLock<PathBuf> = OnceLock::new();
     FOLDER.get_or_init(|| {
         let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("html-report");
         let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let example = std::fs::read_to_string(root().join("examples/sim-to-twin.yaml")).unwrap();
+        let swept = example.replace("actuation: {delay_ms: 80}", "actuation: {delay_ms: {sweep: [40, 80, 120]}}");
+        assert_ne!(swept, example, "the example's twin has an actuation delay");
+        let spec = dir.join("sim-to-twin-swept.yaml");
+        std::fs::write(&spec, swept).unwrap();
         let out = dir.join("out");
         let run = Command::new(env!("CARGO_BIN_EXE_cpmx"))
-            .args(["run", "examples/sim-to-twin.yaml", "--out", out.to_str().unwrap()])
+            .args(["run", spec.to_str().unwrap(), "--out", out.to_str().unwrap()])
             .current_dir(root())
             .output()
             .unwrap();
@@ -281,7 +288,7 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
         "canvases drawn at 2 px per CSS px: {}",
         wide.canvas_scale
     );
-    let sections = ["figure3", "replay", "distributions"];
+    let sections = ["figure3", "replay", "sensitivity", "distributions"];
     for section in sections {
         assert!(
             wide.figures.iter().filter(|f| f.section == section).count() >= 2,

@@ -1,23 +1,27 @@
 //! The run folder's `report.html`: one self-contained page (no network, no CDN; it works from
 //! `file://` and as a CI artefact) with the summary tables, the paper's Figure 3 for every
 //! initial configuration, replays of any run with the runs of the other fidelities side by
-//! side in sync, the metric distributions and the learning curves of a training.
+//! side in sync, the sensitivity curves of sweeps, the metric distributions and the learning
+//! curves of a training. Figures share a grid that uses the page's width (three a row on a
+//! wide screen, one on a phone), and every caption names the policies its figure shows.
 //!
 //! Modules: `data` (the JSON the page draws from: map, runs decimated for display, Figure 3's
-//! choices; snapshot-tested), `tables` (the summary as HTML tables). The page's style and
-//! script are `assets/page.css` and `assets/replay.js`, embedded at build time.
+//! choices; snapshot-tested), `tables` (the summary as HTML tables), `figures` (the SVG
+//! figures and their captions). The page's style and script are `assets/page.css` and
+//! `assets/replay.js` (the canvases: Figure 3, replays, learning curves), embedded at build
+//! time.
 //!
 //! Like every renderer of cpmx this crate reads no file and runs no engine: the caller hands
 //! it the summary, the map and the recordings. The output is a pure function of them.
 
 mod data;
+mod figures;
 mod tables;
 
 use std::fmt::Write as _;
 
 use cpmx_recording::Recording;
-use cpmx_report::{Metric, RunRecord, Summary, distribution_svg};
-use cpmx_spec::model::GroupKey;
+use cpmx_report::{RunRecord, Summary};
 use cpmx_vehicle::VehicleParams;
 use cpmx_world::Map;
 
@@ -64,16 +68,22 @@ pub fn report_html(page: &Page<'_>) -> String {
     );
 
     // The header and the table of contents.
+    let sensitivity = cpmx_report::sensitivity_svgs(page.summary);
     let units: usize = page.summary.groups.iter().map(|g| g.units).sum();
     let _ = writeln!(
         out,
         "<header><h1>{name}</h1>{}<p class=\"counts\">{} runs ({units} independent units), written by cpmx</p>\
          <nav><a href=\"#summary\">Summary</a> · <a href=\"#figure3\">Initial configurations</a> · \
-         <a href=\"#replay\">Replay</a> · <a href=\"#runs\">Runs</a> · <a href=\"#distributions\">Distributions</a>{}</nav></header>",
+         <a href=\"#replay\">Replay</a> · <a href=\"#runs\">Runs</a> · {}<a href=\"#distributions\">Distributions</a>{}</nav></header>",
         page.description
             .map(|d| format!("<p>{}</p>", tables::escape(d)))
             .unwrap_or_default(),
         page.runs.len(),
+        if sensitivity.is_empty() {
+            ""
+        } else {
+            "<a href=\"#sensitivity\">Sensitivity</a> · "
+        },
         if page.learning_curves.is_empty() {
             ""
         } else {
@@ -106,26 +116,9 @@ pub fn report_html(page: &Page<'_>) -> String {
          <section id=\"runs\"><h2>Runs</h2><div id=\"runs-body\"></div></section>\n",
     );
 
-    // Distributions, and the training's learning curves.
-    out.push_str("<section id=\"distributions\"><h2>Metric distributions</h2><div class=\"panels\">\n");
-    let policies = data::distinct(page.runs.iter().map(|run| &run.record.plan.policy));
-    for metric in Metric::ALL {
-        let svg = distribution_svg(page.summary, metric);
-        // A drawing much wider than a column (many groups) takes a row of its own.
-        let width_px = svg_width_px(&svg).unwrap_or(0.0);
-        let _ = write!(
-            out,
-            "<figure class=\"panel{}\" style=\"--natural-width: {width_px}px\">",
-            if width_px > 600.0 { " wide" } else { "" }
-        );
-        out.push_str(&svg);
-        let _ = writeln!(
-            out,
-            "<figcaption>{}</figcaption></figure>",
-            tables::escape(&distribution_caption(page.summary, metric, &policies))
-        );
-    }
-    out.push_str("</div></section>\n");
+    // The sensitivity curves of sweeps, the distributions, and the training's learning curves.
+    figures::sensitivity(&mut out, page.summary, &page.runs, &sensitivity);
+    figures::distributions(&mut out, page.summary, &page.runs);
     if !page.learning_curves.is_empty() {
         let names: Vec<&str> = page.learning_curves.iter().map(|c| c.name.as_str()).collect();
         let _ = writeln!(
@@ -144,42 +137,6 @@ pub fn report_html(page: &Page<'_>) -> String {
         "<script id=\"cpmx-data\" type=\"application/json\">{json}</script>\n<script>\n{SCRIPT}</script>\n</body>\n</html>\n"
     );
     out
-}
-
-/// The caption of a distribution: what a column is, and which policies it shows.
-fn distribution_caption(summary: &Summary, metric: Metric, policies: &[&str]) -> String {
-    let axes: Vec<&str> = summary
-        .group_by
-        .iter()
-        .map(|axis| match axis {
-            GroupKey::Fidelity => "fidelity",
-            GroupKey::Policy => "policy",
-            GroupKey::InitialConfiguration => "initial configuration",
-        })
-        .collect();
-    let list = policies.join(", ");
-    let which = if policies.is_empty() {
-        "No runs yet.".to_owned()
-    } else if summary.group_by.contains(&GroupKey::Policy) {
-        format!("A column per policy: {list}.")
-    } else if policies.len() == 1 {
-        format!("Policy {list}.")
-    } else {
-        format!("Each column pools the policies {list}.")
-    };
-    format!(
-        "{} of every run, a column per row of the summary ({}). {which}",
-        metric.label(),
-        axes.join(" · ")
-    )
-}
-
-/// The `width` of an SVG's root element [px].
-fn svg_width_px(svg: &str) -> Option<f64> {
-    let tag = &svg[svg.find("<svg")?..];
-    let tag = &tag[..tag.find('>')?];
-    let start = tag.find(" width=\"")? + " width=\"".len();
-    tag[start..start + tag[start..].find('"')?].parse().ok()
 }
 
 #[cfg(test)]
@@ -213,33 +170,5 @@ mod tests {
             inks.iter().all(|ink| !agents.contains(ink)),
             "no event ink is an agent's colour"
         );
-    }
-
-    #[test]
-    fn distribution_captions_name_the_policies() {
-        use cpmx_spec::model::{Bootstrap, ReportSpec, Statistic};
-        let summary = |group_by| {
-            let report = ReportSpec {
-                group_by,
-                statistics: vec![Statistic::Mean],
-                bootstrap: Bootstrap {
-                    resamples: 10,
-                    seed: 1,
-                },
-                compare: None,
-            };
-            cpmx_report::summarize("captions", &[], &report, &cpmx_report::Origins::default())
-        };
-        let by_policy = summary(vec![GroupKey::Fidelity, GroupKey::Policy]);
-        let pooled = summary(vec![GroupKey::Fidelity]);
-        let caption = distribution_caption(&by_policy, Metric::Cd, &["a", "b"]);
-        assert!(caption.ends_with("A column per policy: a, b."), "{caption}");
-        let caption = distribution_caption(&pooled, Metric::Cd, &["a", "b"]);
-        assert!(
-            caption.ends_with("Each column pools the policies a, b."),
-            "{caption}"
-        );
-        let caption = distribution_caption(&pooled, Metric::Cd, &["a"]);
-        assert!(caption.ends_with("Policy a."), "{caption}");
     }
 }

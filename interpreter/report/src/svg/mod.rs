@@ -1,16 +1,20 @@
-//! Plots as hand-written SVG text: the map with each agent's trajectory, and the per-run
-//! distribution of a metric per group.
+//! Plots as hand-written SVG text: the map with each agent's trajectory (`trajectory`), the
+//! per-run distribution of a metric per group (`distribution`), a metric against a swept
+//! parameter (`sensitivity`), and their value axis (`axis`).
 //!
-//! This module owns the SVG helpers (number format, colours, escaping). Agents and groups
-//! take Okabe–Ito's colour-blind-safe colours; events (collisions, lane violations) are
-//! drawn in black and grey, which no agent takes. Coordinates are
-//! written with one decimal of a pixel, so the bytes are stable; no fonts are embedded
-//! (text uses the viewer's sans-serif).
+//! This module owns the SVG helpers (number format, colours, escaping). Agents, groups and
+//! lines take Okabe–Ito's colour-blind-safe colours; events (collisions, lane violations) are
+//! drawn in black and grey, which no agent takes. Every drawing has a `viewBox`, so a page
+//! scales it to any width. Coordinates are written with one decimal of a pixel, so the bytes
+//! are stable; no fonts are embedded (text uses the viewer's sans-serif).
 
+mod axis;
 mod distribution;
+mod sensitivity;
 mod trajectory;
 
 pub use distribution::distribution_svg;
+pub use sensitivity::{SensitivityPlot, sensitivity_svgs};
 pub use trajectory::trajectory_svg;
 
 /// Agent and group colours: Okabe–Ito's without black (as `cpmx-env`'s `render.rs` draws
