@@ -50,7 +50,10 @@ fn folder() -> &'static Path {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         let example = std::fs::read_to_string(root().join("examples/sim-to-twin.yaml")).unwrap();
-        let swept = example.replace("actuation: {delay_ms: 80}", "actuation: {delay_ms: {sweep: [40, 80, 120]}}");
+        let swept = example.replace(
+            "actuation: {delay_ms: 80}",
+            "actuation: {delay_ms: {sweep: [40, 80, 120]}}",
+        );
         assert_ne!(swept, example, "the example's twin has an actuation delay");
         let spec = dir.join("sim-to-twin-swept.yaml");
         std::fs::write(&spec, swept).unwrap();
@@ -303,8 +306,10 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
             "a drawing narrower than its figure: {f:?}"
         );
     }
+    // Figures share rows (two or three a row); a figure alone in its row is a wide one (two
+    // columns or more: a distribution of many groups) or the last of its section.
     let rows_wide = rows(&wide.figures);
-    for section in sections {
+    for section in ["figure3", "replay", "sensitivity"] {
         let shared = rows_wide
             .iter()
             .filter(|((s, _), row)| *s == section && row.len() >= 2)
@@ -312,6 +317,16 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
         assert!(
             shared >= 1,
             "no two figures of {section} share a row: {rows_wide:?}"
+        );
+    }
+    for ((section, top), row) in &rows_wide {
+        let last = rows_wide
+            .keys()
+            .filter(|(s, _)| s == section)
+            .all(|(_, t)| t <= top);
+        assert!(
+            row.len() >= 2 || row[0].1 as f64 >= 0.6 * wide.viewport as f64 || last,
+            "a figure of {section} alone in its row at a third of the page: {rows_wide:?}"
         );
     }
     let widest = rows_wide

@@ -1,7 +1,8 @@
 //! The page's SVG figures, each in a `<figure>` of the page's grid with a caption that names
 //! the policies it shows: the metric distributions and the sensitivity curves of a sweep. A
 //! drawing grows with its column up to 1.5 times its natural width (the CSS reads it from
-//! `--natural-width`); one much wider than a column (many groups) takes a row of its own.
+//! `--natural-width`); one wider than a column (many groups) spans two columns of a wide
+//! window, one much wider the whole row.
 
 use std::fmt::Write as _;
 
@@ -23,7 +24,12 @@ pub(crate) fn distributions(out: &mut String, summary: &Summary, runs: &[PageRun
 }
 
 /// The sensitivity section of `plots` (nothing when no fidelity is swept).
-pub(crate) fn sensitivity(out: &mut String, summary: &Summary, runs: &[PageRun<'_>], plots: &[SensitivityPlot]) {
+pub(crate) fn sensitivity(
+    out: &mut String,
+    summary: &Summary,
+    runs: &[PageRun<'_>],
+    plots: &[SensitivityPlot],
+) {
     if plots.is_empty() {
         return;
     }
@@ -50,7 +56,11 @@ fn figure(out: &mut String, svg: &str, caption: &str) {
     let _ = write!(
         out,
         "<figure class=\"panel{}\" style=\"--natural-width: {width_px}px\">",
-        if width_px > 600.0 { " wide" } else { "" }
+        match width_px {
+            w if w > 900.0 => " full",
+            w if w > 600.0 => " wide",
+            _ => "",
+        }
     );
     out.push_str(svg);
     let _ = writeln!(out, "<figcaption>{}</figcaption></figure>", escape(caption));
@@ -117,7 +127,10 @@ mod tests {
             let report = ReportSpec {
                 group_by,
                 statistics: vec![Statistic::Mean],
-                bootstrap: Bootstrap { resamples: 10, seed: 1 },
+                bootstrap: Bootstrap {
+                    resamples: 10,
+                    seed: 1,
+                },
                 compare: None,
             };
             cpmx_report::summarize("captions", &[], &report, &cpmx_report::Origins::default())
@@ -127,7 +140,10 @@ mod tests {
         let caption = distribution_caption(&by_policy, Metric::Cd, &["a", "b"]);
         assert!(caption.ends_with("A column per policy: a, b."), "{caption}");
         let caption = distribution_caption(&pooled, Metric::Cd, &["a", "b"]);
-        assert!(caption.ends_with("Each column pools the policies a, b."), "{caption}");
+        assert!(
+            caption.ends_with("Each column pools the policies a, b."),
+            "{caption}"
+        );
         let caption = distribution_caption(&pooled, Metric::Cd, &["a"]);
         assert!(caption.ends_with("Policy a."), "{caption}");
         let plot = SensitivityPlot {
@@ -139,12 +155,18 @@ mod tests {
             svg: String::new(),
         };
         let caption = sensitivity_caption(&by_policy, &plot, &["a", "b"]);
-        assert_eq!(caption, "CD against delay_ms at the points of fidelity twin. Lines per policy: a, b.");
+        assert_eq!(
+            caption,
+            "CD against delay_ms at the points of fidelity twin. Lines per policy: a, b."
+        );
     }
 
     #[test]
     fn svg_widths_are_read() {
-        assert_eq!(svg_width_px("<svg a=\"1\" width=\"420.0\" height=\"3\">"), Some(420.0));
+        assert_eq!(
+            svg_width_px("<svg a=\"1\" width=\"420.0\" height=\"3\">"),
+            Some(420.0)
+        );
         assert_eq!(svg_width_px("<p>"), None);
     }
 }

@@ -123,7 +123,7 @@ pub fn report_html(page: &Page<'_>) -> String {
         let names: Vec<&str> = page.learning_curves.iter().map(|c| c.name.as_str()).collect();
         let _ = writeln!(
             out,
-            "<section id=\"training\"><h2>Training</h2><div class=\"panels\"><figure class=\"panel wide\">\
+            "<section id=\"training\"><h2>Training</h2><div class=\"panels\"><figure class=\"panel full\">\
              <canvas id=\"learning-curves\" style=\"aspect-ratio: 2.5\"></canvas><figcaption>episode_reward_mean per \
              iteration of the policies this folder trained: {}</figcaption></figure></div></section>",
             tables::escape(&names.join(", "))

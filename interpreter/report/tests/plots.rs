@@ -225,7 +225,14 @@ fn sensitivity_plots_are_one_metric_each_in_the_agents_colours() {
             for r in 1..=2 {
                 let cd = 0.01 + 0.001 * f64::from(delay) / 40.0 + 0.002 * p as f64 + 0.0005 * f64::from(r);
                 let fidelity = format!("twin@delay_ms={delay}");
-                runs.push(common::record(&fidelity, policy, "i", r, [0.0, 1.0, cd, 0.5], 10.0));
+                runs.push(common::record(
+                    &fidelity,
+                    policy,
+                    "i",
+                    r,
+                    [0.0, 1.0, cd, 0.5],
+                    10.0,
+                ));
             }
         }
     }
@@ -268,7 +275,11 @@ fn sensitivity_plots_are_one_metric_each_in_the_agents_colours() {
         .filter(|n| n.attribute("class") == Some("tick"))
         .filter_map(|n| n.text()?.parse().ok())
         .collect();
-    assert_eq!((ticks.first(), ticks.last()), (Some(&0.0), Some(&1.0)), "{ticks:?}");
+    assert_eq!(
+        (ticks.first(), ticks.last()),
+        (Some(&0.0), Some(&1.0)),
+        "{ticks:?}"
+    );
     let constant = doc
         .descendants()
         .find(|n| n.attribute("class") == Some("constant"))
@@ -276,5 +287,8 @@ fn sensitivity_plots_are_one_metric_each_in_the_agents_colours() {
     assert_eq!(constant.text(), Some("every point: 0.00"));
     // CD varies: no note.
     let doc = roxmltree::Document::parse(&plots[2].svg).unwrap();
-    assert!(doc.descendants().all(|n| n.attribute("class") != Some("constant")));
+    assert!(
+        doc.descendants()
+            .all(|n| n.attribute("class") != Some("constant"))
+    );
 }

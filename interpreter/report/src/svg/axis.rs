@@ -24,7 +24,9 @@ impl Axis {
         let (low, high) = values
             .into_iter()
             .filter(|v| v.is_finite())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| (l.min(v), h.max(v)));
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                (l.min(v), h.max(v))
+            });
         Axis::around(low, high, top_px, height_px)
     }
 
@@ -134,9 +136,15 @@ mod tests {
         assert_eq!(range(f64::INFINITY, f64::NEG_INFINITY), (-0.05, 1.05));
         // A constant: from zero to it.
         let (low, high) = range(0.4, 0.4);
-        assert!((low + 0.02).abs() < 1e-12 && (high - 0.42).abs() < 1e-12, "{low} {high}");
+        assert!(
+            (low + 0.02).abs() < 1e-12 && (high - 0.42).abs() < 1e-12,
+            "{low} {high}"
+        );
         let (low, high) = range(-2.0, -2.0);
-        assert!((low + 2.1).abs() < 1e-12 && (high - 0.1).abs() < 1e-12, "{low} {high}");
+        assert!(
+            (low + 2.1).abs() < 1e-12 && (high - 0.1).abs() < 1e-12,
+            "{low} {high}"
+        );
         // Varying values: their range, padded.
         let (low, high) = range(1.0, 3.0);
         assert!((low - 0.9).abs() < 1e-12 && (high - 3.1).abs() < 1e-12);

@@ -9,7 +9,8 @@ use super::{colour, escape, open, px};
 use crate::Summary;
 use crate::metric::Metric;
 
-/// Width of one group's column [px], at least: columns widen to fill the drawing.
+/// Width of one group's column [px], at least: columns widen for long labels and to fill the
+/// drawing.
 const COLUMN_PX: f64 = 110.0;
 /// The narrowest drawing [px] (about the width a page shows it at, so text keeps its size).
 const MIN_WIDTH_PX: f64 = 420.0;
@@ -35,7 +36,13 @@ pub fn distribution_svg(summary: &Summary, metric: Metric) -> String {
         .flat_map(|m| m.values.iter().copied());
     let axis = Axis::of(values, TOP_PX, PLOT_PX);
     let columns = summary.groups.len().max(1) as f64;
-    let width_px = (LEFT_PX + COLUMN_PX * columns + 20.0).max(MIN_WIDTH_PX);
+    // Wide enough for the longest group label (sans-serif at 12 px: about 7 px a character).
+    let label_px = summary
+        .groups
+        .iter()
+        .map(|g| 7.0 * g.key.join(" / ").chars().count() as f64 + 10.0)
+        .fold(COLUMN_PX, f64::max);
+    let width_px = (LEFT_PX + label_px * columns + 20.0).max(MIN_WIDTH_PX);
     let column_px = (width_px - LEFT_PX - 20.0) / columns;
     let mut out = open(width_px, TOP_PX + PLOT_PX + BOTTOM_PX);
     let title = format!(

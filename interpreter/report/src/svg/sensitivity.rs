@@ -171,7 +171,10 @@ fn plot(
     let (plot_left, plot_right) = (LEFT_PX, width_px - RIGHT_PX);
     let height_px = TOP_PX + PLOT_PX + BOTTOM_PX + LINE_PX * lines.len() as f64 + 8.0;
 
-    let xs: Vec<f64> = rows.iter().filter_map(|r| r.values.get(axis).map(|v| v.1)).collect();
+    let xs: Vec<f64> = rows
+        .iter()
+        .filter_map(|r| r.values.get(axis).map(|v| v.1))
+        .collect();
     let (x_min, x_max) = x_range(&xs);
     let to_x = |x: f64| plot_left + 10.0 + (x - x_min) / (x_max - x_min) * (plot_right - plot_left - 20.0);
     // A row's (mean, interval's low end, high end).
@@ -198,7 +201,12 @@ fn plot(
         "<title>{}</title>",
         escape(&format!("{title}, at the points of {base}: {NOTE}"))
     );
-    let _ = writeln!(out, "<text x=\"{}\" y=\"18\">{}</text>", px(plot_left), escape(&title));
+    let _ = writeln!(
+        out,
+        "<text x=\"{}\" y=\"18\">{}</text>",
+        px(plot_left),
+        escape(&title)
+    );
     let _ = writeln!(
         out,
         "<text x=\"{}\" y=\"34\" font-size=\"10\">{NOTE}</text>",
