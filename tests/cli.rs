@@ -124,20 +124,31 @@ fn a_far_start_is_located_beside_the_specs_other_problems_and_plan_does_not_blam
     std::fs::create_dir_all(&dir).unwrap();
     let spec = dir.join("far.yaml");
     let quickstart = std::fs::read_to_string(root().join("experiments/quickstart.yaml")).unwrap();
-    let far = quickstart.replace("{ref_path: 1, arc_length: 0.3}", "{ref_path: 1, arc_length: 40.0}")
-        + "planner: {control_horizon: 9, prediction_horizon: 4}\n";
+    let far = quickstart.replace(
+        "{ref_path: 1, arc_length: 0.3}",
+        "{ref_path: 1, arc_length: 40.0}",
+    ) + "planner: {control_horizon: 9, prediction_horizon: 4}\n";
     let line = far.lines().position(|l| l.contains("arc_length: 40.0")).unwrap() + 1;
     std::fs::write(&spec, &far).unwrap();
     let out = cpmx(&["validate", spec.to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("cpmx::map::arc-length"), "{stderr}");
-    assert!(stderr.contains(&format!("far.yaml:{line}:")), "located at line {line}: {stderr}");
-    assert!(stderr.contains("cpmx::check::horizon"), "both problems in one pass: {stderr}");
+    assert!(
+        stderr.contains(&format!("far.yaml:{line}:")),
+        "located at line {line}: {stderr}"
+    );
+    assert!(
+        stderr.contains("cpmx::check::horizon"),
+        "both problems in one pass: {stderr}"
+    );
     let out = cpmx(&["plan", spec.to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("cpmx::map::arc-length") && !stderr.contains("has no reference path"), "{stderr}");
+    assert!(
+        stderr.contains("cpmx::map::arc-length") && !stderr.contains("has no reference path"),
+        "{stderr}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -554,11 +554,13 @@ fn shards_of_a_swept_training_merge_into_the_unsharded_folder_byte_for_byte() {
         weights_and_curves(&whole.join("out")),
         weights_and_curves(&sharded.join("out")),
     );
-    let actors = a
-        .iter()
-        .filter(|(p, _)| p.ends_with("actor.safetensors"))
-        .count();
-    assert_eq!(actors, 4, "two points x two seeds: {:?}", a.iter().map(|f| &f.0).collect::<Vec<_>>());
+    let actors = a.iter().filter(|(p, _)| p.ends_with("actor.safetensors")).count();
+    assert_eq!(
+        actors,
+        4,
+        "two points x two seeds: {:?}",
+        a.iter().map(|f| &f.0).collect::<Vec<_>>()
+    );
     assert_same_files(&a, &b);
     // The run.json of each training run is the same too (same build, same inputs).
     for (path, _) in &a {

@@ -196,10 +196,11 @@ pub fn selected_plans(checked: &CheckedSpec, request: &RunRequest) -> Result<Vec
     Ok(all
         .into_iter()
         .filter(|p| {
-            request
-                .only
-                .iter()
-                .all(|o| o.names.iter().any(|n| selects(&o.axis, n, axis_value(p, &o.axis))))
+            request.only.iter().all(|o| {
+                o.names
+                    .iter()
+                    .any(|n| selects(&o.axis, n, axis_value(p, &o.axis)))
+            })
         })
         .collect())
 }
