@@ -1,5 +1,5 @@
 //! Sensitivity curves: a metric against a swept parameter. Every fidelity of a sweep's
-//! points (`twin-v2v@latency_ms=100,drop_probability=0.3`) is a row of the summary; for each
+//! points (`twin-v2v@latency_ms=100+drop_probability=0.3`) is a row of the summary; for each
 //! fidelity, swept parameter and metric one plot puts the parameter's values on the x axis and
 //! draws one line per combination of the other sweeps' values and the other grouping axes
 //! (the policy, by default): each point the row's mean with its t 95 % interval. One plot per
@@ -58,11 +58,11 @@ struct PointRow<'a> {
     group: &'a crate::Group,
 }
 
-/// A fidelity's point parsed from its name: `base@a=1,b=2`.
+/// A fidelity's point parsed from its name: `base@a=1+b=2`.
 fn parse(fidelity: &str) -> Option<(&str, Vec<(&str, f64)>)> {
     let (base, point) = fidelity.split_once('@')?;
     let values = point
-        .split(',')
+        .split('+')
         .map(|pair| {
             let (label, value) = pair.split_once('=')?;
             Some((label, value.parse().ok()?))
@@ -330,7 +330,7 @@ mod tests {
     #[test]
     fn points_parse_and_ranges_never_collapse() {
         assert_eq!(
-            parse("twin@delay_ms=80,drop_probability=0.1"),
+            parse("twin@delay_ms=80+drop_probability=0.1"),
             Some(("twin", vec![("delay_ms", 80.0), ("drop_probability", 0.1)]))
         );
         assert_eq!(parse("twin"), None);
