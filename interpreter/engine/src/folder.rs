@@ -312,6 +312,12 @@ fn write_plots(
             svg.as_bytes(),
         )?;
     }
+    for plot in cpmx_report::sensitivity_svgs(summary) {
+        write_atomic(
+            &plots.join(format!("{}.svg", plot.name.replace('/', "_"))),
+            plot.svg.as_bytes(),
+        )?;
+    }
     for (record, recording) in records.iter().zip(recordings) {
         let Some(recording) = recording else {
             continue;

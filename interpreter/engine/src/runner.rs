@@ -127,7 +127,7 @@ fn execute_one(
     }
     let (fidelity, drawn_parameters) = drawn_fidelity(experiment, plan);
     match run_engine(experiment, plan, fidelity.as_ref()).and_then(|recording| {
-        let metrics = measure(experiment, &recording)?;
+        let metrics = measure(experiment, &plan.fidelity, &recording)?;
         Ok((recording, metrics))
     }) {
         Ok((recording, metrics)) => {
@@ -217,7 +217,7 @@ fn store_partial(out: &Path, plan: &RunPlan, recording: &Recording) -> std::io::
 pub fn simulate(experiment: &Experiment, plan: &RunPlan) -> Result<(Recording, RunMetrics), String> {
     let (fidelity, _) = drawn_fidelity(experiment, plan);
     let recording = run_engine(experiment, plan, fidelity.as_ref()).map_err(RunFailure::reason)?;
-    let metrics = measure(experiment, &recording)?;
+    let metrics = measure(experiment, &plan.fidelity, &recording)?;
     Ok((recording, metrics))
 }
 
@@ -257,13 +257,12 @@ fn run_engine(
 }
 
 /// The spec's metrics of a recording (the same function `cpmx evaluate` and `cpmx report` use).
-pub fn measure(experiment: &Experiment, recording: &Recording) -> Result<RunMetrics, String> {
-    measure_recording(
-        &experiment.map,
-        &experiment.vehicle,
-        &experiment.metrics,
-        recording,
-    )
+pub fn measure(experiment: &Experiment, fidelity: &str, recording: &Recording) -> Result<RunMetrics, String> {
+    let metrics = experiment
+        .metrics_by_fidelity
+        .get(fidelity)
+        .unwrap_or(&experiment.metrics);
+    measure_recording(&experiment.map, &experiment.vehicle, metrics, recording)
 }
 
 /// The metrics of a recording on `map` with the vehicle's footprint and the metric parameters.

@@ -40,6 +40,21 @@ pub fn parse_only(only: &[String]) -> Result<Vec<Only>, RunError> {
         .collect()
 }
 
+/// The plural of an `--only` axis, for messages.
+fn plural(axis: &str) -> String {
+    match axis {
+        "policy" => "policies".to_owned(),
+        "fidelity" => "fidelities".to_owned(),
+        other => format!("{}s", other.replace('_', " ")),
+    }
+}
+
+/// Whether `name` of `--only` selects the run whose axis value is `value`: the name itself, or,
+/// for a fidelity, every point of a swept fidelity by its name (`twin` selects `twin@delay_ms=80`).
+fn selects(axis: &str, name: &str, value: &str) -> bool {
+    name == value || (axis == "fidelity" && value.split_once('@').is_some_and(|(base, _)| base == name))
+}
+
 /// What to run and where.
 #[derive(Debug, Clone, Default)]
 pub struct RunRequest {
@@ -137,7 +152,7 @@ pub fn selected_plans(checked: &CheckedSpec, request: &RunRequest) -> Result<Vec
             }
         }
         for name in &only.names {
-            if valid.contains(&name.as_str()) {
+            if valid.iter().any(|v| selects(&only.axis, name, v)) {
                 continue;
             }
             let suggestion = cpmx_spec::schema::did_you_mean(
@@ -154,8 +169,8 @@ pub fn selected_plans(checked: &CheckedSpec, request: &RunRequest) -> Result<Vec
                     only.axis.replace('_', " ")
                 ),
                 help: Some(format!(
-                    "{suggestion}the spec's {}s: {}",
-                    only.axis,
+                    "{suggestion}the spec's {}: {}",
+                    plural(&only.axis),
                     valid.join(", ")
                 )),
             });
@@ -164,10 +179,11 @@ pub fn selected_plans(checked: &CheckedSpec, request: &RunRequest) -> Result<Vec
     Ok(all
         .into_iter()
         .filter(|p| {
-            request
-                .only
-                .iter()
-                .all(|o| o.names.iter().any(|n| n == axis_value(p, &o.axis)))
+            request.only.iter().all(|o| {
+                o.names
+                    .iter()
+                    .any(|n| selects(&o.axis, n, axis_value(p, &o.axis)))
+            })
         })
         .collect())
 }
@@ -195,7 +211,8 @@ pub fn run_matrix(
     let plans = selected_plans(checked, request)?;
 
     // Refuse fidelities this build cannot run before doing anything.
-    for (name, fidelity) in &checked.spec.fidelities {
+    for (name, point) in &checked.fidelity_points {
+        let fidelity = &point.fidelity;
         if plans.iter().any(|p| &p.fidelity == name)
             && let Err(e) = cpmx_engine::engine_for(name, fidelity)
         {
@@ -223,6 +240,20 @@ pub fn run_matrix(
             ),
             help: Some(format!(
                 "pass it: cpmx.run(spec, policies={{\"{unbound}\": callable}})"
+            )),
+        });
+    }
+    if let Some((policy, seed)) = experiment
+        .not_trained()
+        .into_iter()
+        .find(|(name, _)| plans.iter().any(|p| p.policy == *name))
+    {
+        return Err(RunError::Invalid {
+            message: format!(
+                "policy `{policy}` names the actor trained with seed {seed}, which was not found"
+            ),
+            help: Some(format!(
+                "run `cpmx train` first, or leave it out with `--only policy=...` (the other policies than `{policy}`)"
             )),
         });
     }
@@ -342,4 +373,21 @@ fn data_path(spec: &Path, data: &[PathBuf]) -> Vec<PathBuf> {
         .into_iter()
         .map(|f| std::fs::canonicalize(&f).unwrap_or(f))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_swept_fidelity_selects_its_points() {
+        let only = parse_only(&["fidelity=twin@latency_ms=0+drop_probability=0.1,sim".to_owned()]).unwrap();
+        assert_eq!(only[0].names, ["twin@latency_ms=0+drop_probability=0.1", "sim"]);
+        assert!(selects("fidelity", "twin", "twin@delay_ms=80"));
+        assert!(selects("fidelity", "twin@delay_ms=80", "twin@delay_ms=80"));
+        assert!(!selects("fidelity", "twin", "twin-v2v@delay_ms=80"));
+        assert!(!selects("policy", "twin", "twin@delay_ms=80"));
+        assert_eq!(plural("fidelity"), "fidelities");
+        assert_eq!(plural("initial_configuration"), "initial configurations");
+    }
 }

@@ -19,9 +19,9 @@ pub use experiment::{
     SpeedAfterHc, SteeringAfterHc, StopAtPathEnd, Timing, VehicleSpec,
 };
 pub use fidelity::{
-    ActuationLayer, ActuationModel, Control, DynamicsLayer, Fidelity, FollowerSolver, FollowerSpec,
-    GreyBoxModel, IdealKeyword, KinematicKeyword, LabDriver, LabFidelity, SensingLayer, SensingModel,
-    SimulatedFidelity,
+    ActuationLayer, ActuationModel, CommunicationLayer, Control, DynamicsLayer, Fidelity, FollowerSolver,
+    FollowerSpec, GreyBoxModel, IdealKeyword, KinematicKeyword, LabDriver, LabFidelity, PerceptionLayer,
+    SensingLayer, SensingModel, SimulatedFidelity,
 };
 pub use metrics::{
     AsSpec, Bootstrap, CdSpec, CollisionCount, CollisionGeometry, Compare, CraASpec, CraLSpec, GroupKey,

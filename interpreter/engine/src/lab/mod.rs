@@ -122,6 +122,7 @@ mod tests {
             initial_peers: peers.iter().map(|p| (*p).to_owned()).collect(),
             interface: interface.map(str::to_owned),
             timeout_s: 30.0,
+            communication: None,
         }
     }
 
