@@ -10,13 +10,11 @@
 //! Needs SigmaRL's reference map at `../shared/reference/maps/cpm.xml`.
 
 use std::hint::black_box;
-use std::path::PathBuf;
 
 use cpmx_env::{EnvConfig, StepResult, VecEnv, sigmarl_intersection_paths};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha20Rng;
-
 
 fn bench_steps(c: &mut Criterion) {
     let paths = sigmarl_intersection_paths(&cpmx_testdata::reference_file("maps/cpm.xml")).expect("map");
