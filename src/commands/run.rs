@@ -64,6 +64,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         force: args.force,
         data: args.data.data.clone(),
         stop: Some(crate::interrupt::flag()),
+        operator: Some(cpmx_engine::Operator::new(|message| eprintln!("{message}"))),
     };
 
     // Policies bound from Python run only from Python.

@@ -1,0 +1,142 @@
+//! The emulator in simulated time, as the lab's `--simulated_time` mode: the clock advances by
+//! `timing.dt` only when every vehicle's command for the tick arrived, so a run is as fast as
+//! the driver, does not depend on the machine's load, and replays exactly. Unanswered lists
+//! (and the start trigger) are sent again every [`RESEND_INTERVAL`] (best-effort topics). A
+//! pause stops the lab's clock with the middleware (the planner sees a silence, the vehicles
+//! do not move); a restart brings a new participant and a new start trigger at the tick.
+
+use std::thread;
+use std::time::{Duration, Instant};
+
+use cpmx_lab::{SystemTrigger, VehicleCommandTrajectory, VehicleStateList};
+
+use super::emulator::{EmulateError, EmulatorEvent, RunRules};
+use super::safe_stop::is_stop_command;
+use super::stage::Stage;
+use super::wire::Wire;
+
+/// How often the emulator polls its readers.
+const POLL_INTERVAL: Duration = Duration::from_millis(1);
+
+/// How long an unanswered state list (and the start trigger) waits before it is re-sent.
+pub const RESEND_INTERVAL: Duration = Duration::from_millis(100);
+
+/// Plays one run in lock-step until it has `steps` ticks driven by the planner (ticks before
+/// its first trajectory, while its preflight keeps the vehicles standing, do not count).
+pub(super) fn play(
+    stage: &mut Stage,
+    wire: &mut Wire,
+    rules: &RunRules,
+    on_event: &mut dyn FnMut(EmulatorEvent),
+) -> Result<EmulatorEvent, EmulateError> {
+    let mut start = Some(stage.start_trigger(stage.tick_ns(0)));
+    let mut driven = 0;
+    let mut driving = false;
+    let mut restarts = stage.faults.restarts.clone().into_iter().peekable();
+    let mut pauses = stage.faults.pauses.clone();
+    let mut tick = 0;
+    while driven < rules.steps {
+        let tick_ns = stage.tick_ns(tick);
+
+        // The middleware's faults due at this tick.
+        if let Some(i) = pauses.iter().position(|p| p.from_ns <= tick_ns) {
+            let pause = pauses.remove(i);
+            let for_ns = pause.until_ns.map_or(u64::MAX, |u| u - pause.from_ns);
+            on_event(EmulatorEvent::Fault(format!(
+                "paused for {:.2} s at tick {tick}",
+                for_ns as f64 / 1e9
+            )));
+            let resume = Instant::now() + Duration::from_nanos(for_ns.min(rules.timeout_ns()));
+            while Instant::now() < resume {
+                if wire.other_run_announced(rules.stamp)? {
+                    return Ok(EmulatorEvent::Superseded { ticks: driven });
+                }
+                wire.flush()?;
+                thread::sleep(POLL_INTERVAL);
+            }
+        }
+        if restarts.next_if(|at_ns| *at_ns <= tick_ns).is_some() {
+            on_event(EmulatorEvent::Fault(format!("restarting at tick {tick}")));
+            if !wire.restart(rules.stamp, &stage.ids, rules.timeout)? {
+                return Ok(EmulatorEvent::Abandoned { ticks: driven });
+            }
+            start = Some(stage.start_trigger(tick_ns));
+        }
+
+        // Report the vehicles' states and wait for their trajectories.
+        let list = stage.list(tick_ns);
+        let commands = match exchange(wire, &list, start, stage, end)? {
+            Answer::Commands(commands) => commands,
+            Answer::Silent => return Ok(EmulatorEvent::Abandoned { ticks: driven }),
+            Answer::OtherRun => return Ok(EmulatorEvent::Superseded { ticks: driven }),
+        };
+        start = None;
+        driving |= commands.iter().any(|c| !is_stop_command(c));
+        if driving {
+            driven += 1;
+        }
+
+        // The trajectories take effect and the vehicles run until the next tick.
+        for command in &commands {
+            stage.receive(command);
+        }
+        stage.run_period(tick_ns);
+        if rules.on_collision && stage.collided() {
+            break;
+        }
+        tick += 1;
+    }
+    Ok(EmulatorEvent::Finished { ticks: driven })
+}
+
+/// How a tick's exchange ended.
+enum Answer {
+    /// One command per vehicle made for the tick.
+    Commands(Vec<VehicleCommandTrajectory>),
+    /// Nothing for the timeout.
+    Silent,
+    /// The planner announced another run.
+    OtherRun,
+}
+
+/// Publishes `list` (and the start trigger, if given) until every vehicle answered with a
+/// command made for the list's tick.
+fn exchange(
+    wire: &mut Wire,
+    list: &VehicleStateList,
+    start: Option<SystemTrigger>,
+    stage: &Stage,
+    rules: &RunRules,
+) -> Result<Answer, EmulateError> {
+    let started = Instant::now();
+    let mut sent: Option<Instant> = None;
+    let mut answers: Vec<Option<VehicleCommandTrajectory>> = vec![None; stage.ids.len()];
+    loop {
+        if sent.is_none_or(|s| s.elapsed() >= RESEND_INTERVAL) {
+            if let Some(trigger) = start {
+                wire.send_trigger(trigger);
+            }
+            wire.send_list(list.clone());
+            sent = Some(Instant::now());
+        }
+        wire.flush()?;
+        for command in wire.commands()? {
+            let slot = stage.ids.iter().position(|id| *id == command.vehicle_id);
+            if let Some(i) = slot
+                && command.header.create_stamp.nanoseconds == list.t_now
+            {
+                answers[i] = Some(command);
+            }
+        }
+        if answers.iter().all(Option::is_some) {
+            return Ok(Answer::Commands(answers.into_iter().flatten().collect()));
+        }
+        if wire.other_run_announced(rules.stamp)? {
+            return Ok(Answer::OtherRun);
+        }
+        if started.elapsed() >= rules.timeout {
+            return Ok(Answer::Silent);
+        }
+        thread::sleep(POLL_INTERVAL);
+    }
+}
