@@ -126,6 +126,7 @@ fn lab_run(spec: &Path, out: &Path, args: &[&str], log: &Path) -> Killed {
 
 /// One lab session: the emulator with `emulate_args` for `runs` runs, `cpmx run` with
 /// `run_args`; both must end by `deadline`. Returns the run's status and both logs.
+#[allow(clippy::too_many_arguments)]
 fn session(
     dir: &Path,
     name: &str,

@@ -483,7 +483,7 @@ fn faults_name_the_lab_s_vehicles_and_times_that_are_times() {
     assert_eq!(
         messages[0],
         (
-            23,
+            22,
             28,
             "the faults name vehicle 3, which the lab fidelity does not drive"
         ),

@@ -61,7 +61,10 @@ fn emulate(args: &EmulateArgs) -> Result<(), Failure> {
         Failure::InvalidInput
     })?;
     let emulator = match &args.faults {
-        Some(path) => emulator.with_faults(Some(read_faults(path, &emulator.lab().vehicle_ids)?)),
+        Some(path) => {
+            let faults = read_faults(path, &emulator.lab().vehicle_ids)?;
+            emulator.with_faults(Some(faults))
+        }
         None => emulator,
     };
     let clock = if args.real_time {

@@ -65,7 +65,7 @@ pub(super) fn play(
 
         // Report the vehicles' states and wait for their trajectories.
         let list = stage.list(tick_ns);
-        let commands = match exchange(wire, &list, start, stage, end)? {
+        let commands = match exchange(wire, &list, start, stage, rules)? {
             Answer::Commands(commands) => commands,
             Answer::Silent => return Ok(EmulatorEvent::Abandoned { ticks: driven }),
             Answer::OtherRun => return Ok(EmulatorEvent::Superseded { ticks: driven }),

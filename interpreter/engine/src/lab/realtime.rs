@@ -20,7 +20,7 @@ use super::wire::Wire;
 use cpmx_stack::{CONTROL_PERIOD_NS, RUN_START_NS};
 
 /// How long the emulator sleeps between looks at its readers.
-const POLL_INTERVAL: Duration = Duration::from_micros(500);
+const POLL_INTERVAL: Duration = Duration::from_millis(1);
 
 /// Plays one run on the wall clock.
 pub(super) fn play(
