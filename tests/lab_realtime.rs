@@ -145,6 +145,7 @@ initial_configurations:
       - {{ref_path: 2, arc_length: 0.2}}
       - {{ref_path: 5, arc_length: 0.3}}
       - {{ref_path: 6, arc_length: 0.2}}
+repetitions: 1
 seed: 7
 fidelities:
   twin: {{control: trajectory, dynamics: stdlib:mu-car-greybox, sensing: stdlib:cpm-ips, actuation: {{delay_ms: 80}}}}
