@@ -242,11 +242,24 @@ fn soak(dir: &Path, deadline: Instant, repetitions: usize) {
 
     // A lab with faults: every run ends, complete or failed naming its fault.
     let faulty = dir.join("faulty");
-    let (status, logs) = session(dir, "faulty", &spec, &faulty, runs, &["--faults", faults], &[], deadline);
+    let (status, logs) = session(
+        dir,
+        "faulty",
+        &spec,
+        &faulty,
+        runs,
+        &["--faults", faults],
+        &[],
+        deadline,
+    );
     assert!(!logs.contains("panicked"), "{logs}");
     let outcomes = consistent_folder(&faulty, &keys, &logs);
     let failed: Vec<&String> = outcomes.values().flatten().collect();
-    assert_eq!(status.code(), Some(if failed.is_empty() { 0 } else { 3 }), "{logs}");
+    assert_eq!(
+        status.code(),
+        Some(if failed.is_empty() { 0 } else { 3 }),
+        "{logs}"
+    );
     assert!(!failed.is_empty(), "the faults failed no run\n{logs}");
     assert!(failed.len() < runs, "the faults failed every run\n{logs}");
     for reason in &failed {
@@ -269,7 +282,9 @@ fn soak(dir: &Path, deadline: Instant, repetitions: usize) {
     );
     assert!(status.success(), "{logs}");
     assert!(
-        consistent_folder(&faulty, &keys, &logs).values().all(Option::is_none),
+        consistent_folder(&faulty, &keys, &logs)
+            .values()
+            .all(Option::is_none),
         "{logs}"
     );
 
@@ -279,7 +294,10 @@ fn soak(dir: &Path, deadline: Instant, repetitions: usize) {
     assert!(status.success(), "{logs}");
     for key in &keys {
         let file = |out: &Path| std::fs::read(out.join("runs").join(key).join("trajectory.csv")).expect(key);
-        assert!(file(&faulty) == file(&faultless), "{key}: the trajectories differ");
+        assert!(
+            file(&faulty) == file(&faultless),
+            "{key}: the trajectories differ"
+        );
     }
     for summary in ["per_run.csv", "summary.md"] {
         assert_eq!(
@@ -338,8 +356,14 @@ fn every_fault(dir: &Path, deadline: Instant) {
     );
     assert_eq!(status.code(), Some(3), "{logs}");
     let record = run_record(&out, key);
-    assert!(record.contains("vehicle 1's positioning fixes stopped"), "{record}");
-    let rows = common::read(&out.join("runs").join(key).join("trajectory.csv")).lines().count() - 1;
+    assert!(
+        record.contains("vehicle 1's positioning fixes stopped"),
+        "{record}"
+    );
+    let rows = common::read(&out.join("runs").join(key).join("trajectory.csv"))
+        .lines()
+        .count()
+        - 1;
     assert!((2 * 15..2 * 40).contains(&rows), "{rows} rows kept\n{logs}");
     assert!(
         logs.contains("vehicles commanded to stop: [1, 2]; standing at the run's end: [1, 2]"),
@@ -419,12 +443,19 @@ fn misplaced(dir: &Path, deadline: Instant) {
 
     // Waiting for the operator, who does not come: refused with the table.
     let spec = dir.join("wait.yaml");
-    std::fs::write(&spec, spec_text(20, 1, &format!(", preflight: {{wait_s: 1}}, {off}"))).expect("spec");
+    std::fs::write(
+        &spec,
+        spec_text(20, 1, &format!(", preflight: {{wait_s: 1}}, {off}")),
+    )
+    .expect("spec");
     let (status, logs) = session(dir, "wait", &spec, &out, 2, &[], &[], deadline);
     assert_eq!(status.code(), Some(3), "{logs}");
     let record = run_record(&out, key);
     assert!(record.contains("the preflight did not pass"), "{record}");
-    assert!(record.contains("1 of 2 vehicles off their planned start"), "{record}");
+    assert!(
+        record.contains("1 of 2 vehicles off their planned start"),
+        "{record}"
+    );
     assert!(!out.join("runs").join(key).join("trajectory.csv").exists());
     // The table: vehicle 2, where it is, where it should be, 10 cm off.
     let line = logs
@@ -475,9 +506,15 @@ fn misplaced(dir: &Path, deadline: Instant) {
     let recorded = &plan["starts"]["lab-lane-crossing-rep1"];
     let planned = &plan["starts"]["crossing"];
     let dx = recorded[1]["x_m"].as_f64().unwrap() - planned[1]["x_m"].as_f64().unwrap();
-    assert!((dx - 0.1).abs() < 0.005, "vehicle 2 starts {dx} m along x from its plan: {plan}");
+    assert!(
+        (dx - 0.1).abs() < 0.005,
+        "vehicle 2 starts {dx} m along x from its plan: {plan}"
+    );
     let dx = recorded[0]["x_m"].as_f64().unwrap() - planned[0]["x_m"].as_f64().unwrap();
-    assert!(dx.abs() < 0.005, "vehicle 1 starts {dx} m along x from its plan: {plan}");
+    assert!(
+        dx.abs() < 0.005,
+        "vehicle 1 starts {dx} m along x from its plan: {plan}"
+    );
 }
 
 #[test]
@@ -496,7 +533,12 @@ fn ctrl_c(dir: &Path, deadline: Instant) {
     let emulator_log = dir.join("emulator.log");
     let run_log = dir.join("run.log");
     let mut lab = emulator(&spec, 1, &[], &emulator_log);
-    let mut run = lab_run(&spec, &out, &["--only", "initial_configuration=crossing"], &run_log);
+    let mut run = lab_run(
+        &spec,
+        &out,
+        &["--only", "initial_configuration=crossing"],
+        &run_log,
+    );
 
     // Mid-run (the lab has served a while), Ctrl-C.
     while !common::read(&emulator_log).contains("started") {

@@ -55,7 +55,14 @@ fn lab_fidelity() -> String {
 
 /// One real-time session: `cpmx lab emulate --real-time` for `runs` runs and `cpmx run` with
 /// `run_args` (and `--data` folders); returns whether the run succeeded, and the logs.
-fn session(dir: &Path, spec: &Path, runs: usize, emulate_args: &[&str], run_args: &[&str], deadline: Instant) -> (bool, String) {
+fn session(
+    dir: &Path,
+    spec: &Path,
+    runs: usize,
+    emulate_args: &[&str],
+    run_args: &[&str],
+    deadline: Instant,
+) -> (bool, String) {
     let emulator_log = dir.join("emulator.log");
     let run_log = dir.join("run.log");
     let data = root().join("../shared/reference");
@@ -159,7 +166,14 @@ metrics: stdlib:at25
     .expect("spec");
 
     // Without faults: every tick keeps the lead time.
-    let (ok, logs) = session(dir, &spec, 1, &[], &["--only", "initial_configuration=crossing"], deadline);
+    let (ok, logs) = session(
+        dir,
+        &spec,
+        1,
+        &[],
+        &["--only", "initial_configuration=crossing"],
+        deadline,
+    );
     assert!(ok, "{logs}");
     let kept = notes(dir, "lab/lane/crossing/rep1");
     assert_eq!(lead_misses(&kept), 0, "{kept}\n{logs}");
@@ -178,7 +192,10 @@ metrics: stdlib:at25
     );
     assert!(ok, "{logs}");
     let paused = notes(dir, "lab/lane/turning/rep1");
-    assert!(paused.contains("1 late ticks (planned anyway; longest gap 1.6"), "{paused}\n{logs}");
+    assert!(
+        paused.contains("1 late ticks (planned anyway; longest gap 1.6"),
+        "{paused}\n{logs}"
+    );
     assert!(lead_misses(&paused) >= 1, "{paused}");
 }
 
@@ -188,10 +205,16 @@ fn at25_with_a_lab(repetitions: usize) -> String {
     let at25 = at25
         .replace(
             "  sim:     {control: direct, dynamics: kinematic}",
-            &format!("  {}\n  sim:     {{control: direct, dynamics: kinematic}}", lab_fidelity()),
+            &format!(
+                "  {}\n  sim:     {{control: direct, dynamics: kinematic}}",
+                lab_fidelity()
+            ),
         )
         .replace("repetitions: 3", &format!("repetitions: {repetitions}"))
-        .replace("dir: policies/at25", &format!("dir: {}", root().join("experiments/policies/at25").display()));
+        .replace(
+            "dir: policies/at25",
+            &format!("dir: {}", root().join("experiments/policies/at25").display()),
+        );
     assert!(at25.contains("driver: cpm-dds"), "at25.yaml changed: {at25}");
     at25
 }
@@ -201,7 +224,14 @@ fn at25_lab_runs_in_real_time_miss_no_lead_time() {
     in_namespace(
         "at25_lab_runs_in_real_time_miss_no_lead_time",
         Duration::from_secs(150),
-        |dir, deadline| at25(dir, deadline, 1, &["--only", "policy=seed1", "--only", "initial_configuration=init1"]),
+        |dir, deadline| {
+            at25(
+                dir,
+                deadline,
+                1,
+                &["--only", "policy=seed1", "--only", "initial_configuration=init1"],
+            )
+        },
     );
 }
 
@@ -218,7 +248,11 @@ fn every_at25_lab_run_in_real_time_misses_no_lead_time() {
 fn at25(dir: &Path, deadline: Instant, repetitions: usize, only: &[&str]) {
     let spec = dir.join("at25.yaml");
     std::fs::write(&spec, at25_with_a_lab(repetitions)).expect("spec");
-    let runs = if only.is_empty() { 9 * repetitions } else { repetitions };
+    let runs = if only.is_empty() {
+        9 * repetitions
+    } else {
+        repetitions
+    };
     let (ok, logs) = session(dir, &spec, runs, &["--fidelity", "twin"], only, deadline);
     assert!(ok, "{logs}");
     let mut checked = 0;

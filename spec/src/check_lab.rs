@@ -20,7 +20,12 @@ const DURATION: ParameterRange = ParameterRange {
 };
 
 /// Checks `faults` found at the JSON pointer `pointer`, for a lab with `vehicle_ids`.
-pub(crate) fn check_faults(faults: &LabFaults, vehicle_ids: &[u8], pointer: &str, ctx: &mut CheckContext<'_>) {
+pub(crate) fn check_faults(
+    faults: &LabFaults,
+    vehicle_ids: &[u8],
+    pointer: &str,
+    ctx: &mut CheckContext<'_>,
+) {
     let vehicles = faults
         .leave_lists
         .iter()

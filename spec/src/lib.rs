@@ -191,7 +191,10 @@ pub fn check_scoped(
 
 /// Reads and checks a faults file (`cpmx lab emulate --faults FILE`): the mapping of a lab
 /// fidelity's `faults`, for a lab that drives `vehicle_ids`.
-pub fn check_faults(source: &SpecSource, vehicle_ids: &[u8]) -> Result<model::LabFaults, Vec<SpecDiagnostic>> {
+pub fn check_faults(
+    source: &SpecSource,
+    vehicle_ids: &[u8],
+) -> Result<model::LabFaults, Vec<SpecDiagnostic>> {
     let named = Arc::new(miette::NamedSource::new(&source.name, source.text.clone()).with_language("yaml"));
     let attach = |problems: Vec<Problem>| -> Vec<SpecDiagnostic> {
         problems

@@ -510,8 +510,11 @@ fn a_faults_file_is_checked_as_the_spec_s_faults_are() {
         dir: ".".into(),
         text: text.into(),
     };
-    let faults = cpmx_spec::check_faults(&source("seed: 4\nmisplaced: [{vehicle: 2, offset_m: [0.1, 0]}]\n"), &[1, 2])
-        .expect("valid");
+    let faults = cpmx_spec::check_faults(
+        &source("seed: 4\nmisplaced: [{vehicle: 2, offset_m: [0.1, 0]}]\n"),
+        &[1, 2],
+    )
+    .expect("valid");
     assert_eq!(faults.misplaced[0].offset_m, [0.1, 0.0]);
     let typo = cpmx_spec::check_faults(&source("topics: {vehicleStateList: {drops: 0.1}}\n"), &[1, 2])
         .expect_err("a typo");

@@ -84,7 +84,9 @@ fn emulate(args: &EmulateArgs) -> Result<(), Failure> {
             EmulatorClock::Simulated => "simulated time",
             EmulatorClock::RealTime => "real time",
         },
-        emulator.faults().map_or(String::new(), |f| format!(", with faults (seed {})", f.seed))
+        emulator
+            .faults()
+            .map_or(String::new(), |f| format!(", with faults (seed {})", f.seed))
     );
     let mut on_event = |event: EmulatorEvent| match event {
         EmulatorEvent::Waiting => eprintln!("waiting for a planner (ReadyStatus hlc_<id> for every vehicle)"),
@@ -95,9 +97,9 @@ fn emulate(args: &EmulateArgs) -> Result<(), Failure> {
             eprintln!("run {run} (seed {seed}) started; faults: {}", faults.join("; "));
         }
         EmulatorEvent::Fault(what) => eprintln!("fault: {what}"),
-        EmulatorEvent::Stopped { commanded, standing } => eprintln!(
-            "vehicles commanded to stop: {commanded:?}; standing at the run's end: {standing:?}"
-        ),
+        EmulatorEvent::Stopped { commanded, standing } => {
+            eprintln!("vehicles commanded to stop: {commanded:?}; standing at the run's end: {standing:?}")
+        }
         EmulatorEvent::Finished { ticks } => eprintln!("run finished after {ticks} ticks"),
         EmulatorEvent::Abandoned { ticks } => eprintln!(
             "the planner stopped answering after {ticks} ticks ({} s); run abandoned",

@@ -52,9 +52,7 @@ pub enum RunError {
     #[error("{0}; the run was stopped")]
     LabFault(String),
     /// The preflight did not pass within its wait.
-    #[error(
-        "the preflight did not pass within {waited_s:.0} s (the run did not start): {headline}\n{table}"
-    )]
+    #[error("the preflight did not pass within {waited_s:.0} s (the run did not start): {headline}\n{table}")]
     Preflight {
         headline: String,
         table: String,

@@ -125,7 +125,9 @@ fn execute_one(
     silent: &Mutex<BTreeSet<String>>,
 ) -> RunOutcome {
     let hash = inputs_hash(context_hash, plan);
-    if options.resume && let Some(stored) = finished_run(out, plan, &hash) {
+    if options.resume
+        && let Some(stored) = finished_run(out, plan, &hash)
+    {
         return RunOutcome::Resumed(Box::new(stored));
     }
     let (fidelity, drawn_parameters) = drawn_fidelity(experiment, plan);

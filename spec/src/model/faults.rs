@@ -70,11 +70,7 @@ impl LabFaults {
 #[serde(deny_unknown_fields)]
 pub struct TopicFaults {
     /// The middleware's ticks to the planner.
-    #[serde(
-        rename = "vehicleStateList",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "vehicleStateList", default, skip_serializing_if = "Option::is_none")]
     pub vehicle_state_list: Option<SampleFaults>,
     /// The planner's trajectories to the vehicles.
     #[serde(

@@ -29,7 +29,9 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use cpmx_lab::{DiscoveryConfig, Header, TimeStamp, TrajectoryPoint, VehicleCommandTrajectory, VehicleStateList};
+use cpmx_lab::{
+    DiscoveryConfig, Header, TimeStamp, TrajectoryPoint, VehicleCommandTrajectory, VehicleStateList,
+};
 use cpmx_planner::PlannedTrajectory;
 use cpmx_policy::AgentPaths;
 use cpmx_recording::Recording;
@@ -40,7 +42,9 @@ use super::irregular::{Irregularities, LATE_TICK_PERIODS};
 use super::mapping::{policy_state, recorded_sample};
 use super::safe_stop::{LabClock, stop_command, stop_vehicles};
 use super::session::{Event, Session};
-use super::{MIN_TRAJECTORY_POINTS, VEHICLE_LEAD_S, discovery_config, ns_from_s, preflight, s_since, timeout};
+use super::{
+    MIN_TRAJECTORY_POINTS, VEHICLE_LEAD_S, discovery_config, ns_from_s, preflight, s_since, timeout,
+};
 use crate::engine::{Engine, Operator, RunError, RunInputs};
 use crate::starts::InitialState;
 use crate::twin::planner;
@@ -319,7 +323,9 @@ impl Drive<'_> {
             });
         }
         if let Some(operator) = self.operator
-            && waiting.shown.is_none_or(|shown| shown.elapsed() >= SHOW_TABLE_EVERY)
+            && waiting
+                .shown
+                .is_none_or(|shown| shown.elapsed() >= SHOW_TABLE_EVERY)
         {
             operator.say(&format!(
                 "preflight: {}; the vehicles are kept standing until every check passes (at most {} s \
@@ -361,7 +367,11 @@ impl Drive<'_> {
                 .filter(|s| Some(s.header.create_stamp.nanoseconds) > self.created_ns[agent])
                 .and_then(|s| {
                     let state = policy_state(s, &self.vehicle)?;
-                    Some((s.header.create_stamp.nanoseconds, s.ips_update_age_nanoseconds, state))
+                    Some((
+                        s.header.create_stamp.nanoseconds,
+                        s.ips_update_age_nanoseconds,
+                        state,
+                    ))
                 });
             match newest {
                 Some((created_ns, fix_age_ns, state)) => {

@@ -77,8 +77,11 @@ impl FaultPlan {
             let happens = occurs(f.probability, &mut rng);
             let span = span(&f.at_s, f.for_s.as_ref(), &mut rng);
             if let (true, Some(a)) = (happens, agent(f.vehicle)) {
-                plan.description
-                    .push(format!("vehicle {} leaves the lists {}", f.vehicle, describe(span)));
+                plan.description.push(format!(
+                    "vehicle {} leaves the lists {}",
+                    f.vehicle,
+                    describe(span)
+                ));
                 plan.leave_lists.push((a, span, f.listed));
             }
         }
@@ -86,8 +89,11 @@ impl FaultPlan {
             let happens = occurs(f.probability, &mut rng);
             let span = span(&f.at_s, f.for_s.as_ref(), &mut rng);
             if let (true, Some(a)) = (happens, agent(f.vehicle)) {
-                plan.description
-                    .push(format!("vehicle {} loses its positioning fixes {}", f.vehicle, describe(span)));
+                plan.description.push(format!(
+                    "vehicle {} loses its positioning fixes {}",
+                    f.vehicle,
+                    describe(span)
+                ));
                 plan.ips_loss.push((a, span));
             }
         }
@@ -199,7 +205,12 @@ impl<T: Clone> FaultyChannel<T> {
     /// The channel of `topic` for the run with `run_seed` (faultless without `faults`).
     pub fn new(faults: Option<&LabFaults>, topic: &str, run_seed: u64) -> Self {
         let seed = faults.map_or(0, |f| f.seed);
-        let faults = faults.and_then(|f| f.topics.each().find(|(name, _)| *name == topic).map(|(_, f)| f.clone()));
+        let faults = faults.and_then(|f| {
+            f.topics
+                .each()
+                .find(|(name, _)| *name == topic)
+                .map(|(_, f)| f.clone())
+        });
         Self {
             faults,
             rng: ChaCha20Rng::from_seed(stream_key(run_seed, &format!("faults/{seed}/topic/{topic}"))),

@@ -154,10 +154,17 @@ mod tests {
         let line = &lines[0];
         assert!(line.contains("2 late ticks"), "{line}");
         assert!(line.contains("vehicle 5 missing from 4 ticks"), "{line}");
-        assert!(line.contains("vehicle 3: positioning fixes up to 0.80 s old in 3 ticks"), "{line}");
+        assert!(
+            line.contains("vehicle 3: positioning fixes up to 0.80 s old in 3 ticks"),
+            "{line}"
+        );
         assert!(line.contains("restarted after tick 12"), "{line}");
         assert!(line.contains("2.00 s behind"), "{line}");
         assert!(lines[1].contains("median 2.0 ms"), "{}", lines[1]);
-        assert!(lines[1].contains("max 3.0 ms over 3 ticks; 1 ticks left"), "{}", lines[1]);
+        assert!(
+            lines[1].contains("max 3.0 ms over 3 ticks; 1 ticks left"),
+            "{}",
+            lines[1]
+        );
     }
 }

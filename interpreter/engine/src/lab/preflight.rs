@@ -78,7 +78,7 @@ pub(super) fn check(
                     preflight.max_ips_age_ms
                 ));
             }
-            if !(state.battery_voltage >= preflight.min_battery_v) {
+            if state.battery_voltage.is_nan() || state.battery_voltage < preflight.min_battery_v {
                 row.problems.push(format!(
                     "battery {:.2} V (at least {} V)",
                     state.battery_voltage, preflight.min_battery_v
@@ -245,7 +245,11 @@ mod tests {
         assert!(table.contains("(2.000, 1.000, 0.0)"), "{table}");
         assert!(table.contains("10.0 cm, 0.0°"), "{table}");
         assert!(table.contains("off its start"), "{table}");
-        assert!(verdict.headline().contains("1 of 2 vehicles off"), "{}", verdict.headline());
+        assert!(
+            verdict.headline().contains("1 of 2 vehicles off"),
+            "{}",
+            verdict.headline()
+        );
         let note = verdict.recorded_starts().expect("a misplaced vehicle");
         assert!(note.contains("vehicle 2 at (2.100, 1.000, 0.0°)"), "{note}");
     }

@@ -129,7 +129,11 @@ mod tests {
     fn a_stop_command_has_no_point_after_its_valid_after() {
         let command = stop_command(3, 1.5, 2.5, 10_000_000_000, 100_000_000);
         assert!(is_stop_command(&command));
-        let times: Vec<u64> = command.trajectory_points.iter().map(|p| p.t.nanoseconds).collect();
+        let times: Vec<u64> = command
+            .trajectory_points
+            .iter()
+            .map(|p| p.t.nanoseconds)
+            .collect();
         assert_eq!(times, [9_800_000_000, 9_900_000_000, 10_000_000_000]);
         assert!(
             command

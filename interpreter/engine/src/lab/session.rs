@@ -6,8 +6,8 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use cpmx_lab::{
-    DiscoveryConfig, KeyedReader, KeyedWriter, LabParticipant, Reader, ReadyStatus, StopRequest, SystemTrigger,
-    TimeStamp, VehicleCommandTrajectory, VehicleStateList, Writer, topics,
+    DiscoveryConfig, KeyedReader, KeyedWriter, LabParticipant, Reader, ReadyStatus, StopRequest,
+    SystemTrigger, TimeStamp, VehicleCommandTrajectory, VehicleStateList, Writer, topics,
 };
 
 use crate::engine::RunError;
