@@ -184,6 +184,24 @@ fn consistent_folder(out: &Path, keys: &[String], logs: &str) -> BTreeMap<String
         .collect()
 }
 
+/// However a run ended, its vehicles were commanded to stop and stood a second later: the
+/// emulator says so once per run it started (`logs` of one session).
+fn every_run_stopped_its_vehicles(logs: &str) {
+    let started = logs
+        .lines()
+        .filter(|l| l.starts_with("run ") && l.contains(") started"))
+        .count();
+    let stopped = logs
+        .lines()
+        .filter(|l| *l == "vehicles commanded to stop: [1, 2]; standing at the run's end: [1, 2]")
+        .count();
+    assert!(started > 0, "{logs}");
+    assert_eq!(
+        started, stopped,
+        "runs started and runs whose vehicles were stopped\n{logs}"
+    );
+}
+
 /// The lab run keys of the spec (`crossing`, `turning` × repetitions).
 fn lab_keys(repetitions: usize) -> Vec<String> {
     ["crossing", "turning"]
@@ -200,7 +218,7 @@ topics:
   vehicleCommandTrajectory: {drop: 0.05, duplicate: 0.05, reorder: 0.05, delay: 0.05}
   systemTrigger: {drop: 0.3}
 pauses:
-  - {at_s: {uniform: [0.3, 2.0]}, for_s: 0.4, probability: 0.3}
+  - {at_s: {uniform: [0.3, 2.0]}, for_s: 1.2, probability: 0.3}
 restarts:
   - {at_s: {uniform: [0.3, 2.0]}, probability: 0.3}
 clock_offset_ms: 1500
@@ -253,6 +271,7 @@ fn soak(dir: &Path, deadline: Instant, repetitions: usize) {
         deadline,
     );
     assert!(!logs.contains("panicked"), "{logs}");
+    every_run_stopped_its_vehicles(&logs);
     let outcomes = consistent_folder(&faulty, &keys, &logs);
     let failed: Vec<&String> = outcomes.values().flatten().collect();
     assert_eq!(
@@ -268,6 +287,21 @@ fn soak(dir: &Path, deadline: Instant, repetitions: usize) {
             "a failure that names no fault: {reason}\n{logs}"
         );
     }
+    // Runs that completed lived through faults the cars do not feel (lost, repeated, late and
+    // reordered lists, a pause or a restart), each noted; below they equal faultless runs.
+    let complete: Vec<String> = keys
+        .iter()
+        .filter(|key| outcomes[*key].is_none())
+        .map(|key| run_record(&faulty, key))
+        .collect();
+    let survived = complete.iter().filter(|notes| {
+        notes.contains("repeated ticks")
+            && (notes.contains("restarted after tick") || notes.contains("was silent for up to"))
+    });
+    assert!(
+        survived.count() > 0,
+        "no complete run lived through a pause or a restart: {complete:?}\n{logs}"
+    );
 
     // The faults stop; --resume completes the failed runs.
     let (status, logs) = session(
@@ -281,6 +315,7 @@ fn soak(dir: &Path, deadline: Instant, repetitions: usize) {
         deadline,
     );
     assert!(status.success(), "{logs}");
+    every_run_stopped_its_vehicles(&logs);
     assert!(
         consistent_folder(&faulty, &keys, &logs)
             .values()
@@ -292,6 +327,7 @@ fn soak(dir: &Path, deadline: Instant, repetitions: usize) {
     let faultless = dir.join("faultless");
     let (status, logs) = session(dir, "faultless", &spec, &faultless, runs, &[], &[], deadline);
     assert!(status.success(), "{logs}");
+    every_run_stopped_its_vehicles(&logs);
     for key in &keys {
         let file = |out: &Path| std::fs::read(out.join("runs").join(key).join("trajectory.csv")).expect(key);
         assert!(
@@ -360,6 +396,7 @@ fn every_fault(dir: &Path, deadline: Instant) {
         record.contains("vehicle 1's positioning fixes stopped"),
         "{record}"
     );
+    assert!(logs.contains("the planner stopped its vehicles after "), "{logs}");
     let rows = common::read(&out.join("runs").join(key).join("trajectory.csv"))
         .lines()
         .count()

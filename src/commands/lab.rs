@@ -101,6 +101,9 @@ fn emulate(args: &EmulateArgs) -> Result<(), Failure> {
             eprintln!("vehicles commanded to stop: {commanded:?}; standing at the run's end: {standing:?}")
         }
         EmulatorEvent::Finished { ticks } => eprintln!("run finished after {ticks} ticks"),
+        EmulatorEvent::Ended { ticks } => {
+            eprintln!("the planner stopped its vehicles after {ticks} ticks; run ended");
+        }
         EmulatorEvent::Abandoned { ticks } => eprintln!(
             "the planner stopped answering after {ticks} ticks ({} s); run abandoned",
             lab.timeout_s

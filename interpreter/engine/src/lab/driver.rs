@@ -186,12 +186,15 @@ impl Drive<'_> {
 
         // Whatever ended the run, the vehicles are commanded to stop.
         let positions: Vec<(f64, f64)> = self.last_states.iter().map(|s| (s.x_m, s.y_m)).collect();
+        // A run that failed stops them at once; one that ran its course lets its last commands
+        // go out first (a writer keeps one sample: a stop right behind them would replace them).
         stop_vehicles(
             &mut session,
             &self.lab.vehicle_ids,
             &positions,
             self.clock,
             self.step_ns,
+            ended.is_err(),
         );
 
         let mut recording = self.recording;

@@ -25,7 +25,7 @@
 
 use std::collections::{BTreeSet, HashMap};
 use std::thread;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use cpmx_lab::{DiscoveryConfig, LabError};
 use cpmx_spec::model::{Control, Fidelity, LabFaults, LabFidelity, OnCollision, SimulatedFidelity};
@@ -42,9 +42,13 @@ use cpmx_stack::{CONTROL_PERIOD_NS, CONTROL_PERIOD_S, VehicleStack};
 
 pub use super::lockstep::RESEND_INTERVAL;
 
-/// How long the vehicles drive on after a planner left a run, before the emulator says which
-/// stand [ns] (as long as the lab's controller keeps a command).
-const AFTER_THE_PLANNER_NS: u64 = 1_000_000_000;
+/// How long the vehicles drive on after a run, before the emulator says which stand [ns] (as
+/// long as the lab's controller keeps a command).
+const AFTER_THE_RUN_NS: u64 = 1_000_000_000;
+
+/// How long the emulator takes the commands of a planner that finished its run (its safe stop
+/// lasts `STOP_WINDOW`) [wall clock].
+const STOPS_AFTER_THE_RUN: Duration = Duration::from_millis(500);
 
 /// How often the emulator polls for announcements.
 const POLL_INTERVAL: Duration = Duration::from_millis(1);
@@ -105,6 +109,9 @@ pub enum EmulatorEvent {
     Stopped { commanded: Vec<u8>, standing: Vec<u8> },
     /// The run ended after `ticks` ticks the planner drove; the stop trigger was sent.
     Finished { ticks: usize },
+    /// The planner, having driven `ticks` ticks, stopped every vehicle (its safe stop after a
+    /// failure or an interrupt); the stop trigger was sent.
+    Ended { ticks: usize },
     /// The planner fell silent after `ticks` driven ticks; the stop trigger was sent.
     Abandoned { ticks: usize },
     /// The planner announced another run after `ticks` driven ticks; the stop trigger was
@@ -265,8 +272,7 @@ impl<'a> Emulator<'a> {
             on_event(EmulatorEvent::Waiting);
             let stamp = self.wait_ready(&mut wire)?;
             let run = self.run_for(stamp);
-            let ended = self.play(&mut wire, &run, stamp, on_event)?;
-            on_event(ended);
+            self.play(&mut wire, &run, stamp, on_event)?;
             served += 1;
         }
         Ok(())
@@ -318,14 +324,14 @@ impl<'a> Emulator<'a> {
         }
     }
 
-    /// Plays one run; returns how it ended.
+    /// Plays one run: says how it ended, then which vehicles the planner stopped.
     fn play(
         &self,
         wire: &mut Wire,
         run: &EmulatedRun,
         stamp: u64,
         on_event: &mut dyn FnMut(EmulatorEvent),
-    ) -> Result<EmulatorEvent, EmulateError> {
+    ) -> Result<(), EmulateError> {
         let spec = &self.experiment.spec;
         let ids = &self.lab.vehicle_ids;
         let faults = self
@@ -373,13 +379,17 @@ impl<'a> Emulator<'a> {
             EmulatorClock::Simulated => super::lockstep::play(&mut stage, wire, &rules, on_event)?,
             EmulatorClock::RealTime => super::realtime::play(&mut stage, wire, &rules, on_event)?,
         };
-        // The lab's time goes on after a planner left: its vehicles do what they were told last.
+        on_event(ended.clone());
+        // A planner that finished its run stops its vehicles now: their commands are handed
+        // over. Then the lab's time goes on: the vehicles do what they were told last (a car
+        // whose command is a second old stops), and the emulator says which stand.
         if matches!(
             ended,
-            EmulatorEvent::Abandoned { .. } | EmulatorEvent::Superseded { .. }
+            EmulatorEvent::Finished { .. } | EmulatorEvent::Ended { .. }
         ) {
-            stage.coast(AFTER_THE_PLANNER_NS);
+            take_stops(&mut stage, wire, STOPS_AFTER_THE_RUN)?;
         }
+        stage.coast(AFTER_THE_RUN_NS);
         if !stage.stop_commanded.is_empty() {
             on_event(EmulatorEvent::Stopped {
                 commanded: stage.stop_commanded.iter().copied().collect(),
@@ -387,6 +397,19 @@ impl<'a> Emulator<'a> {
             });
         }
         wire.send_stop()?;
-        Ok(ended)
+        Ok(())
     }
+}
+
+/// Hands the commands that come within `span` to the vehicles (the planner's stop after its
+/// last tick).
+fn take_stops(stage: &mut Stage, wire: &mut Wire, span: Duration) -> Result<(), EmulateError> {
+    let until = Instant::now() + span;
+    while Instant::now() < until {
+        for command in wire.commands()? {
+            stage.receive(&command);
+        }
+        thread::sleep(POLL_INTERVAL);
+    }
+    Ok(())
 }

@@ -1,9 +1,11 @@
 //! The emulator in simulated time, as the lab's `--simulated_time` mode: the clock advances by
 //! `timing.dt` only when every vehicle's command for the tick arrived, so a run is as fast as
 //! the driver, does not depend on the machine's load, and replays exactly. Unanswered lists
-//! (and the start trigger) are sent again every [`RESEND_INTERVAL`] (best-effort topics). A
-//! pause stops the lab's clock with the middleware (the planner sees a silence, the vehicles
-//! do not move); a restart brings a new participant and a new start trigger at the tick.
+//! are sent again every [`RESEND_INTERVAL`] (a best-effort topic), each with the run's start
+//! trigger (a reliable one: a lost trigger comes again). A pause stops the lab's clock with the
+//! middleware (the planner sees a silence, the vehicles do not move); a restart brings a new
+//! participant and a new start trigger at the tick. The run ends after `timing.steps` ticks
+//! the planner drove, or when, having driven, it stops every vehicle (its safe stop).
 
 use std::thread;
 use std::time::{Duration, Instant};
@@ -29,7 +31,7 @@ pub(super) fn play(
     rules: &RunRules,
     on_event: &mut dyn FnMut(EmulatorEvent),
 ) -> Result<EmulatorEvent, EmulateError> {
-    let mut start = Some(stage.start_trigger(stage.tick_ns(0)));
+    let mut start = stage.start_trigger(stage.tick_ns(0));
     let mut driven = 0;
     let mut driving = false;
     let mut restarts = stage.faults.restarts.clone().into_iter().peekable();
@@ -60,7 +62,7 @@ pub(super) fn play(
             if !wire.restart(rules.stamp, &stage.ids, rules.timeout)? {
                 return Ok(EmulatorEvent::Abandoned { ticks: driven });
             }
-            start = Some(stage.start_trigger(tick_ns));
+            start = stage.start_trigger(tick_ns);
         }
 
         // Report the vehicles' states and wait for their trajectories.
@@ -70,15 +72,20 @@ pub(super) fn play(
             Answer::Silent => return Ok(EmulatorEvent::Abandoned { ticks: driven }),
             Answer::OtherRun => return Ok(EmulatorEvent::Superseded { ticks: driven }),
         };
-        start = None;
-        driving |= commands.iter().any(|c| !is_stop_command(c));
-        if driving {
-            driven += 1;
-        }
-
-        // The trajectories take effect and the vehicles run until the next tick.
+        // The trajectories take effect in the order they came (a planner that drove and now
+        // only stops its vehicles has ended its run), and the vehicles run until the next tick.
         for command in &commands {
             stage.receive(command);
+        }
+        if commands.iter().all(is_stop_command) {
+            if driving {
+                return Ok(EmulatorEvent::Ended { ticks: driven });
+            }
+        } else {
+            driving = true;
+        }
+        if driving {
+            driven += 1;
         }
         stage.run_period(tick_ns);
         if rules.on_collision && stage.collided() {
@@ -91,7 +98,8 @@ pub(super) fn play(
 
 /// How a tick's exchange ended.
 enum Answer {
-    /// One command per vehicle made for the tick.
+    /// The commands made at the tick or later, at least one per vehicle, in the order they
+    /// came.
     Commands(Vec<VehicleCommandTrajectory>),
     /// Nothing for the timeout.
     Silent,
@@ -99,23 +107,26 @@ enum Answer {
     OtherRun,
 }
 
-/// Publishes `list` (and the start trigger, if given) until every vehicle answered with a
-/// command made for the list's tick.
+/// Publishes `list` with the run's current start trigger (the middleware's trigger writer is
+/// reliable: a driver that lost it, or a restart's, hears it again) until every vehicle was
+/// sent a command made at the list's tick or later: its plan for the tick, or a stop (which
+/// the planner stamps by the lab's clock it extrapolates, so later than the tick). Every such
+/// command that came by then is returned, in order: a stop sent right after the tick's plan
+/// takes over from it, as on the car.
 fn exchange(
     wire: &mut Wire,
     list: &VehicleStateList,
-    start: Option<SystemTrigger>,
+    start: SystemTrigger,
     stage: &Stage,
     rules: &RunRules,
 ) -> Result<Answer, EmulateError> {
     let started = Instant::now();
     let mut sent: Option<Instant> = None;
-    let mut answers: Vec<Option<VehicleCommandTrajectory>> = vec![None; stage.ids.len()];
+    let mut answered = vec![false; stage.ids.len()];
+    let mut commands = Vec::new();
     loop {
         if sent.is_none_or(|s| s.elapsed() >= RESEND_INTERVAL) {
-            if let Some(trigger) = start {
-                wire.send_trigger(trigger);
-            }
+            wire.send_trigger(start);
             wire.send_list(list.clone());
             sent = Some(Instant::now());
         }
@@ -123,13 +134,14 @@ fn exchange(
         for command in wire.commands()? {
             let slot = stage.ids.iter().position(|id| *id == command.vehicle_id);
             if let Some(i) = slot
-                && command.header.create_stamp.nanoseconds == list.t_now
+                && command.header.create_stamp.nanoseconds >= list.t_now
             {
-                answers[i] = Some(command);
+                answered[i] = true;
+                commands.push(command);
             }
         }
-        if answers.iter().all(Option::is_some) {
-            return Ok(Answer::Commands(answers.into_iter().flatten().collect()));
+        if answered.iter().all(|a| *a) {
+            return Ok(Answer::Commands(commands));
         }
         if wire.other_run_announced(rules.stamp)? {
             return Ok(Answer::OtherRun);

@@ -6,9 +6,11 @@
 //! trigger (the vehicles catch up on their steps afterwards, on the same clock).
 //!
 //! The vehicles' clock is tied to the wall clock at the run's start: step `k` is due
-//! `k · 20 ms` after it. The run ends `timing.steps` ticks after the first tick the planner
-//! answered with a trajectory (ticks before, while its preflight keeps the vehicles standing,
-//! do not count), or when the planner is silent for the lab fidelity's `timeout_s`.
+//! `k · 20 ms` after it. Every list carries the run's start trigger (the trigger's writer is
+//! reliable: a lost one comes again). The run ends `timing.steps` ticks after the first tick
+//! the planner answered with a trajectory (ticks before, while its preflight keeps the
+//! vehicles standing, do not count), when the planner, having driven, stops every vehicle (its
+//! safe stop), or when it is silent for the lab fidelity's `timeout_s`.
 
 use std::thread;
 use std::time::{Duration, Instant};
@@ -30,7 +32,10 @@ pub(super) fn play(
     on_event: &mut dyn FnMut(EmulatorEvent),
 ) -> Result<EmulatorEvent, EmulateError> {
     let substeps = stage.dt_ns / CONTROL_PERIOD_NS;
-    let mut start = Some(stage.start_trigger(stage.tick_ns(0)));
+    let mut start = stage.start_trigger(stage.tick_ns(0));
+    // Per vehicle: whether the newest command it received stops it.
+    let mut stopped = vec![false; stage.ids.len()];
+    let mut last_planned: Option<u64> = None;
     let mut first_driven: Option<u64> = None;
     let mut last_answer = Instant::now();
     let mut restarts = stage.faults.restarts.clone().into_iter().peekable();
@@ -46,12 +51,27 @@ pub(super) fn play(
                 let Some(tick) = stage.tick_of(&command) else {
                     continue;
                 };
-                if !is_stop_command(&command) && first_driven.is_none_or(|f| tick < f) {
-                    first_driven = Some(tick);
+                let stop = is_stop_command(&command);
+                if !stop {
+                    first_driven = Some(first_driven.map_or(tick, |first| first.min(tick)));
+                    last_planned = last_planned.max(Some(tick));
                 }
-                start = None;
+                if let Some(agent) = stage.ids.iter().position(|id| *id == command.vehicle_id) {
+                    stopped[agent] = stop;
+                }
                 last_answer = Instant::now();
                 stage.receive(&command);
+            }
+            // A planner that drove and now stops every vehicle has ended the run.
+            if let (Some(first), Some(last)) = (first_driven, last_planned)
+                && stopped.iter().all(|s| *s)
+            {
+                let ticks = (last - first + 1) as usize;
+                return Ok(if ticks >= rules.steps {
+                    EmulatorEvent::Finished { ticks }
+                } else {
+                    EmulatorEvent::Ended { ticks }
+                });
             }
             wire.flush()?;
             if wire.other_run_announced(rules.stamp)? {
@@ -86,16 +106,14 @@ pub(super) fn play(
                     });
                 }
                 // The vehicles drove on meanwhile: their steps catch up from here.
-                start = Some(stage.start_trigger(now_ns));
+                start = stage.start_trigger(now_ns);
             }
             let paused = stage.faults.paused(now_ns);
             if paused && !stage.faults.paused(now_ns.saturating_sub(stage.dt_ns)) {
                 on_event(EmulatorEvent::Fault(format!("paused at tick {tick}")));
             }
             if !paused {
-                if let Some(trigger) = start {
-                    wire.send_trigger(trigger);
-                }
+                wire.send_trigger(start);
                 let list = stage.list(now_ns);
                 wire.send_list(list);
                 wire.flush()?;

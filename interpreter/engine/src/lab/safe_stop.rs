@@ -11,7 +11,8 @@
 //! The command is stamped by the lab's clock, never the driver's: with the newest tick's
 //! `t_now` when a list comes (the lab's simulated time answers that tick with it), else with
 //! the last `t_now` plus the time since it came. It is sent again while the stop lasts,
-//! because the topic is best effort.
+//! because the topic is best effort. A failed run sends it at once; a run that ran its course
+//! first lets its last commands go out (at the next tick, or 50 ms later).
 
 use std::thread;
 use std::time::{Duration, Instant};
@@ -80,7 +81,8 @@ impl LabClock {
 }
 
 /// Commands every vehicle (`vehicle_ids`, last seen at `positions`) to stop for
-/// [`STOP_WINDOW`], answering every tick that comes meanwhile. Without a tick ever heard
+/// [`STOP_WINDOW`], answering every tick that comes meanwhile; at once when `at_once`, else
+/// from the next tick or after [`RESEND`], whichever comes first. Without a tick ever heard
 /// (`clock` is `None`) the vehicles never had a command from this run, and nothing is sent.
 /// Errors of the middleware are ignored: the stop is the last thing a run does, and a
 /// vehicle without commands stops after a second anyway.
@@ -90,6 +92,7 @@ pub(super) fn stop_vehicles(
     positions: &[(f64, f64)],
     clock: Option<LabClock>,
     step_ns: u64,
+    at_once: bool,
 ) {
     let Some(mut clock) = clock else {
         return;
@@ -102,7 +105,7 @@ pub(super) fn stop_vehicles(
             .collect()
     };
     let started = Instant::now();
-    let mut sent: Option<Instant> = None;
+    let mut sent: Option<Instant> = (!at_once).then_some(started);
     while started.elapsed() < STOP_WINDOW {
         if let Ok(Some(list)) = session.newest_list()
             && list.t_now >= clock.t_now_ns

@@ -120,9 +120,13 @@ impl Session {
             if triggers.iter().any(SystemTrigger::is_stop) {
                 return Ok(Event::Stop("the lab sent the stop trigger".into()));
             }
-            // The start trigger again (a lab re-sends it until it hears from the planner) is not
-            // a restart; a start at another time is.
-            if let Some(restart) = triggers.iter().find(|t| t.next_start.nanoseconds != start_ns) {
+            // The start trigger again (a lab sends it again: its writer is reliable) is not a
+            // restart, nor is an older one that came late; a later start is.
+            if let Some(restart) = triggers
+                .iter()
+                .filter(|t| !t.is_stop() && t.next_start.nanoseconds > start_ns)
+                .max_by_key(|t| t.next_start.nanoseconds)
+            {
                 return Ok(Event::Restarted(restart.next_start.nanoseconds));
             }
             if let Some(request) = self
