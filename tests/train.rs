@@ -498,3 +498,80 @@ fn training_in_the_labs_control_architecture_is_deterministic_and_its_actors_run
         }
     }
 }
+
+#[test]
+fn a_policy_not_trained_yet_refuses_its_runs_and_lets_the_others_run() {
+    let dir = scratch("train-not-yet");
+    let spec = small_spec(&dir, 2);
+    let text = std::fs::read_to_string(&spec).unwrap().replace(
+        "policies:\n",
+        "policies:\n  - {name: baseline, builtin: lane-follow}\n",
+    );
+    std::fs::write(&spec, text).unwrap();
+    let run = |only: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_cpmx"))
+            .args([
+                "run",
+                spec.to_str().unwrap(),
+                "--out",
+                dir.join("run").to_str().unwrap(),
+            ])
+            .args(only)
+            .arg("--data")
+            .arg(reference())
+            .env_remove("CPMX_DATA")
+            .output()
+            .expect("cpmx runs")
+    };
+    let refused = run(&[]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("policy `trained` names the actor trained with seed 7, which was not found"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("--only policy="), "{stderr}");
+    assert!(!dir.join("run").exists(), "nothing is written for a refused run");
+    let table = ok(&run(&["--only", "policy=baseline"]));
+    assert!(table.contains("baseline"), "{table}");
+}
+
+#[test]
+fn shards_of_a_swept_training_merge_into_the_unsharded_folder_byte_for_byte() {
+    let (whole, sharded) = (scratch("train-unsharded"), scratch("train-sharded"));
+    for dir in [&whole, &sharded] {
+        let spec = small_spec(dir, 2);
+        let text = std::fs::read_to_string(&spec)
+            .unwrap()
+            .replace("lr: 1.0e-3", "lr: {sweep: [1.0e-3, 3.0e-4]}");
+        std::fs::write(&spec, text).unwrap();
+    }
+    ok(&train(&whole, &whole.join("small.yaml"), &[]));
+    for shard in ["1/3", "2/3", "3/3"] {
+        ok(&train(&sharded, &sharded.join("small.yaml"), &["--shard", shard]));
+    }
+    let (a, b) = (
+        weights_and_curves(&whole.join("out")),
+        weights_and_curves(&sharded.join("out")),
+    );
+    let actors = a.iter().filter(|(p, _)| p.ends_with("actor.safetensors")).count();
+    assert_eq!(
+        actors,
+        4,
+        "two points x two seeds: {:?}",
+        a.iter().map(|f| &f.0).collect::<Vec<_>>()
+    );
+    assert_same_files(&a, &b);
+    // The run.json of each training run is the same too (same build, same inputs).
+    for (path, _) in &a {
+        if path.ends_with("actor.safetensors") {
+            let run = path.with_file_name("run.json");
+            assert_eq!(
+                std::fs::read(whole.join("out").join(&run)).unwrap(),
+                std::fs::read(sharded.join("out").join(&run)).unwrap(),
+                "{}",
+                run.display()
+            );
+        }
+    }
+}

@@ -8,10 +8,13 @@
 #   cpmx report out/sweep/shard-* --format markdown
 #   cpmx report out/sweep/shard-* --out out/sweep/merged     # summary files and plots
 #
+# The data path reaches the tasks as CPMX_DATA (sbatch exports the environment); logs go to the
+# submit directory (Slurm does not create folders for them).
+#
 #SBATCH --job-name=cpmx-sweep
-#SBATCH --cpus-per-task=4
+#SBATCH --cpus-per-task=2
 #SBATCH --time=01:00:00
-#SBATCH --output=out/sweep/slurm-%A_%a.log
+#SBATCH --output=slurm-sweep-%A_%a.log
 set -euo pipefail
 
 spec=${1:?usage: sbatch --array=1-N array-job.sh SPEC}

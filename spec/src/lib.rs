@@ -5,7 +5,8 @@
 //! checks that need a map or a network through [`InterpreterChecks`].
 //!
 //! ```text
-//! text ──parse──► spanned JSON ──expand presets──► schema ──► typed Spec ──► meaning checks
+//! text ──parse──► spanned JSON ──expand presets──► sweeps ──► schema (every point) ──► typed Spec
+//!      ──► meaning checks ──► the fidelities of the run matrix (one per point of a sweep)
 //! ```
 
 mod check;
@@ -18,6 +19,7 @@ mod paths;
 pub mod reference;
 mod resolve;
 pub mod schema;
+pub mod sweep;
 mod yaml;
 
 use std::path::{Path, PathBuf};
@@ -72,6 +74,14 @@ pub struct CheckedSpec {
     pub configurations: Vec<NamedConfiguration>,
     /// Problems that do not stop the spec (e.g. fidelities this build cannot run).
     pub warnings: Vec<SpecDiagnostic>,
+    /// The spec's sweeps (`spec` holds every swept value at its first value).
+    pub sweeps: Vec<sweep::Sweep>,
+    /// The fidelities of the run matrix: each of the spec's, once per point of the sweeps
+    /// that apply to it (`twin@delay_ms=80`), in matrix order.
+    pub fidelity_points: indexmap::IndexMap<String, sweep::FidelityPoint>,
+    /// The training section at every point of its sweeps (one point named `""` without
+    /// them; none without `training:`).
+    pub training_points: Vec<sweep::TrainingPoint>,
     /// Where every node of the spec's text is, for problems found after checking.
     doc: SpannedDocument,
     /// The spec's text, for those problems' diagnostics.
@@ -94,12 +104,40 @@ impl CheckedSpec {
 
     /// The run matrix.
     pub fn plan(&self) -> Vec<RunPlan> {
-        matrix::expand(&self.spec, &self.configurations)
+        matrix::expand_fidelities(
+            &self.spec,
+            self.fidelity_points.keys().map(String::as_str),
+            &self.configurations,
+        )
+    }
+
+    /// The spec with the fidelities of the run matrix (one per point of a sweep) in place of
+    /// its own: what engines run.
+    pub fn run_spec(&self) -> Spec {
+        let mut spec = self.spec.clone();
+        spec.fidelities = self
+            .fidelity_points
+            .iter()
+            .map(|(name, point)| (name.clone(), point.fidelity.clone()))
+            .collect();
+        spec
+    }
+
+    /// The metrics of runs in the matrix fidelity `fidelity` (a point of a metric's sweep has
+    /// its own).
+    pub fn metrics_for(&self, fidelity: &str) -> &model::MetricsSpec {
+        self.fidelity_points
+            .get(fidelity)
+            .and_then(|p| p.metrics.as_ref())
+            .unwrap_or(&self.spec.metrics)
     }
 
     /// The training runs of `cpmx train` (one per seed; none without `training:`).
     pub fn training_plan(&self) -> Vec<TrainingPlan> {
-        matrix::training_runs(&self.spec)
+        self.training_points
+            .iter()
+            .flat_map(|p| matrix::training_runs_at(&p.training, &p.name))
+            .collect()
     }
 }
 
@@ -132,14 +170,64 @@ pub fn check_scoped(
     // Parse, keeping every node's place.
     let mut doc = yaml::parse(&source.text).map_err(&attach)?;
 
-    // Expand presets, then check the shape of the whole document.
+    // Expand presets; find the sweeps; check the shape of the document at every sweep's
+    // every value (the others at their first).
     let mut problems = resolve::expand_presets(&mut doc);
-    problems.extend(schema::validate(&doc));
+    let sweep::Found {
+        sweeps,
+        problems: sweep_problems,
+        refused,
+    } = sweep::find(&doc);
+    problems.extend(sweep_problems);
+    // The spans of every node of a refused sweep (mappings' spans only mark where they open).
+    let refused_spans: Vec<ByteSpan> = doc
+        .spans
+        .iter()
+        .filter(|(pointer, _)| {
+            refused.iter().any(|r| {
+                pointer
+                    .strip_prefix(r.as_str())
+                    .is_some_and(|rest| rest.is_empty() || rest.starts_with('/'))
+            })
+        })
+        .flat_map(|(_, spans)| [Some(spans.value), spans.key])
+        .flatten()
+        .collect();
+    let about_a_refused_sweep = |p: &Problem| refused_spans.contains(&p.span);
+    let mut base = doc.value.clone();
+    for s in &sweeps {
+        sweep::set(&mut base, &s.pointer, s.values[0]);
+    }
+    let at_first = SpannedDocument {
+        value: base.clone(),
+        spans: doc.spans.clone(),
+    };
+    problems.extend(
+        schema::validate(&at_first)
+            .into_iter()
+            .filter(|p| !about_a_refused_sweep(p)),
+    );
+    for s in &sweeps {
+        let site = doc.spans_at(&s.pointer).value;
+        for (k, &value) in s.values.iter().enumerate().skip(1) {
+            let mut variant = at_first.clone();
+            sweep::set(&mut variant.value, &s.pointer, value);
+            for mut p in schema::validate(&variant) {
+                // A value of this sweep is out of range: point at it.
+                if p.span == site {
+                    p.span = doc.spans_at(&format!("{}/sweep/{k}", s.pointer)).value;
+                    if !problems.contains(&p) {
+                        problems.push(p);
+                    }
+                }
+            }
+        }
+    }
     if problems.iter().any(|p| p.level == Level::Error) {
         return Err(attach(problems));
     }
     let early_warnings = problems;
-    let spec: Spec = match serde_json::from_value(doc.value.clone()) {
+    let spec: Spec = match serde_json::from_value(base.clone()) {
         Ok(spec) => spec,
         Err(e) => {
             return Err(attach(vec![Problem::error(
@@ -178,12 +266,31 @@ pub fn check_scoped(
     }
 
     let configurations = matrix::configurations(&spec, &resources);
+    let fidelity_points = sweep::fidelity_points(&base, &sweeps, &spec).map_err(|e| {
+        attach(vec![Problem::error(
+            "cpmx::internal",
+            format!("{e}; please report this"),
+            ByteSpan::new(0, 0),
+            "",
+        )])
+    })?;
+    let training_points = sweep::training_points(&base, &sweeps).map_err(|e| {
+        attach(vec![Problem::error(
+            "cpmx::internal",
+            format!("{e}; please report this"),
+            ByteSpan::new(0, 0),
+            "",
+        )])
+    })?;
     Ok(CheckedSpec {
         spec,
         resolved: doc.value.clone(),
+        training_points,
         resources,
         configurations,
         warnings: attach(warnings),
+        sweeps,
+        fidelity_points,
         doc,
         source: named,
     })

@@ -39,8 +39,11 @@ pub struct RunPlan {
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct TrainingPlan {
     /// `train/<seed>` (one fidelity; the run writes to `<out>/<seed>/`) or
-    /// `train/<fidelity>/<seed>` (several; `<out>/<fidelity>/<seed>/`).
+    /// `train/<fidelity>/<seed>` (several; `<out>/<fidelity>/<seed>/`); a point of the
+    /// section's sweeps comes first: `train/lr=0.001/<seed>` (`<out>/lr=0.001/<seed>/`).
     pub key: String,
+    /// The point of the training section's sweeps (`lr=0.001`; empty without sweeps).
+    pub point: String,
     /// The fidelity it trains in.
     pub fidelity: String,
     pub seed: u64,
@@ -55,20 +58,32 @@ pub struct TrainingPlan {
 /// The training runs of a spec: every seed of `training.seeds` in every fidelity of
 /// `training.fidelity`, fidelity-major (none without `training:`).
 pub fn training_runs(spec: &Spec) -> Vec<TrainingPlan> {
-    let Some(t) = &spec.training else {
-        return vec![];
-    };
+    match &spec.training {
+        Some(t) => training_runs_at(t, ""),
+        None => vec![],
+    }
+}
+
+/// The training runs of the section `t` at the sweep point `point` (`""` without sweeps).
+pub fn training_runs_at(t: &crate::model::TrainingSpec, point: &str) -> Vec<TrainingPlan> {
     let several = t.fidelity.several();
+    let prefix = if point.is_empty() {
+        String::new()
+    } else {
+        format!("{point}/")
+    };
     t.fidelity
         .names()
         .iter()
         .flat_map(|fidelity| {
+            let prefix = prefix.clone();
             t.seeds.iter().map(move |&seed| TrainingPlan {
                 key: if several {
-                    format!("train/{fidelity}/{seed}")
+                    format!("train/{prefix}{fidelity}/{seed}")
                 } else {
-                    format!("train/{seed}")
+                    format!("train/{prefix}{seed}")
                 },
+                point: point.to_owned(),
                 fidelity: fidelity.clone(),
                 seed,
                 iterations: t.iterations,
@@ -166,8 +181,17 @@ pub fn recorded_runs(dir: &Path, fidelity: &str) -> Vec<String> {
 
 /// Expands the matrix in the order fidelities, policies, configurations, repetitions.
 pub fn expand(spec: &Spec, configurations: &[NamedConfiguration]) -> Vec<RunPlan> {
+    expand_fidelities(spec, spec.fidelities.keys().map(String::as_str), configurations)
+}
+
+/// [`expand`] over the given fidelities (the matrix's: one per point of a sweep).
+pub fn expand_fidelities<'a>(
+    spec: &Spec,
+    fidelities: impl Iterator<Item = &'a str>,
+    configurations: &[NamedConfiguration],
+) -> Vec<RunPlan> {
     let mut runs = Vec::new();
-    for fidelity in spec.fidelities.keys() {
+    for fidelity in fidelities {
         for policy in &spec.policies {
             for configuration in configurations {
                 for repetition in 1..=spec.repetitions {
@@ -176,7 +200,7 @@ pub fn expand(spec: &Spec, configurations: &[NamedConfiguration]) -> Vec<RunPlan
                             "{fidelity}/{}/{}/rep{repetition}",
                             policy.name, configuration.name
                         ),
-                        fidelity: fidelity.clone(),
+                        fidelity: fidelity.to_owned(),
                         policy: policy.name.clone(),
                         initial_configuration: configuration.name.clone(),
                         repetition,

@@ -18,6 +18,7 @@ pub fn language_reference_markdown() -> String {
          the design notes; examples are in `examples/` and `experiments/`. A field that takes a preset \
          also accepts `stdlib:NAME` (see `cpmx stdlib`) or `{extends: stdlib:NAME, field: value}`.\n\n",
     );
+    out.push_str(SWEEPS);
     out.push_str("## Spec (the top level)\n\n");
     object_table(&mut out, &schema);
     if let Some(defs) = defs {
@@ -53,6 +54,22 @@ pub fn language_reference_markdown() -> String {
     }
     out
 }
+
+/// Sweeps are not a type of the schema (each point of a sweep is checked as an ordinary spec), so
+/// the reference says in prose where they may stand and what they do.
+const SWEEPS: &str = "## Sweeps\n\n\
+    Any number of a fidelity's layers (`dynamics`, `sensing`, `actuation`, `communication`, \
+    `perception`), of a metric's parameters or of the training section's `algorithm` and `reward` \
+    may be `{sweep: [v1, v2, ...]}`: an axis of the run matrix. Each value makes a point, named \
+    after the parameter's key (`twin@delay_ms=80`; a dotted path when two sweeps share a key); \
+    several sweeps make a grid (`twin@latency_ms=100,drop_probability=0.3`). A swept fidelity \
+    becomes one fidelity per point, and a metric's sweep makes a point of every fidelity: run keys, \
+    `cpmx plan`, `--only`, shards and `--resume` treat points as fidelities, paired like them (the \
+    same seeds at every point). The summary gives a row per point and `report.html` draws each \
+    metric against the swept value with its interval. A training sweep trains each point's seeds \
+    (`cpmx plan` lists them; their folders are `<out>/<point>/<seed>`), and a policy names its \
+    point with `mlp: {trained: {point}}`. A sweep elsewhere, an empty one, a repeated value or \
+    one inside a distribution is refused with its location.\n\n";
 
 /// ` — text`, or nothing for empty text.
 fn dash(text: &str) -> String {

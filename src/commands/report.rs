@@ -151,7 +151,7 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
         let recording =
             Recording::read_csv(bytes.as_slice()).map_err(|e| fail(format!("{}: {e}", path.display())))?;
         let metrics = scoring
-            .measure(&recording)
+            .measure_in(&plan.fidelity, &recording)
             .map_err(|e| fail(format!("{}: {e}", path.display())))?;
         records.push(RunRecord {
             plan: plan.clone(),

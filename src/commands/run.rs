@@ -41,7 +41,7 @@ pub struct RunArgs {
     pub data: DataArgs,
 }
 
-fn parse_shard(text: &str) -> Result<Shard, String> {
+pub(crate) fn parse_shard(text: &str) -> Result<Shard, String> {
     let (k, n) = text.split_once('/').ok_or("expected K/N, e.g. 1/4")?;
     let index: usize = k.trim().parse().map_err(|_| format!("`{k}` is not a number"))?;
     let count: usize = n.trim().parse().map_err(|_| format!("`{n}` is not a number"))?;

@@ -31,6 +31,11 @@ pub struct TrainArgs {
     /// uninterrupted run); seeds without a checkpoint start.
     #[arg(long)]
     pub resume: bool,
+    /// Train the K-th of N deterministic slices of the training runs (`cpmx plan` lists
+    /// them), e.g. `--shard 2/4`; shards into one `--out` folder give the folder one
+    /// unsharded training gives.
+    #[arg(long, value_name = "K/N", value_parser = super::run::parse_shard)]
+    pub shard: Option<cpmx_engine::Shard>,
     #[command(flatten)]
     pub data: DataArgs,
 }
@@ -112,14 +117,19 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
     let all_fidelities = TrainingSetup::fidelities(&checked).map_err(setup_error)?;
     let several = all_fidelities.len() > 1;
     let fidelities = selected(&args.only, "fidelity", &all_fidelities, |v| Some(v.to_owned()))?;
+    // One setup per point of the section's sweeps (one point without them) and fidelity.
+    let points: Vec<String> = checked.training_points.iter().map(|p| p.name.clone()).collect();
     let mut setups = Vec::new();
-    for fidelity in &fidelities {
-        setups.push((
-            fidelity.clone(),
-            TrainingSetup::prepare(&checked, fidelity).map_err(setup_error)?,
-        ));
+    for point in &points {
+        for fidelity in &fidelities {
+            setups.push((
+                point.clone(),
+                fidelity.clone(),
+                TrainingSetup::prepare_at(&checked, fidelity, point).map_err(setup_error)?,
+            ));
+        }
     }
-    let Some((_, first_setup)) = setups.first() else {
+    let Some((_, _, first_setup)) = setups.first() else {
         return Ok(());
     };
     let seeds = selected(&args.only, "seed", &first_setup.seeds, |v| v.parse().ok())?;
@@ -128,8 +138,15 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
         .out
         .clone()
         .unwrap_or_else(|| Path::new("out").join(format!("{spec_name}-train")));
-    // One folder per fidelity when the spec trains in several.
-    let folder = |fidelity: &str| if several { out.join(fidelity) } else { out.clone() };
+    // A folder per point of the sweeps, then per fidelity when the spec trains in several.
+    let folder = |point: &str, fidelity: &str| {
+        let at = if point.is_empty() {
+            out.clone()
+        } else {
+            out.join(point)
+        };
+        if several { at.join(fidelity) } else { at }
+    };
     let jobs = args
         .jobs
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
@@ -145,13 +162,21 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
             Failure::InvalidInput
         })?;
 
-    // Open every seed's folder before training any, so that a refusal (a run that exists
+    // Open every seed's folder before training any (of this shard: the training runs in
+    // `cpmx plan`'s order, every N-th from the K-th), so that a refusal (a run that exists
     // without --resume, changed inputs, a damaged checkpoint) stops before work is done.
+    let shard = args.shard.unwrap_or(cpmx_engine::Shard::WHOLE);
     let mut runs = Vec::new();
-    for (fidelity, setup) in &setups {
+    let mut index = 0;
+    for (point, fidelity, setup) in &setups {
         for &seed in &seeds {
-            match SeedRun::open(setup, &folder(fidelity), seed, args.resume, &made_by()) {
-                Ok((run, start)) => runs.push((fidelity.clone(), run, start)),
+            let mine = shard.contains(index);
+            index += 1;
+            if !mine {
+                continue;
+            }
+            match SeedRun::open(setup, &folder(point, fidelity), seed, args.resume, &made_by()) {
+                Ok((run, start)) => runs.push((point.clone(), fidelity.clone(), run, start)),
                 Err(e) => return Err(report_open_error(&e)),
             }
         }
@@ -162,14 +187,17 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
 
     let mut summary = Vec::new();
     crate::interrupt::flag();
-    for (fidelity, mut run, start) in runs {
+    for (point, fidelity, mut run, start) in runs {
         let seed_started = Instant::now();
         let first = run.done();
-        let label = if several {
+        let mut label = if several {
             format!("{fidelity} seed {}", run_seed(&run))
         } else {
             format!("seed {}", run_seed(&run))
         };
+        if !point.is_empty() {
+            label = format!("{point} {label}");
+        }
         match start {
             Start::Fresh => eprintln!(
                 "{label}: training {} iterations into {}",
@@ -239,8 +267,8 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
             run.dir().to_owned(),
         ));
     }
-    for (fidelity, setup) in &setups {
-        write_overview(&folder(fidelity), &spec_name, &setup.seeds).map_err(|e| report_io(&e))?;
+    for (point, fidelity, setup) in &setups {
+        write_overview(&folder(point, fidelity), &spec_name, &setup.seeds).map_err(|e| report_io(&e))?;
     }
 
     println!("| run | iterations | best episode_reward_mean | mean of the last 10 | s/iteration | actor |");
@@ -274,6 +302,9 @@ fn resume_command(args: &TrainArgs, out: &Path) -> String {
     }
     if let Some(jobs) = args.jobs {
         words.extend(["--jobs".to_owned(), jobs.to_string()]);
+    }
+    if let Some(shard) = args.shard {
+        words.extend(["--shard".to_owned(), format!("{}/{}", shard.index, shard.count)]);
     }
     for dir in &args.data.data {
         words.extend(["--data".to_owned(), shell_word(&dir.display().to_string())]);

@@ -77,6 +77,7 @@ pub(crate) fn unsupported_reason(fidelity: &Fidelity) -> Option<String> {
             sensing,
             actuation,
             follower,
+            ..
         }) => {
             let mut extra = Vec::new();
             if matches!(dynamics, DynamicsLayer::GreyBox(_)) {

@@ -32,6 +32,10 @@ pub enum RunError {
          with cpmx.run(spec, policies={{\"{0}\": callable}})"
     )]
     Unbound(String),
+    #[error(
+        "policy `{policy}` names the actor trained with seed {seed}, which was not found: run `cpmx train` first"
+    )]
+    NotTrained { policy: String, seed: u64 },
     #[error("the spec has no initial configuration `{0}`")]
     UnknownConfiguration(String),
     #[error("fidelity `{0}` cannot run in this build: {1}")]
@@ -126,6 +130,18 @@ impl RunInputs<'_> {
         Ok(AgentPaths::new(paths))
     }
 
+    /// What the agents know of each other through the fidelity's `communication` and
+    /// `perception` layers, drawing from the run's streams of those names.
+    pub fn neighbour_knowledge(&self) -> cpmx_sensing::NeighbourKnowledge {
+        let fidelity = self.fidelity;
+        cpmx_stack::neighbour_knowledge(
+            self.starts.len(),
+            fidelity.and_then(|f| f.communication.as_ref()),
+            fidelity.and_then(|f| f.perception.as_ref()),
+            |name| stream_key(self.plan.seed, name),
+        )
+    }
+
     /// How the run's policy acts (`action: sample` or the mean) and its `policy` stream.
     fn action_mode(&self, sample: bool) -> (cpmx_policy::ActionMode, ChaCha20Rng) {
         let mode = if sample {
@@ -191,6 +207,12 @@ impl RunInputs<'_> {
                     .clone()
                     .ok_or_else(|| RunError::Unbound(self.plan.policy.clone()))?;
                 Box::new(ExternalPolicy::new(decider, *observation))
+            }
+            PreparedPolicy::NotTrained { seed } => {
+                return Err(RunError::NotTrained {
+                    policy: self.plan.policy.clone(),
+                    seed: *seed,
+                });
             }
             PreparedPolicy::LaneFollow(p) => Box::new(LaneFollow::new(LaneFollowParams {
                 target_speed_mps: p.target_speed,

@@ -1,6 +1,7 @@
 //! An experiment ready to run: the spec's map, vehicle, policies and named initial
 //! configurations turned into interpreter values, once, before any run starts.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -77,15 +78,23 @@ pub enum PreparedPolicy {
         decider: Option<Arc<dyn cpmx_policy::Decider>>,
     },
     LaneFollow(cpmx_spec::model::LaneFollowParams),
+    /// An `mlp: {trained}` policy whose actor is not there yet: the experiment still prepares
+    /// (so runs of the other policies can go ahead), and a run of this one fails saying so.
+    NotTrained {
+        seed: u64,
+    },
 }
 
 /// Everything a run needs that does not depend on the run.
 #[derive(Debug, Clone)]
 pub struct Experiment {
+    /// The spec with the run matrix's fidelities (one per point of a sweep).
     pub spec: Spec,
     pub map: Arc<Map>,
     pub vehicle: VehicleParams,
     pub metrics: MetricsConfig,
+    /// The metrics of the points of a metric parameter's sweep, by matrix fidelity.
+    pub metrics_by_fidelity: BTreeMap<String, MetricsConfig>,
     pub policies: Vec<(String, PreparedPolicy)>,
     /// Initial states by configuration name, in matrix order.
     pub starts: Vec<(String, Vec<InitialState>)>,
@@ -99,6 +108,20 @@ pub struct Scoring {
     pub map: Arc<Map>,
     pub vehicle: VehicleParams,
     pub metrics: MetricsConfig,
+    /// The metrics of the points of a metric parameter's sweep, by matrix fidelity.
+    pub metrics_by_fidelity: BTreeMap<String, MetricsConfig>,
+}
+
+/// The metric parameters of every point of a metric's sweep, by matrix fidelity.
+fn swept_metrics(checked: &CheckedSpec) -> BTreeMap<String, MetricsConfig> {
+    checked
+        .fidelity_points
+        .iter()
+        .filter_map(|(name, point)| {
+            let metrics = point.metrics.as_ref()?;
+            Some((name.clone(), metrics_config(metrics, &checked.spec.timing)))
+        })
+        .collect()
 }
 
 impl Scoring {
@@ -110,12 +133,23 @@ impl Scoring {
             map: Arc::new(load_map(spec, checked.resources.map_file.as_deref())?),
             vehicle: vehicle_params(&spec.vehicle),
             metrics: metrics_config(&spec.metrics, &spec.timing),
+            metrics_by_fidelity: swept_metrics(checked),
         })
     }
 
-    /// The metrics of one recording.
+    /// The metrics of one recording with the spec's metric parameters.
     pub fn measure(&self, recording: &cpmx_recording::Recording) -> Result<cpmx_metrics::RunMetrics, String> {
         crate::runner::measure_recording(&self.map, &self.vehicle, &self.metrics, recording)
+    }
+
+    /// The metrics of a run of the matrix fidelity `fidelity` (its point's metric parameters).
+    pub fn measure_in(
+        &self,
+        fidelity: &str,
+        recording: &cpmx_recording::Recording,
+    ) -> Result<cpmx_metrics::RunMetrics, String> {
+        let metrics = self.metrics_by_fidelity.get(fidelity).unwrap_or(&self.metrics);
+        crate::runner::measure_recording(&self.map, &self.vehicle, metrics, recording)
     }
 }
 
@@ -127,17 +161,22 @@ impl Experiment {
             map: self.map.clone(),
             vehicle: self.vehicle,
             metrics: self.metrics,
+            metrics_by_fidelity: self.metrics_by_fidelity.clone(),
         }
     }
 
     /// Loads the map and the networks and places every initial configuration.
     pub fn prepare(checked: &CheckedSpec) -> Result<Experiment, PrepareError> {
-        let spec = &checked.spec;
+        let run_spec = checked.run_spec();
+        let spec = &run_spec;
         let map = Arc::new(load_map(spec, checked.resources.map_file.as_deref())?);
         let vehicle = vehicle_params(&spec.vehicle);
         let mut policies = Vec::new();
         for (policy, weights) in spec.policies.iter().zip(&checked.resources.weights) {
-            let mut prepared = prepare_policy(policy, weights.as_deref())?;
+            let mut prepared = match prepare_policy(policy, weights.as_deref()) {
+                Err(PrepareError::NotTrained { seed, .. }) => PreparedPolicy::NotTrained { seed },
+                other => other?,
+            };
             if let PreparedPolicy::Process { dir, .. } = &mut prepared {
                 dir.clone_from(&checked.resources.spec_dir);
             }
@@ -149,6 +188,7 @@ impl Experiment {
             map,
             vehicle,
             metrics: metrics_config(&spec.metrics, &spec.timing),
+            metrics_by_fidelity: swept_metrics(checked),
             policies,
             starts,
         })
@@ -196,6 +236,17 @@ impl Experiment {
             .iter()
             .filter(|(_, p)| matches!(p, PreparedPolicy::External { decider: None, .. }))
             .map(|(n, _)| n.as_str())
+            .collect()
+    }
+
+    /// The `mlp: {trained}` policies whose actors are not there yet, with their seeds.
+    pub fn not_trained(&self) -> Vec<(&str, u64)> {
+        self.policies
+            .iter()
+            .filter_map(|(n, p)| match p {
+                PreparedPolicy::NotTrained { seed } => Some((n.as_str(), *seed)),
+                _ => None,
+            })
             .collect()
     }
 

@@ -335,6 +335,12 @@ fn write_plots(
             svg.as_bytes(),
         )?;
     }
+    for (name, svg) in cpmx_report::sensitivity_svgs(summary) {
+        write_atomic(
+            &plots.join(format!("{}.svg", name.replace('/', "_"))),
+            svg.as_bytes(),
+        )?;
+    }
     for (record, recording) in records.iter().zip(recordings) {
         let Some(recording) = recording else {
             continue;

@@ -33,6 +33,8 @@ mod tests {
             sensing: None,
             actuation: Some(ActuationLayer::Model(ActuationModel { delay_ms })),
             follower: None,
+            communication: None,
+            perception: None,
         }
     }
 

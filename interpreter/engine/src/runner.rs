@@ -149,7 +149,7 @@ fn execute_one(
         }
     };
     match run_engine(experiment, plan, fidelity.as_ref(), context).and_then(|recording| {
-        let metrics = measure(experiment, &recording)?;
+        let metrics = measure(experiment, &plan.fidelity, &recording)?;
         Ok((recording, metrics))
     }) {
         Ok((recording, metrics)) => {
@@ -253,7 +253,7 @@ pub fn simulate(experiment: &Experiment, plan: &RunPlan) -> Result<(Recording, R
         operator: None,
     };
     let recording = run_engine(experiment, plan, fidelity.as_ref(), context).map_err(RunFailure::reason)?;
-    let metrics = measure(experiment, &recording)?;
+    let metrics = measure(experiment, &plan.fidelity, &recording)?;
     Ok((recording, metrics))
 }
 
@@ -296,13 +296,12 @@ fn run_engine(
 }
 
 /// The spec's metrics of a recording (the same function `cpmx evaluate` and `cpmx report` use).
-pub fn measure(experiment: &Experiment, recording: &Recording) -> Result<RunMetrics, String> {
-    measure_recording(
-        &experiment.map,
-        &experiment.vehicle,
-        &experiment.metrics,
-        recording,
-    )
+pub fn measure(experiment: &Experiment, fidelity: &str, recording: &Recording) -> Result<RunMetrics, String> {
+    let metrics = experiment
+        .metrics_by_fidelity
+        .get(fidelity)
+        .unwrap_or(&experiment.metrics);
+    measure_recording(&experiment.map, &experiment.vehicle, metrics, recording)
 }
 
 /// The metrics of a recording on `map` with the vehicle's footprint and the metric parameters.

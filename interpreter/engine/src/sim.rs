@@ -37,6 +37,7 @@ impl Engine for SimEngine {
             ref_paths: starts.iter().map(|s| s.ref_path).collect(),
             samples: Vec::with_capacity(spec.timing.steps as usize),
         };
+        let mut knowledge = inputs.neighbour_knowledge();
         let mut agents = vec![AgentState::default(); states.len()];
         let mut commands = vec![Command::default(); states.len()];
 
@@ -58,11 +59,15 @@ impl Engine for SimEngine {
             for ((agent, state), velocity) in agents.iter_mut().zip(&states).zip(&velocities) {
                 *agent = AgentState::from_bicycle(state, *velocity);
             }
+            let t_s = f64::from(step) * dt_s;
+            let active = knowledge.is_active();
+            let views = knowledge.step(t_s, &agents);
             let input = ObservationInput {
                 agents: &agents,
                 paths: &paths,
                 vehicle: &experiment.vehicle,
                 previous_corners: None,
+                neighbours: active.then_some(views),
             };
             policy.act(&input, &mut commands)?;
             for ((state, velocity), command) in states.iter_mut().zip(&mut velocities).zip(&commands) {

@@ -59,6 +59,8 @@ impl Engine for TwinEngine {
             .map_err(&unsupported)?;
         let mut planner = planner(planner_spec, dt_s, experiment.vehicle);
         let mut policy = inputs.policy()?;
+        let mut knowledge = inputs.neighbour_knowledge();
+        let model = cpmx_vehicle::KinematicBicycle::new(experiment.vehicle);
 
         let mut recording = Recording {
             notes: Vec::new(),
@@ -82,6 +84,14 @@ impl Engine for TwinEngine {
             // at its state's time and valid from the tick on.
             let listed: Vec<StampedState> = vehicles.iter().map(|v| v.listed_state(tick_ns)).collect();
             let states: Vec<BicycleState> = listed.iter().map(|s| s.state).collect();
+            if knowledge.is_active() {
+                // What each agent knows of the others, from the states the middleware lists.
+                let agents: Vec<cpmx_policy::AgentState> = states
+                    .iter()
+                    .map(|s| cpmx_policy::AgentState::from_bicycle(s, model.velocity_mps(s)))
+                    .collect();
+                planner.set_neighbours(Some(knowledge.step(t_s, &agents)));
+            }
             let trajectories = planner.plan(policy.as_mut(), &states, &paths, 0.0)?;
             for ((vehicle, trajectory), state) in vehicles.iter_mut().zip(&trajectories).zip(&listed) {
                 let anchor = anchor_ns(state.create_ns, tick_ns, max_age_ns);

@@ -22,6 +22,9 @@ pub struct EnvConfig {
     pub dt_s: f64,
     /// How the agents' actions move them.
     pub plant: Plant,
+    /// The fidelity's `communication` and `perception` layers: what each agent knows of the
+    /// others (none: every other's state exactly, as SigmaRL).
+    pub neighbours: crate::neighbours::NeighbourLayers,
 }
 
 /// How the agents' actions move them.
@@ -45,6 +48,7 @@ impl Default for EnvConfig {
             vehicle: VehicleParams::MU_CAR,
             dt_s: 0.1,
             plant: Plant::Direct,
+            neighbours: crate::neighbours::NeighbourLayers::default(),
         }
     }
 }

@@ -100,6 +100,7 @@ pub fn config_from_training(
         vehicle,
         dt_s,
         plant,
+        neighbours: crate::neighbours::NeighbourLayers::default(),
     }
 }
 

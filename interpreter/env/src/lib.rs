@@ -22,6 +22,7 @@
 mod collision;
 mod config;
 mod from_spec;
+mod neighbours;
 mod paths;
 mod render;
 mod result;
@@ -42,6 +43,7 @@ pub use config::{
     TtcTerm, VelocityToPointsTerm,
 };
 pub use from_spec::{config_from_training, training_paths};
+pub use neighbours::NeighbourLayers;
 pub use paths::{TrainingPath, prepare_paths};
 pub use render::{AGENT_COLOURS, RgbImage};
 pub use result::{AgentStepInfo, CollisionCounts, ResetCounts, RewardTermMeans, StepResult};

@@ -116,6 +116,11 @@ pub(crate) struct StackWorld {
 }
 
 impl StackWorld {
+    /// What each agent knows of the others when the planner plans the next period.
+    pub(crate) fn set_neighbours(&mut self, views: Option<&cpmx_policy::NeighbourViews>) {
+        self.planner.set_neighbours(views);
+    }
+
     /// The vehicles of environment `env_index` of a training run with `seed`; placed by the
     /// first whole reset.
     pub(crate) fn new(

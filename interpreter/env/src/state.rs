@@ -10,7 +10,8 @@
 //! Layout (little-endian): the tag `cpmx-env/state/v2`, `E` and `N` as u64, then per
 //! environment the counter (u32), the stream's seed (32 bytes) and word position (u128), `N`
 //! returns (f32) and `N` agents (path u64, point u64, x, y, yaw, speed, steering, the two
-//! velocity components and the previous steering command as f64). States of version 1 (no
+//! velocity components and the previous steering command as f64), then each environment's
+//! vehicle stacks and its neighbour layers when the fidelity has them. States of version 1 (no
 //! previous steering command, written before the steering-change term existed) load with
 //! that command 0, which no other reward term reads.
 
@@ -70,6 +71,12 @@ impl VecEnv {
                 stack.save(&mut out);
             }
         }
+        // The neighbour layers (communication, perception), when the fidelity has them.
+        for env in 0..e {
+            if let Some(neighbours) = self.env_neighbours(env) {
+                neighbours.save(&mut out);
+            }
+        }
         out
     }
 
@@ -96,7 +103,8 @@ impl VecEnv {
         }
         let expected = TAG.len() + 16 + e * (ENV_BYTES + n * agent_bytes);
         let stacks = self.has_stacks();
-        if bytes.len() < expected || (!stacks && bytes.len() != expected) {
+        let neighbours = self.env_neighbours(0).is_some();
+        if bytes.len() < expected || (!stacks && !neighbours && bytes.len() != expected) {
             return Err(format!(
                 "the state has {} bytes, {expected} expected (truncated or from another version)",
                 bytes.len()
@@ -147,18 +155,28 @@ impl VecEnv {
             for env in 0..e {
                 worlds.push(self.load_stack_world(env, &mut r)?);
             }
-            if r.at != bytes.len() {
-                return Err(format!(
-                    "the state has {} bytes after its vehicle stacks (from another version?)",
-                    bytes.len() - r.at
-                ));
+        }
+        let mut layers = Vec::new();
+        for env in 0..e {
+            if let Some(mut n) = self.env_neighbours(env).cloned() {
+                n.load(bytes, &mut r.at)?;
+                layers.push(n);
             }
+        }
+        if r.at != bytes.len() {
+            return Err(format!(
+                "the state has {} bytes after its vehicle stacks and layers (from another version?)",
+                bytes.len() - r.at
+            ));
         }
         for (env, (counter, rng, returns, placements, steering)) in parsed.into_iter().enumerate() {
             self.restore_env(env, counter, rng, &returns, &placements, &steering);
         }
         for (env, world) in worlds.into_iter().enumerate() {
             self.set_stack_world(env, world);
+        }
+        for (env, n) in layers.into_iter().enumerate() {
+            self.set_env_neighbours(env, n);
         }
         Ok(())
     }

@@ -28,6 +28,7 @@ use rayon::prelude::*;
 
 use crate::collision::{rectangle_crosses_segment, rectangles_cross};
 use crate::config::{ConfigError, EnvConfig, Plant, ResetScope};
+use crate::neighbours::EnvNeighbours;
 use crate::paths::{TrainingPath, prepare_paths};
 use crate::result::{AgentStepInfo, StepResult, StepTotals};
 use crate::reward::{RewardInput, reward};
@@ -65,6 +66,8 @@ struct Env {
     /// The observation of the states the last episode ended in, when kept
     /// ([`VecEnv::set_keep_final_observations`]).
     final_observation: Option<Vec<f32>>,
+    /// The fidelity's communication and perception layers, if any.
+    neighbours: Option<EnvNeighbours>,
     scratch: Scratch,
 }
 
@@ -151,6 +154,7 @@ impl VecEnv {
                 stack,
                 failure: None,
                 final_observation: None,
+                neighbours: EnvNeighbours::new(&config.neighbours, n, seed, e),
                 scratch: Scratch::default(),
             })
             .collect();
@@ -366,6 +370,16 @@ impl VecEnv {
     }
 
     /// Environment `env`'s vehicle stacks, if its plant has them.
+    pub(crate) fn env_neighbours(&self, env: usize) -> Option<&EnvNeighbours> {
+        self.envs.get(env).and_then(|e| e.neighbours.as_ref())
+    }
+
+    pub(crate) fn set_env_neighbours(&mut self, env: usize, neighbours: EnvNeighbours) {
+        if let Some(e) = self.envs.get_mut(env) {
+            e.neighbours = Some(neighbours);
+        }
+    }
+
     pub(crate) fn stack_world(&self, env: usize) -> Option<&StackWorld> {
         self.envs[env].stack.as_ref()
     }
@@ -528,6 +542,9 @@ impl Env {
         self.scratch.avoid = avoid;
         self.counter = 0;
         self.episode_reward.fill(0.0);
+        if let Some(neighbours) = &mut self.neighbours {
+            neighbours.start_episode();
+        }
         if let (Some(stack), Plant::Stack(plant)) = (&mut self.stack, &config.plant) {
             let placements: Vec<Placement> = self.agents.iter().map(|a| a.placement).collect();
             if let Err(e) = stack.reset_whole(plant, config.vehicle, &placements) {
@@ -571,14 +588,25 @@ impl Env {
 
     /// Observations of the current states into `out` (`previous` corners for the lag); with
     /// vehicle stacks, of the states the vehicles report and their previous tick's corners.
+    /// With neighbour layers, what each agent knows of the others comes from the states
+    /// observed, at the episode's time; a planner plans its next period with the same views.
     fn observe(&mut self, config: &EnvConfig, previous: Option<&[Footprint]>, out: &mut [f32]) {
-        if let Some(stack) = &self.stack {
+        let t_s = f64::from(self.counter) * config.dt_s;
+        if let Some(stack) = &mut self.stack {
             let states = stack.observed_states(&KinematicBicycle::new(config.vehicle));
-            observe_into(config, &states, &self.paths, stack.previous_corners(), out);
+            let views = self.neighbours.as_mut().map(|n| n.observe(t_s, &states));
+            observe_into(config, &states, &self.paths, stack.previous_corners(), views, out);
+            if let Some(views) = views {
+                stack.set_neighbours(Some(views));
+            }
             return;
         }
         self.collect_states();
-        observe_into(config, &self.scratch.states, &self.paths, previous, out);
+        let views = self
+            .neighbours
+            .as_mut()
+            .map(|n| n.observe(t_s, &self.scratch.states));
+        observe_into(config, &self.scratch.states, &self.paths, previous, views, out);
     }
 
     /// Observations of the current states without the lag (as right after a reset).
@@ -588,7 +616,7 @@ impl Env {
             .iter()
             .map(|a| AgentState::from_bicycle(&a.placement.state, a.placement.velocity_mps))
             .collect();
-        observe_into(config, &states, &self.paths, None, out);
+        observe_into(config, &states, &self.paths, None, None, out);
     }
 
     /// One step; returns whether the environment was done (and has been reset), and why.
@@ -808,6 +836,7 @@ fn observe_into(
     states: &[AgentState],
     paths: &AgentPaths,
     previous: Option<&[Footprint]>,
+    neighbours: Option<&cpmx_policy::NeighbourViews>,
     out: &mut [f32],
 ) {
     let input = ObservationInput {
@@ -815,6 +844,7 @@ fn observe_into(
         paths,
         vehicle: &config.vehicle,
         previous_corners: previous,
+        neighbours,
     };
     // Sizes and paths are fixed at construction (checked there), so this cannot fail.
     config

@@ -36,6 +36,8 @@ fn sim_mpc() -> SimulatedFidelity {
         sensing: None,
         actuation: None,
         follower: None,
+        communication: None,
+        perception: None,
     }
 }
 
@@ -62,6 +64,8 @@ fn random_twin() -> SimulatedFidelity {
             delay_ms: uniform(40.0, 120.0),
         })),
         follower: None,
+        communication: None,
+        perception: None,
     }
 }
 

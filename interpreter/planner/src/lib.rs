@@ -7,7 +7,7 @@
 //! This crate owns the rollout and the after-Hc rule. It does not follow trajectories (the
 //! follower does), measure anything, or know where states come from.
 
-use cpmx_policy::{AgentPaths, AgentState, ObservationInput, Policy, PolicyError};
+use cpmx_policy::{AgentPaths, AgentState, NeighbourViews, ObservationInput, Policy, PolicyError};
 use cpmx_vehicle::{BicycleState, Command, Footprint, KinematicBicycle, VehicleParams, footprint_corners};
 
 /// Steering between Hc and Hp.
@@ -66,6 +66,9 @@ pub struct Planner {
     model: KinematicBicycle,
     /// Corners of the agents at the previous planning time (SigmaRL's lagged corners), if any.
     previous_corners: Option<Vec<Footprint>>,
+    /// What each agent knows of the others (a fidelity's communication and perception
+    /// layers), for every policy call of the next plans; `None`: everything exactly.
+    neighbours: Option<NeighbourViews>,
 }
 
 impl Planner {
@@ -74,6 +77,18 @@ impl Planner {
             params,
             model: KinematicBicycle::new(vehicle),
             previous_corners: None,
+            neighbours: None,
+        }
+    }
+
+    /// What each agent knows of the others when it plans next (`None`: everything exactly).
+    /// A neighbour known exactly is predicted over the lookahead as without the layers; one
+    /// known from an older message or with perception noise stays as known.
+    pub fn set_neighbours(&mut self, views: Option<&NeighbourViews>) {
+        match (views, &mut self.neighbours) {
+            (None, slot) => *slot = None,
+            (Some(views), Some(slot)) => slot.clone_from(views),
+            (Some(views), slot) => *slot = Some(views.clone()),
         }
     }
 
@@ -137,6 +152,7 @@ impl Planner {
                 paths,
                 vehicle: &vehicle,
                 previous_corners: corners_before.as_deref(),
+                neighbours: self.neighbours.as_ref(),
             };
             // The real policy sees the real states once per planning time; the predicted
             // steps go to a fork, so they leave its memory (and random stream) untouched.

@@ -81,6 +81,7 @@ fn policy_throughput(c: &mut Criterion) {
         paths: &paths,
         vehicle: &vehicle,
         previous_corners: None,
+        neighbours: None,
     };
     let design = SigmarlObservation::default();
     let mut observations = vec![0.0f32; AGENTS * design.size()];

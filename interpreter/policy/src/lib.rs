@@ -43,6 +43,9 @@ pub use actor::{Activation, ActorError, ActorWorkspace, MlpActor, MlpLayout};
 pub use external::{Decider, ExternalPolicy, STATE_FIELDS};
 pub use geometry::{AgentPaths, PreparedPath, Segments};
 pub use lane_follow::{LaneFollow, LaneFollowParams};
-pub use observation::{AgentState, BoundaryCorners, ObservationError, ObservationInput, SigmarlObservation};
+pub use observation::{
+    AgentState, BoundaryCorners, NeighbourView, NeighbourViews, ObservationError, ObservationInput,
+    SigmarlObservation,
+};
 pub use policy::{MlpPolicy, Network, Policy, PolicyError, check_input_size};
 pub use process::{PROTOCOL_VERSION, ProcessConfig, ProcessPolicy};

@@ -45,6 +45,68 @@ impl AgentState {
     }
 }
 
+/// What one agent knows of another when a communication or perception layer stands between
+/// them (see [`NeighbourViews`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum NeighbourView {
+    /// The state the observation is formed from anyway (heard or seen this very step, exactly):
+    /// what every agent knows of every other without the layers. In a planner's lookahead it is
+    /// the predicted state, as without the layers.
+    #[default]
+    Exact,
+    /// A state heard in an older message or perceived with noise: observed as it is (not
+    /// extrapolated), also in a planner's lookahead.
+    Known(AgentState),
+    /// Neither heard nor seen: left out of the neighbours, as SigmaRL's observation leaves out
+    /// agents that are not there (the nearest of the others fill the slots; then the agent
+    /// itself at its placeholder distance; then zeros).
+    Absent,
+}
+
+/// What each agent knows of each other agent, `[observer][other]`: the output of a fidelity's
+/// `communication` and `perception` layers (cpmx-sensing). Without them every view is
+/// [`NeighbourView::Exact`], which [`ObservationInput::neighbours`] `None` stands for.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct NeighbourViews {
+    agents: usize,
+    views: Vec<NeighbourView>,
+}
+
+impl NeighbourViews {
+    /// Every agent knows every other exactly.
+    pub fn exact(agents: usize) -> Self {
+        NeighbourViews {
+            agents,
+            views: vec![NeighbourView::Exact; agents * agents],
+        }
+    }
+
+    /// Number of agents.
+    pub fn agents(&self) -> usize {
+        self.agents
+    }
+
+    /// What `observer` knows of `other`.
+    pub fn get(&self, observer: usize, other: usize) -> NeighbourView {
+        self.views
+            .get(observer * self.agents + other)
+            .copied()
+            .unwrap_or(NeighbourView::Absent)
+    }
+
+    /// Sets what `observer` knows of `other`.
+    pub fn set(&mut self, observer: usize, other: usize, view: NeighbourView) {
+        if let Some(slot) = self.views.get_mut(observer * self.agents + other) {
+            *slot = view;
+        }
+    }
+
+    /// Whether every view is [`NeighbourView::Exact`] (the layers changed nothing).
+    pub fn all_exact(&self) -> bool {
+        self.views.iter().all(|v| *v == NeighbourView::Exact)
+    }
+}
+
 /// Everything a policy sees at one step: all agents' states, their prepared reference
 /// paths and the vehicle geometry, plus the corners of the previous step for SigmaRL's lag.
 #[derive(Debug, Clone, Copy)]
@@ -58,6 +120,9 @@ pub struct ObservationInput<'a> {
     /// Footprint corners of every agent at the previous observation (`None` right after a
     /// reset). Only used by [`BoundaryCorners::LaggedForFirstAgent`].
     pub previous_corners: Option<&'a [Footprint]>,
+    /// What each agent knows of the others when a communication or perception layer stands
+    /// between them; `None`: every agent knows every other's state exactly.
+    pub neighbours: Option<&'a NeighbourViews>,
 }
 
 /// Which corners enter the boundary distances.
@@ -249,16 +314,25 @@ impl SigmarlObservation {
         // Nearest neighbours by centre distance, ascending (the agent itself at the placeholder).
         let mut chosen = [(f64::INFINITY, 0usize); MAX_NEIGHBOURS];
         let k = self.neighbours.min(MAX_NEIGHBOURS);
-        for (j, other) in input.agents.iter().enumerate() {
+        // What the agent knows of each other (everything exactly without the layers).
+        let view = |j: usize| input.neighbours.map_or(NeighbourView::Exact, |v| v.get(ego, j));
+        let state_of = |j: usize| match view(j) {
+            NeighbourView::Known(state) if j != ego => state,
+            _ => input.agents[j],
+        };
+        for j in 0..input.agents.len() {
             let d = if j == ego {
                 self.own_distance_placeholder_m
+            } else if view(j) == NeighbourView::Absent {
+                continue;
             } else {
+                let other = state_of(j);
                 (other.x_m - me.x_m).hypot(other.y_m - me.y_m)
             };
             insert_sorted(&mut chosen[..k], (d, j));
         }
         for &(distance_m, j) in chosen[..k].iter().filter(|e| e.0.is_finite()) {
-            let other = &input.agents[j];
+            let other = &state_of(j);
             for c in footprint_corners(input.vehicle, other.x_m, other.y_m, other.yaw_rad) {
                 let q = frame.to_ego(c);
                 w.push(q[0] / self.position_norm_m);
@@ -364,6 +438,7 @@ mod tests {
             paths: &paths,
             vehicle: &VehicleParams::MU_CAR,
             previous_corners: None,
+            neighbours: None,
         };
         let plain = SigmarlObservation::default();
         let steered = SigmarlObservation {

@@ -45,6 +45,7 @@ fn simulate(
             paths: &prepared,
             vehicle: &vehicle,
             previous_corners: None,
+            neighbours: None,
         };
         policy.act(&input, &mut commands).unwrap();
         for (i, s) in states.iter_mut().enumerate() {

@@ -67,6 +67,7 @@ fn simulate(map: &Map, ids: &[usize], arcs_m: &[f64], steps: usize) -> Outcome {
             paths: &prepared,
             vehicle: &vehicle,
             previous_corners: None,
+            neighbours: None,
         };
         policy.act(&input, &mut commands).unwrap();
         for (s, c) in states.iter_mut().zip(&commands) {

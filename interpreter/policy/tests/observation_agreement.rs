@@ -48,6 +48,7 @@ fn sigmarl_observation_matches_all_697_agent_steps() {
                 paths: &agent_paths,
                 vehicle: &vehicle,
                 previous_corners: previous.as_deref(),
+                neighbours: None,
             };
             let mut out = vec![0.0f32; agents.len() * design.size()];
             design.observe_all(&input, &mut out).unwrap();
@@ -118,6 +119,7 @@ fn current_corners_option_differs_only_for_agent_zero() {
         paths: &agent_paths,
         vehicle: &vehicle,
         previous_corners: Some(&far),
+        neighbours: None,
     };
     let (mut a, mut b) = (vec![0.0; 64], vec![0.0; 64]);
     lagged.observe_all(&input, &mut a).unwrap();

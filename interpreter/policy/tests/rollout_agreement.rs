@@ -91,6 +91,7 @@ fn step_wise_rollout_matches_sigmarl() {
             paths: &r.paths,
             vehicle: &vehicle,
             previous_corners: None,
+            neighbours: None,
         };
         policy.act(&input, &mut commands).unwrap();
         let next = &r.steps[t + 1];
@@ -150,6 +151,7 @@ fn open_loop(precision: Precision) -> Vec<[[f64; 2]; 3]> {
             paths: &r.paths,
             vehicle: &vehicle,
             previous_corners: None,
+            neighbours: None,
         };
         policy.act(&input, &mut commands).unwrap();
         let mut positions = [[0.0; 2]; 3];

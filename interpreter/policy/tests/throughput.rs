@@ -50,6 +50,7 @@ fn measure(agents: usize, steps: usize) -> (f64, f64) {
             paths: &paths,
             vehicle: &vehicle,
             previous_corners: None,
+            neighbours: None,
         };
         let t0 = Instant::now();
         SigmarlObservation::default()

@@ -103,6 +103,18 @@ pub fn report_html(page: &Page<'_>) -> String {
     );
 
     // Distributions, and the training's learning curves.
+    let curves = cpmx_report::sensitivity_svgs(page.summary);
+    if !curves.is_empty() {
+        out.push_str(
+            "<section id=\"sensitivity\"><h2>Sensitivity</h2>\n<p>Each metric against a swept \
+             parameter: per line the other sweeps' values and the policy held fixed; points are a \
+             row's mean over its independent units, bars its t 95 % interval.</p><div class=\"panels\">\n",
+        );
+        for (_, svg) in &curves {
+            out.push_str(svg);
+        }
+        out.push_str("</div></section>\n");
+    }
     out.push_str("<section id=\"distributions\"><h2>Metric distributions</h2><div class=\"panels\">\n");
     for metric in Metric::ALL {
         out.push_str("<figure>");

@@ -67,29 +67,58 @@ pub struct PairedMetric {
     pub probability_of_improvement: f64,
 }
 
-/// Compares every fidelity of `runs` other than `reference` with it.
+/// The reference a fidelity is paired with: for a point of a sweep (`twin@delay_ms=80`), the
+/// reference at the same point when the sweep covers it too (a metric parameter's sweep makes
+/// `sim@slack=0.1`), else the reference itself.
+fn reference_of<'a>(fidelity: &str, reference: &'a str, names: &BTreeSet<&str>) -> std::borrow::Cow<'a, str> {
+    if let Some((_, point)) = fidelity.split_once('@') {
+        let at_point = format!("{reference}@{point}");
+        if names.contains(at_point.as_str()) {
+            return std::borrow::Cow::Owned(at_point);
+        }
+    }
+    std::borrow::Cow::Borrowed(reference)
+}
+
+/// Whether `fidelity` is the reference, or the reference at a point of a sweep.
+fn is_reference(fidelity: &str, reference: &str) -> bool {
+    fidelity == reference
+        || fidelity
+            .split_once('@')
+            .is_some_and(|(base, _)| base == reference)
+}
+
+/// Compares every fidelity of `runs` other than `reference` with it (points of a sweep with
+/// the reference at the same point, see [`reference_of`]).
 ///
 /// Each bootstrap interval uses `ChaCha8Rng::seed_from_u64(bootstrap.seed)` afresh, so any
 /// interval can be recomputed from the printed seed alone.
 pub fn compare(runs: &[RunRecord], reference: &str, bootstrap: &Bootstrap) -> Comparison {
+    let names: BTreeSet<&str> = runs.iter().map(|r| r.plan.fidelity.as_str()).collect();
     let mut fidelities: Vec<&str> = Vec::new();
     for run in runs {
         let fidelity = run.plan.fidelity.as_str();
-        if fidelity != reference && !fidelities.contains(&fidelity) {
+        if !is_reference(fidelity, reference) && !fidelities.contains(&fidelity) {
             fidelities.push(fidelity);
         }
     }
     Comparison {
         reference: reference.to_owned(),
-        reference_runs: runs.iter().filter(|r| r.plan.fidelity == reference).count(),
+        reference_runs: runs
+            .iter()
+            .filter(|r| is_reference(&r.plan.fidelity, reference))
+            .count(),
         fidelities: fidelities
             .into_iter()
-            .map(|fidelity| FidelityComparison {
-                fidelity: fidelity.to_owned(),
-                metrics: Metric::ALL
-                    .iter()
-                    .map(|&metric| paired_metric(runs, fidelity, reference, metric, bootstrap))
-                    .collect(),
+            .map(|fidelity| {
+                let reference = reference_of(fidelity, reference, &names);
+                FidelityComparison {
+                    fidelity: fidelity.to_owned(),
+                    metrics: Metric::ALL
+                        .iter()
+                        .map(|&metric| paired_metric(runs, fidelity, &reference, metric, bootstrap))
+                        .collect(),
+                }
             })
             .collect(),
     }

@@ -1,7 +1,8 @@
 //! Sensing and actuation layers of the cpmx twin, as the CPM Lab's simulated vehicles run
 //! them (cpm-lab-interface.md §5, §6): the input delay line, the simulated indoor positioning
 //! system, the on-car localization that fuses dead reckoning with positioning fixes, and
-//! [`OnCarSensing`], which chains the last two for one car.
+//! [`OnCarSensing`], which chains the last two for one car; and what agents know of each other
+//! through a `communication` or `perception` layer ([`NeighbourKnowledge`]).
 //!
 //! This crate owns those three small state machines and the order of their random draws. It
 //! knows no vehicle model (callers pass true poses and true odometer/gyro increments), no
@@ -12,11 +13,13 @@
 mod delay;
 mod ips;
 mod localization;
+mod neighbours;
 mod on_car;
 
 pub use delay::ActuationDelay;
 pub use ips::{IpsModel, IpsParams, PoseFix};
 pub use localization::{Estimate, FixOutcome, Localization, LocalizationParams, OdometryReading};
+pub use neighbours::{CommunicationParams, NeighbourKnowledge, PerceptionParams};
 pub use on_car::OnCarSensing;
 
 use thiserror::Error;

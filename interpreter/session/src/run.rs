@@ -28,7 +28,7 @@ pub fn parse_only(only: &[String]) -> Result<Vec<Only>, RunError> {
         .map(|o| match o.split_once('=') {
             Some((axis, names)) if ONLY_AXES.contains(&axis) => Ok(Only {
                 axis: axis.to_owned(),
-                names: names.split(',').map(str::to_owned).collect(),
+                names: split_names(names),
             }),
             _ => Err(RunError::Usage {
                 message: format!(
@@ -38,6 +38,38 @@ pub fn parse_only(only: &[String]) -> Result<Vec<Only>, RunError> {
             }),
         })
         .collect()
+}
+
+/// Splits `a,b` at its commas, but keeps a sweep point's grid together: in
+/// `twin@latency_ms=0,drop_probability=0.1,sim` the piece `drop_probability=0.1` continues the
+/// point before it (names of the spec never contain `=`; points' coordinates always do).
+fn split_names(names: &str) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for piece in names.split(',') {
+        match out.last_mut() {
+            Some(last) if piece.contains('=') && last.contains('@') => {
+                last.push(',');
+                last.push_str(piece);
+            }
+            _ => out.push(piece.to_owned()),
+        }
+    }
+    out
+}
+
+/// The plural of an `--only` axis, for messages.
+fn plural(axis: &str) -> String {
+    match axis {
+        "policy" => "policies".to_owned(),
+        "fidelity" => "fidelities".to_owned(),
+        other => format!("{}s", other.replace('_', " ")),
+    }
+}
+
+/// Whether `name` of `--only` selects the run whose axis value is `value`: the name itself, or,
+/// for a fidelity, every point of a swept fidelity by its name (`twin` selects `twin@delay_ms=80`).
+fn selects(axis: &str, name: &str, value: &str) -> bool {
+    name == value || (axis == "fidelity" && value.split_once('@').is_some_and(|(base, _)| base == name))
 }
 
 /// What to run and where.
@@ -140,7 +172,7 @@ pub fn selected_plans(checked: &CheckedSpec, request: &RunRequest) -> Result<Vec
             }
         }
         for name in &only.names {
-            if valid.contains(&name.as_str()) {
+            if valid.iter().any(|v| selects(&only.axis, name, v)) {
                 continue;
             }
             let suggestion = cpmx_spec::schema::did_you_mean(
@@ -157,8 +189,8 @@ pub fn selected_plans(checked: &CheckedSpec, request: &RunRequest) -> Result<Vec
                     only.axis.replace('_', " ")
                 ),
                 help: Some(format!(
-                    "{suggestion}the spec's {}s: {}",
-                    only.axis,
+                    "{suggestion}the spec's {}: {}",
+                    plural(&only.axis),
                     valid.join(", ")
                 )),
             });
@@ -167,10 +199,11 @@ pub fn selected_plans(checked: &CheckedSpec, request: &RunRequest) -> Result<Vec
     Ok(all
         .into_iter()
         .filter(|p| {
-            request
-                .only
-                .iter()
-                .all(|o| o.names.iter().any(|n| n == axis_value(p, &o.axis)))
+            request.only.iter().all(|o| {
+                o.names
+                    .iter()
+                    .any(|n| selects(&o.axis, n, axis_value(p, &o.axis)))
+            })
         })
         .collect())
 }
@@ -198,7 +231,8 @@ pub fn run_matrix(
     let plans = selected_plans(checked, request)?;
 
     // Refuse fidelities this build cannot run before doing anything.
-    for (name, fidelity) in &checked.spec.fidelities {
+    for (name, point) in &checked.fidelity_points {
+        let fidelity = &point.fidelity;
         if plans.iter().any(|p| &p.fidelity == name)
             && let Err(e) = cpmx_engine::engine_for(name, fidelity)
         {
@@ -226,6 +260,20 @@ pub fn run_matrix(
             ),
             help: Some(format!(
                 "pass it: cpmx.run(spec, policies={{\"{unbound}\": callable}})"
+            )),
+        });
+    }
+    if let Some((policy, seed)) = experiment
+        .not_trained()
+        .into_iter()
+        .find(|(name, _)| plans.iter().any(|p| p.policy == *name))
+    {
+        return Err(RunError::Invalid {
+            message: format!(
+                "policy `{policy}` names the actor trained with seed {seed}, which was not found"
+            ),
+            help: Some(format!(
+                "run `cpmx train` first, or leave it out with `--only policy=...` (the other policies than `{policy}`)"
             )),
         });
     }
@@ -346,4 +394,23 @@ fn data_path(spec: &Path, data: &[PathBuf]) -> Vec<PathBuf> {
         .into_iter()
         .map(|f| std::fs::canonicalize(&f).unwrap_or(f))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_points_grid_stays_one_name_and_a_swept_fidelity_selects_its_points() {
+        let only = parse_only(&["fidelity=twin@latency_ms=0,drop_probability=0.1,sim".to_owned()]).unwrap();
+        assert_eq!(only[0].names, ["twin@latency_ms=0,drop_probability=0.1", "sim"]);
+        let only = parse_only(&["policy=a,b".to_owned()]).unwrap();
+        assert_eq!(only[0].names, ["a", "b"]);
+        assert!(selects("fidelity", "twin", "twin@delay_ms=80"));
+        assert!(selects("fidelity", "twin@delay_ms=80", "twin@delay_ms=80"));
+        assert!(!selects("fidelity", "twin", "twin-v2v@delay_ms=80"));
+        assert!(!selects("policy", "twin", "twin@delay_ms=80"));
+        assert_eq!(plural("fidelity"), "fidelities");
+        assert_eq!(plural("initial_configuration"), "initial configurations");
+    }
 }

@@ -4,13 +4,17 @@
 //! engine drives several from the planner, `cpmx lab emulate` from trajectories received over
 //! DDS, `cpmx train` in a `control: trajectory` fidelity; none owns the vehicle. Also here: how
 //! plans are timed for the vehicles on their nanosecond clock (`timing.rs`) and how a
-//! randomised fidelity is drawn (`randomise.rs`), one rule for every driver of the vehicles.
+//! randomised fidelity is drawn (`randomise.rs`) and what its `communication` and `perception`
+//! layers let agents know of each other (`neighbours.rs`), one rule for every driver of the
+//! vehicles.
 
+mod neighbours;
 mod plants;
 mod randomise;
 mod stack;
 mod timing;
 
+pub use neighbours::{communication_params, neighbour_knowledge, perception_params};
 pub use plants::GreyBoxMpcModel;
 pub use randomise::{draw_fidelity, draw_value};
 pub use stack::{

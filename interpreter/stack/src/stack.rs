@@ -421,6 +421,8 @@ mod tests {
             sensing: None,
             actuation: Some(ActuationLayer::Model(ActuationModel { delay_ms: 80.0 })),
             follower: None,
+            communication: None,
+            perception: None,
         }
     }
 

@@ -175,6 +175,8 @@ mod tests {
                     delay_ms: Parameter::Drawn(Distribution::Uniform([20.0, 100.0])),
                 })),
                 follower: None,
+                communication: None,
+                perception: None,
             },
             planner: cpmx_planner::PlannerParams {
                 control_horizon: 4,

@@ -34,7 +34,7 @@ pub fn trained_actors(checked: &CheckedSpec) -> Vec<(usize, Provenance)> {
     let Some(training) = &checked.spec.training else {
         return Vec::new();
     };
-    let mut fingerprints: HashMap<String, Option<String>> = HashMap::new();
+    let mut fingerprints: HashMap<(String, String), Option<String>> = HashMap::new();
     let mut out = Vec::new();
     for (i, policy) in checked.spec.policies.iter().enumerate() {
         let Some(trained) = policy.mlp.as_ref().and_then(|m| m.trained.as_ref()) else {
@@ -47,11 +47,14 @@ pub fn trained_actors(checked: &CheckedSpec) -> Vec<(usize, Provenance)> {
             .fidelity
             .clone()
             .unwrap_or_else(|| training.fidelity.names()[0].clone());
-        let expected = fingerprints.entry(fidelity.clone()).or_insert_with(|| {
-            TrainingSetup::prepare(checked, &fidelity)
-                .ok()
-                .map(|s| s.fingerprint)
-        });
+        let point = trained.point.clone().unwrap_or_default();
+        let expected = fingerprints
+            .entry((fidelity.clone(), point.clone()))
+            .or_insert_with(|| {
+                TrainingSetup::prepare_at(checked, &fidelity, &point)
+                    .ok()
+                    .map(|s| s.fingerprint)
+            });
         let Some(expected) = expected else {
             continue;
         };

@@ -75,8 +75,30 @@ impl TrainingSetup {
     /// Reads the spec's training section for training in `fidelity` (one of
     /// [`TrainingSetup::fidelities`]) and loads its map.
     pub fn prepare(checked: &CheckedSpec, fidelity: &str) -> Result<TrainingSetup, SetupError> {
+        Self::prepare_at(checked, fidelity, "")
+    }
+
+    /// [`TrainingSetup::prepare`] at the point `point` of the section's sweeps (`lr=0.001`;
+    /// `""` without sweeps: the section as written).
+    pub fn prepare_at(
+        checked: &CheckedSpec,
+        fidelity: &str,
+        point: &str,
+    ) -> Result<TrainingSetup, SetupError> {
         let spec = &checked.spec;
-        let training = spec.training.as_ref().ok_or(SetupError::NoTraining)?;
+        spec.training.as_ref().ok_or(SetupError::NoTraining)?;
+        let at = match checked.training_points.iter().find(|p| p.name == point) {
+            Some(at) => at,
+            None if point.is_empty() => checked.training_points.first().ok_or(SetupError::NoTraining)?,
+            None => {
+                let names: Vec<&str> = checked.training_points.iter().map(|p| p.name.as_str()).collect();
+                return Err(SetupError::Invalid(format!(
+                    "the training section has no point `{point}` (its points: {})",
+                    names.join(", ")
+                )));
+            }
+        };
+        let training = &at.training;
         let plant = plant_of(checked, fidelity, training.lookahead)?;
         check_learner_choices(training)?;
         let map = cpmx_engine::load_map(spec, checked.resources.map_file.as_deref())?;
@@ -106,15 +128,17 @@ impl TrainingSetup {
         }
         let vehicle = cpmx_engine::vehicle_params(&spec.vehicle);
         let observation = cpmx_engine::observation(&training.observation);
-        let env = config_from_training(training, observation, vehicle, spec.timing.dt, plant);
+        let mut env = config_from_training(training, observation, vehicle, spec.timing.dt, plant);
+        if let Some(Fidelity::Simulated(f)) = spec.fidelities.get(fidelity) {
+            env.neighbours = cpmx_env::NeighbourLayers {
+                communication: f.communication.clone(),
+                perception: f.perception.clone(),
+            };
+        }
         env.check().map_err(|e| SetupError::Invalid(e.to_string()))?;
         let hyperparameters = hyperparameters(training, &vehicle);
         // The section as it trains this fidelity: the same as a spec that names it alone.
-        let mut resolved = checked
-            .resolved
-            .get("training")
-            .cloned()
-            .unwrap_or(serde_json::Value::Null);
+        let mut resolved = at.resolved.clone();
         if let Some(object) = resolved.as_object_mut() {
             object.insert("fidelity".to_owned(), serde_json::Value::from(fidelity));
         }
@@ -282,6 +306,22 @@ fn fingerprint(
         ] {
             hasher.update([1u8]);
             hasher.update(value.to_string().as_bytes());
+        }
+    }
+    // SigmaRL's simulation with a communication or perception layer: those layers (written
+    // only when given, so that fingerprints of actors trained without them stay as they were).
+    if matches!(plant, Plant::Direct) {
+        let name = training
+            .get("fidelity")
+            .and_then(|v| v.as_str())
+            .unwrap_or_default();
+        let fidelity = checked.resolved.get("fidelities").and_then(|f| f.get(name));
+        for key in ["communication", "perception"] {
+            if let Some(layer) = fidelity.and_then(|f| f.get(key)) {
+                hasher.update([2u8]);
+                hasher.update(key.as_bytes());
+                hasher.update(layer.to_string().as_bytes());
+            }
         }
     }
     if let Some(file) = &checked.resources.map_file {

@@ -42,6 +42,81 @@ pub struct SimulatedFidelity<P = Parameter> {
     /// The vehicles' MPC trajectory follower (`control: trajectory`). Default: the lab's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub follower: Option<FollowerSpec>,
+    /// How each agent learns the others' states by messages (V2V): without it every agent
+    /// knows every other's state exactly. Ideal values (`communication: {}`) give the same
+    /// runs as leaving it out.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub communication: Option<CommunicationLayer<P>>,
+    /// What each agent's own sensors detect of the others (onboard perception instead of
+    /// global state). Ideal values (`perception: {}`) give the same runs as leaving it out.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub perception: Option<PerceptionLayer<P>>,
+}
+
+/// The communication layer: each agent broadcasts its state at policy steps (first at the
+/// run's start, then whenever `1 / rate_hz` has passed); a message reaches each other agent
+/// `latency_ms` later unless it is lost or the receiver is out of range when it is sent. An
+/// agent observes the others as their last messages say (not extrapolated); one never heard,
+/// or unheard for longer than `max_age_ms`, is absent from its observation as SigmaRL's
+/// observation treats agents that are not there. In a planner's lookahead a neighbour heard
+/// this very step is predicted as without the layer; one known from an older message stays as
+/// it was heard.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, bound(deserialize = "P: Deserialize<'de>"))]
+#[schemars(rename = "CommunicationLayer")]
+pub struct CommunicationLayer<P = Parameter> {
+    /// Delay from sending to receiving [ms]. Default: 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("minimum" = 0, "maximum" = 60000))]
+    pub latency_ms: Option<P>,
+    /// Messages per second from each agent. Default: one every policy step.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 1000))]
+    pub rate_hz: Option<P>,
+    /// Probability that a message does not reach a receiver (independently per receiver).
+    /// Default: 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("minimum" = 0, "maximum" = 1))]
+    pub drop_probability: Option<P>,
+    /// Farthest receiver, centre to centre [m]. Default: unlimited.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub range_m: Option<P>,
+    /// Age of the last message after which its sender counts as unheard [ms]. Default: never.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("minimum" = 0))]
+    pub max_age_ms: Option<P>,
+}
+
+/// The perception layer: each agent detects the others whose centre is within `range_m` and
+/// within `field_of_view_deg` about its heading, each with `detection_probability` per step,
+/// and sees their position and heading with Gaussian noise (speed and steering as they are).
+/// A detected agent is observed as seen; one not detected is heard through `communication`
+/// when the fidelity has it, else absent from the observation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, bound(deserialize = "P: Deserialize<'de>"))]
+#[schemars(rename = "PerceptionLayer")]
+pub struct PerceptionLayer<P = Parameter> {
+    /// Farthest detection, centre to centre [m]. Default: unlimited.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub range_m: Option<P>,
+    /// Field of view, centred on the heading [°]. Default: all around (360).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 360))]
+    pub field_of_view_deg: Option<P>,
+    /// Standard deviation of the position noise, per axis [m]. Default: 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("minimum" = 0))]
+    pub noise_position_m: Option<P>,
+    /// Standard deviation of the heading noise [rad]. Default: 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("minimum" = 0))]
+    pub noise_yaw_rad: Option<P>,
+    /// Probability of detecting an agent in range and view at a step. Default: 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("minimum" = 0, "maximum" = 1))]
+    pub detection_probability: Option<P>,
 }
 
 /// The vehicle-side MPC trajectory follower.
@@ -210,6 +285,10 @@ pub struct LabFidelity {
     /// input hash). The same mapping as `cpmx lab emulate --faults FILE`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub faults: Option<LabFaults>,
+    /// A communication layer applied to the states the middleware delivers, so that the real
+    /// lab runs communication-limited experiments (see the simulated fidelities' layer).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub communication: Option<CommunicationLayer<Parameter>>,
 }
 
 fn default_lab_timeout_s() -> f64 {

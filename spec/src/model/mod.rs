@@ -24,9 +24,9 @@ pub use faults::{
     VehicleOutage,
 };
 pub use fidelity::{
-    ActuationLayer, ActuationModel, Control, DEFAULT_IPS_AGE_LIMIT_S, DynamicsLayer, Fidelity,
-    FollowerSolver, FollowerSpec, GreyBoxModel, IdealKeyword, KinematicKeyword, LabDriver, LabFidelity,
-    Misplaced, Preflight, SensingLayer, SensingModel, SimulatedFidelity,
+    ActuationLayer, ActuationModel, CommunicationLayer, Control, DEFAULT_IPS_AGE_LIMIT_S, DynamicsLayer,
+    Fidelity, FollowerSolver, FollowerSpec, GreyBoxModel, IdealKeyword, KinematicKeyword, LabDriver,
+    LabFidelity, Misplaced, PerceptionLayer, Preflight, SensingLayer, SensingModel, SimulatedFidelity,
 };
 pub use metrics::{
     AsSpec, Bootstrap, CdSpec, CollisionCount, CollisionGeometry, Compare, CraASpec, CraLSpec, GroupKey,

@@ -10,12 +10,12 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use super::fidelity::{
-    ActuationLayer, ActuationModel, DynamicsLayer, GreyBoxModel, SensingLayer, SensingModel,
-    SimulatedFidelity,
+    ActuationLayer, ActuationModel, CommunicationLayer, DynamicsLayer, GreyBoxModel, PerceptionLayer,
+    SensingLayer, SensingModel, SimulatedFidelity,
 };
 
 /// A layer parameter: a number, or a distribution drawn per run (`cpmx run`) and per episode
-/// (`cpmx train`).
+/// (`cpmx train`), or a sweep of numbers (see Sweeps).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(untagged)]
 pub enum Parameter {
@@ -200,13 +200,132 @@ impl<P: Copy> SimulatedFidelity<P> {
                 ),
             }),
         });
+        let communication = self.communication.as_ref().map(|c| c.map_parameters(f));
+        let perception = self.perception.as_ref().map(|p| p.map_parameters(f));
         SimulatedFidelity {
             control: self.control,
             dynamics,
             sensing,
             actuation,
             follower: self.follower,
+            communication,
+            perception,
         }
+    }
+}
+
+impl<P: Copy> CommunicationLayer<P> {
+    /// The layer with every given parameter replaced by `f(name, range, parameter)`, fields
+    /// as declared (parameters left out stay out: their defaults are not drawn).
+    pub(crate) fn map_parameters<Q>(
+        &self,
+        f: &mut impl FnMut(&str, ParameterRange, P) -> Q,
+    ) -> CommunicationLayer<Q> {
+        let mut map = |name: &str, range, value: Option<P>| value.map(|v| f(name, range, v));
+        CommunicationLayer {
+            latency_ms: map(
+                "communication.latency_ms",
+                ParameterRange::closed(0.0, 60000.0),
+                self.latency_ms,
+            ),
+            rate_hz: map(
+                "communication.rate_hz",
+                ParameterRange::above(0.0, 1000.0),
+                self.rate_hz,
+            ),
+            drop_probability: map(
+                "communication.drop_probability",
+                ParameterRange::closed(0.0, 1.0),
+                self.drop_probability,
+            ),
+            range_m: map(
+                "communication.range_m",
+                ParameterRange::above(0.0, f64::INFINITY),
+                self.range_m,
+            ),
+            max_age_ms: map(
+                "communication.max_age_ms",
+                ParameterRange::NON_NEGATIVE,
+                self.max_age_ms,
+            ),
+        }
+    }
+}
+
+impl<P: Copy> PerceptionLayer<P> {
+    /// The layer with every given parameter replaced by `f(name, range, parameter)`, fields
+    /// as declared.
+    pub(crate) fn map_parameters<Q>(
+        &self,
+        f: &mut impl FnMut(&str, ParameterRange, P) -> Q,
+    ) -> PerceptionLayer<Q> {
+        let mut map = |name: &str, range, value: Option<P>| value.map(|v| f(name, range, v));
+        PerceptionLayer {
+            range_m: map(
+                "perception.range_m",
+                ParameterRange::above(0.0, f64::INFINITY),
+                self.range_m,
+            ),
+            field_of_view_deg: map(
+                "perception.field_of_view_deg",
+                ParameterRange::above(0.0, 360.0),
+                self.field_of_view_deg,
+            ),
+            noise_position_m: map(
+                "perception.noise_position_m",
+                ParameterRange::NON_NEGATIVE,
+                self.noise_position_m,
+            ),
+            noise_yaw_rad: map(
+                "perception.noise_yaw_rad",
+                ParameterRange::NON_NEGATIVE,
+                self.noise_yaw_rad,
+            ),
+            detection_probability: map(
+                "perception.detection_probability",
+                ParameterRange::closed(0.0, 1.0),
+                self.detection_probability,
+            ),
+        }
+    }
+}
+
+impl PerceptionLayer<Parameter> {
+    /// The layer with every distribution replaced by `draw(name, distribution, range)`.
+    pub fn draw(
+        &self,
+        mut draw: impl FnMut(&str, &Distribution, ParameterRange) -> f64,
+    ) -> PerceptionLayer<f64> {
+        self.map_parameters(&mut |name, range, value| match value {
+            Parameter::Fixed(v) => v,
+            Parameter::Drawn(d) => draw(name, &d, range),
+        })
+    }
+}
+
+impl CommunicationLayer<Parameter> {
+    /// Every given parameter, in the order they are drawn.
+    pub fn parameters(&self) -> Vec<NamedParameter> {
+        let mut all = Vec::new();
+        self.map_parameters(&mut |name, range, value| {
+            all.push(NamedParameter {
+                name: name.to_owned(),
+                range,
+                value,
+            });
+        });
+        all
+    }
+
+    /// The layer with every distribution replaced by `draw(name, distribution, range)`.
+    pub fn draw(
+        &self,
+        mut draw: impl FnMut(&str, &Distribution, ParameterRange) -> f64,
+    ) -> CommunicationLayer<f64> {
+        self.map_parameters(&mut |name, range, value| match value {
+            Parameter::Fixed(v) => v,
+            Parameter::Drawn(d) => draw(name, &d, range),
+        })
     }
 }
 
@@ -266,6 +385,20 @@ mod tests {
             })),
             actuation: Some(ActuationLayer::Model(ActuationModel { delay_ms: p })),
             follower: Some(FollowerSpec::default()),
+            communication: Some(CommunicationLayer {
+                latency_ms: Some(p),
+                rate_hz: Some(p),
+                drop_probability: Some(p),
+                range_m: Some(p),
+                max_age_ms: Some(p),
+            }),
+            perception: Some(PerceptionLayer {
+                range_m: Some(p),
+                field_of_view_deg: Some(p),
+                noise_position_m: Some(p),
+                noise_yaw_rad: Some(p),
+                detection_probability: Some(p),
+            }),
         }
     }
 
@@ -275,12 +408,14 @@ mod tests {
     fn ranges_agree_with_the_schema() {
         let schema = serde_json::to_value(schemars::schema_for!(SimulatedFidelity)).unwrap();
         let parameters = every_layer().parameters();
-        assert_eq!(parameters.len(), 10 + 2 + 6 + 1);
+        assert_eq!(parameters.len(), 10 + 2 + 6 + 1 + 5 + 5);
         for p in parameters {
             let (layer, field) = p.name.split_once('.').unwrap();
             let def = match layer {
                 "dynamics" => "GreyBoxModel",
                 "sensing" => "SensingModel",
+                "communication" => "CommunicationLayer",
+                "perception" => "PerceptionLayer",
                 _ => "ActuationModel",
             };
             let field = field.split('.').next().unwrap();

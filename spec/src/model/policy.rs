@@ -181,6 +181,12 @@ pub struct TrainedActor {
     /// policies by the fidelity they were trained in (the transfer matrix).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fidelity: Option<String>,
+    /// The point of the training section's sweeps it was trained at (`lr=0.001`, as `cpmx
+    /// plan` lists the training runs), when the section sweeps a hyperparameter: its actors
+    /// are in `<dir>/<point>/...`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(length(min = 1))]
+    pub point: Option<String>,
 }
 
 /// Which of a training run's actors.
@@ -204,10 +210,13 @@ impl TrainedActor {
             TrainedChoice::Best => "actor.safetensors",
             TrainedChoice::Last => "actor.last.safetensors",
         };
-        let dir = self.dir.as_deref().map_or_else(
+        let mut dir = self.dir.as_deref().map_or_else(
             || format!("out/{spec_name}-train"),
             |d| d.trim_end_matches('/').to_owned(),
         );
+        if let Some(point) = &self.point {
+            dir = format!("{dir}/{point}");
+        }
         match &self.fidelity {
             Some(fidelity)
                 if training

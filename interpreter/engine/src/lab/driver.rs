@@ -133,9 +133,25 @@ impl Engine for LabEngine {
                 samples: Vec::with_capacity(spec.timing.steps as usize),
             },
             notes: Irregularities::new(agents),
+            knowledge: lab_knowledge(lab, inputs),
         };
         drive.run(&config, inputs.plan.seed)
     }
+}
+
+/// The lab fidelity's communication layer for a run: distributions drawn from the run's
+/// `randomisation` stream, lost messages from its `communication` stream.
+fn lab_knowledge(lab: &LabFidelity, inputs: &RunInputs<'_>) -> cpmx_sensing::NeighbourKnowledge {
+    use rand::SeedableRng;
+    let seed = inputs.plan.seed;
+    let mut rng = rand_chacha::ChaCha20Rng::from_seed(cpmx_spec::matrix::stream_key(seed, "randomisation"));
+    let communication = lab
+        .communication
+        .as_ref()
+        .map(|c| c.draw(|_, d, range| cpmx_stack::draw_value(d, range, &mut rng)));
+    cpmx_stack::neighbour_knowledge(inputs.starts.len(), communication.as_ref(), None, |name| {
+        cpmx_spec::matrix::stream_key(seed, name)
+    })
 }
 
 /// One run in progress.
@@ -169,6 +185,8 @@ struct Drive<'a> {
     clock: Option<LabClock>,
     recording: Recording,
     notes: Irregularities,
+    /// What each agent knows of the others through the lab fidelity's communication layer.
+    knowledge: cpmx_sensing::NeighbourKnowledge,
 }
 
 /// The preflight's wait for the operator.
@@ -435,6 +453,17 @@ impl Drive<'_> {
 
         // Plan from the lab's states, each trajectory anchored at its state's time on the lab's
         // clock; all are created and valid at the tick.
+        if self.knowledge.is_active() {
+            let model = cpmx_vehicle::KinematicBicycle::new(self.vehicle);
+            let agents: Vec<cpmx_policy::AgentState> = self
+                .last_states
+                .iter()
+                .map(|s| cpmx_policy::AgentState::from_bicycle(s, model.velocity_mps(s)))
+                .collect();
+            let t_s = self.recording.times_s.last().copied().unwrap_or(0.0);
+            self.planner
+                .set_neighbours(Some(self.knowledge.step(t_s, &agents)));
+        }
         let trajectories = self
             .planner
             .plan(self.policy.as_mut(), &self.last_states, &self.paths, 0.0)?;

@@ -140,6 +140,7 @@ mod tests {
             preflight: None,
             ips_age_limit_s: None,
             faults: None,
+            communication: None,
         }
     }
 

@@ -6,9 +6,11 @@
 //! (text uses the viewer's sans-serif).
 
 mod distribution;
+mod sensitivity;
 mod trajectory;
 
 pub use distribution::distribution_svg;
+pub use sensitivity::sensitivity_svgs;
 pub use trajectory::trajectory_svg;
 
 /// Agent colours (the Tableau 10 palette), cycled.
