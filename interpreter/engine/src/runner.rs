@@ -16,7 +16,9 @@ use sha2::{Digest, Sha256};
 
 use crate::engine::{Operator, RunError, RunInputs, engine_for};
 use crate::experiment::Experiment;
-use crate::store::{Failure, StoredRun, finished_run, run_dir, store_failure, store_run, write_atomic};
+use crate::store::{
+    EARLIER_RECORDING, Failure, StoredRun, finished_run, run_dir, store_failure, store_run, write_atomic,
+};
 
 /// A slice of the matrix: runs whose index `i` (0-based, matrix order) has `i % count == index - 1`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -173,13 +175,23 @@ fn execute_one(
             ),
             Err(e) => RunOutcome::Failed(format!("{reason}; cannot store what was recorded: {e}")),
         },
-        Err(RunFailure::Reason(reason)) => failed(reason, &[]),
+        Err(RunFailure::Reason(reason)) => failed(reason, &earlier_recording(out, plan)),
         Err(RunFailure::LabSilent(reason)) => {
             if let Ok(mut silent) = silent.lock() {
                 silent.insert(plan.fidelity.clone());
             }
-            failed(reason, &[])
+            failed(reason, &earlier_recording(out, plan))
         }
+    }
+}
+
+/// A note for the `failed.json` of an attempt that recorded nothing, when the folder keeps an
+/// earlier attempt's `trajectory.csv` (never deleted: nothing recorded is lost).
+fn earlier_recording(out: &Path, plan: &RunPlan) -> Vec<String> {
+    if run_dir(out, plan).join("trajectory.csv").is_file() {
+        vec![format!("{EARLIER_RECORDING}; this attempt recorded nothing")]
+    } else {
+        Vec::new()
     }
 }
 

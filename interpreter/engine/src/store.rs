@@ -64,10 +64,19 @@ pub struct Failure {
 /// The name of a failed run's record.
 pub const FAILED_FILE: &str = "failed.json";
 
-/// Stores why a run failed (`failed.json`).
+/// The note of a failed run whose folder keeps the `trajectory.csv` an earlier attempt recorded.
+pub const EARLIER_RECORDING: &str = "trajectory.csv holds what an earlier attempt recorded";
+
+/// Stores why a run failed (`failed.json`). The run is not finished: a `metrics.json` of an
+/// earlier attempt goes (its recording stays, and the notes say so).
 pub fn store_failure(out: &Path, plan: &RunPlan, failure: &Failure) -> std::io::Result<()> {
+    let dir = run_dir(out, plan);
+    match std::fs::remove_file(dir.join("metrics.json")) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(e),
+        _ => {}
+    }
     let json = serde_json::to_vec_pretty(failure).map_err(std::io::Error::other)?;
-    write_atomic(&run_dir(out, plan).join(FAILED_FILE), &json)
+    write_atomic(&dir.join(FAILED_FILE), &json)
 }
 
 /// Stores a finished run: trajectory first, then `metrics.json` (the "finished" mark).
