@@ -494,3 +494,65 @@ fn lost_fixes_scenario(python: &Path, deadline: Instant) {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn rti_middleware_whose_clock_sticks_fails_the_run_within_its_timeout() {
+    in_namespace(
+        "rti_middleware_whose_clock_sticks_fails_the_run_within_its_timeout",
+        stuck_clock_scenario,
+    );
+}
+
+/// The tick after which the middleware's lists repeat that tick.
+const STUCK_AFTER: usize = 6;
+
+/// The lab's lists keep coming but bring no new tick: the driver answers the repeats, then
+/// fails the run after `timeout_s` (no hang), keeps what it recorded and stops every vehicle.
+fn stuck_clock_scenario(python: &Path, deadline: Instant) {
+    let (dir, spec) = workspace("stuck-clock", SPEC_STEPS);
+    let text = common::read(&spec);
+    assert!(text.contains("timeout_s: 20"), "{text}");
+    std::fs::write(&spec, text.replace("timeout_s: 20", "timeout_s: 3")).expect("spec");
+    let starts = starts_arg(&spec);
+    let mut middleware = script(
+        python,
+        &dir,
+        "play_lab.py",
+        &[
+            "--ticks",
+            &SPEC_STEPS.to_string(),
+            "--starts",
+            &starts,
+            "--stuck-after",
+            &STUCK_AFTER.to_string(),
+        ],
+    );
+    let started = Instant::now();
+    let mut run = lab_run(&dir, &spec);
+    let run_status = wait_until(&mut run, deadline, "cpmx run");
+    let took = started.elapsed();
+    let script_status = wait_until(&mut middleware, deadline, "play_lab.py");
+    let logs = format!(
+        "cpmx run:\n{}\nplay_lab.py:\n{}",
+        common::read(&dir.join("run.log")),
+        common::read(&dir.join("play_lab.py.log"))
+    );
+    assert!(script_status.success(), "play_lab.py failed\n{logs}");
+    assert_eq!(run_status.code(), Some(3), "the run fails\n{logs}");
+    assert!(took < Duration::from_secs(15), "the run took {took:?}\n{logs}");
+    let run_dir = dir.join("out/runs/lab/lane/crossing/rep1");
+    let failed = common::read(&run_dir.join("failed.json"));
+    assert!(
+        failed.contains("the lab sent no new tick for 3 s"),
+        "{failed}\n{logs}"
+    );
+    assert!(failed.contains("repeated ticks (answered again)"), "{failed}");
+    let recorded = common::read(&run_dir.join("trajectory.csv")).lines().count() - 1;
+    assert_eq!(recorded, (STUCK_AFTER + 1) * 2, "{logs}");
+    let played = summary(&dir, "play_lab.py");
+    let stopped = played["stopped"].as_object().expect("stopped");
+    for id in VEHICLE_IDS.split(',') {
+        assert!(stopped.contains_key(id), "vehicle {id} was not stopped: {played}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

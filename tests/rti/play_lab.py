@@ -14,7 +14,9 @@ A fault can be played: `--ips-stall-after K --ips-stall-vehicle ID` makes vehicl
 positioning fixes stop after tick K (its IPS_update_age_nanoseconds grows by a period each
 tick). A command with no point after its valid_after is the planner's stop: the vehicle stands
 where it is. Once the planner has stopped every vehicle and falls silent, the script ends the
-run early (stop trigger) and reports the stops.
+run early (stop trigger) and reports the stops. `--stuck-after K` makes the middleware's clock
+stick after tick K: it sends that tick's list again every 0.2 s, whatever the planner answers,
+until the planner has stopped every vehicle and left.
 
 Prints a JSON summary on stdout (announced stamps, start, every tick's t_now, the ticks at
 which each vehicle was commanded to stop); exits 1 with a message on stderr on any failure or
@@ -126,6 +128,7 @@ def run():
     parser.add_argument("--starts", help="JSON list of [x, y, yaw] per vehicle, in the order of --vehicle-ids")
     parser.add_argument("--ips-stall-after", type=int, help="tick after which a vehicle's fixes stop")
     parser.add_argument("--ips-stall-vehicle", type=int, help="the vehicle whose fixes stop")
+    parser.add_argument("--stuck-after", type=int, help="tick after which the lists repeat that tick")
     args = parser.parse_args()
     ids = [int(i) for i in args.vehicle_ids.split(",")]
     period_ns = args.period_ms * 1_000_000
@@ -135,7 +138,7 @@ def run():
 
     connector = lab_rti.open_connector("Middleware", args.domain)
     try:
-        summary = play(connector, ids, args.ticks, period_ns, deadline, starts, stall)
+        summary = play(connector, ids, args.ticks, period_ns, deadline, starts, stall, args.stuck_after)
     finally:
         connector.close()
     print(json.dumps(summary), flush=True)
@@ -147,7 +150,7 @@ def is_stop(command):
     return all(p["t"]["nanoseconds"] <= valid_after for p in command["trajectory_points"])
 
 
-def play(connector, ids, ticks, period_ns, deadline, starts, stall):
+def play(connector, ids, ticks, period_ns, deadline, starts, stall, stuck_after=None):
     trigger = connector.get_output("Publisher::SystemTrigger")
     lists = connector.get_output("Publisher::VehicleStateList")
     ready = connector.get_input("Subscriber::ReadyStatus")
@@ -183,7 +186,8 @@ def play(connector, ids, ticks, period_ns, deadline, starts, stall):
     stopped = {}
     left = False
     for k in range(ticks):
-        t_now = start_ns + k * period_ns
+        stuck = stuck_after is not None and k > stuck_after
+        t_now = start_ns + (min(k, stuck_after) if stuck else k) * period_ns
         if stall is not None and k > stall[0]:
             vehicles[stall[1]].ips_age_ns = (k - stall[0]) * period_ns + 20_000_000
         state_list = {
@@ -196,7 +200,7 @@ def play(connector, ids, ticks, period_ns, deadline, starts, stall):
         answers = {}
         resend_at = 0.0
         heard = time.monotonic()
-        while len(answers) < len(ids):
+        while stuck or len(answers) < len(ids):
             if len(stopped) == len(ids) and time.monotonic() - heard > LEFT_S:
                 left = True
                 break

@@ -273,8 +273,20 @@ impl Drive<'_> {
                 self.notes.longest_silence_s = self.notes.longest_silence_s.max(silence_s);
             }
 
-            // A repeated tick (the emulator re-sends unanswered lists): answer it again.
+            // A repeated tick (the emulator re-sends unanswered lists): answer it again. Lists
+            // that bring no new tick for the timeout end the run as silence does.
             if let Some((t_ns, commands)) = &previous {
+                if list.t_now <= *t_ns
+                    && self
+                        .clock
+                        .is_some_and(|c| received.duration_since(c.received) >= timeout)
+                {
+                    return Err(RunError::LabFault(format!(
+                        "the lab sent no new tick for {} s: its lists repeat tick t_now = {} ns or go back \
+                         in time",
+                        lab.timeout_s, t_ns
+                    )));
+                }
                 if list.t_now == *t_ns {
                     self.notes.repeated_ticks += 1;
                     session.send(commands)?;
