@@ -197,6 +197,8 @@ metrics: stdlib:at25
         "{paused}\n{logs}"
     );
     assert!(lead_misses(&paused) >= 1, "{paused}");
+    // The lists the pause kept back do not shorten the run.
+    assert!(paused.contains("over 40 ticks"), "{paused}");
 }
 
 /// at25 with a lab fidelity for its three cars, `repetitions` per configuration.

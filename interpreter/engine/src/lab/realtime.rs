@@ -7,10 +7,11 @@
 //!
 //! The vehicles' clock is tied to the wall clock at the run's start: step `k` is due
 //! `k · 20 ms` after it. Every list carries the run's start trigger (the trigger's writer is
-//! reliable: a lost one comes again). The run ends `timing.steps` ticks after the first tick
-//! the planner answered with a trajectory (ticks before, while its preflight keeps the
-//! vehicles standing, do not count), when the planner, having driven, stops every vehicle (its
-//! safe stop), or when it is silent for the lab fidelity's `timeout_s`.
+//! reliable: a lost one comes again). The run ends once the planner answered `timing.steps`
+//! ticks with trajectories (ticks before, while its preflight keeps the vehicles standing, do
+//! not count, nor do ticks it missed: a planner that skips a list, or a pause, does not shorten
+//! its run), when the planner, having driven, stops every vehicle (its safe stop), or when it
+//! is silent for the lab fidelity's `timeout_s`.
 
 use std::thread;
 use std::time::{Duration, Instant};
@@ -35,8 +36,9 @@ pub(super) fn play(
     let mut start = stage.start_trigger(stage.tick_ns(0));
     // Per vehicle: whether the newest command it received stops it.
     let mut stopped = vec![false; stage.ids.len()];
+    // The ticks the planner answered with a trajectory: how many, and the newest.
+    let mut planned: usize = 0;
     let mut last_planned: Option<u64> = None;
-    let mut first_driven: Option<u64> = None;
     let mut last_answer = Instant::now();
     let mut restarts = stage.faults.restarts.clone().into_iter().peekable();
     let origin = Instant::now();
@@ -52,9 +54,9 @@ pub(super) fn play(
                     continue;
                 };
                 let stop = is_stop_command(&command);
-                if !stop {
-                    first_driven = Some(first_driven.map_or(tick, |first| first.min(tick)));
-                    last_planned = last_planned.max(Some(tick));
+                if !stop && last_planned.is_none_or(|last| tick > last) {
+                    planned += 1;
+                    last_planned = Some(tick);
                 }
                 if let Some(agent) = stage.ids.iter().position(|id| *id == command.vehicle_id) {
                     stopped[agent] = stop;
@@ -63,26 +65,19 @@ pub(super) fn play(
                 stage.receive(&command);
             }
             // A planner that drove and now stops every vehicle has ended the run.
-            if let (Some(first), Some(last)) = (first_driven, last_planned)
-                && stopped.iter().all(|s| *s)
-            {
-                let ticks = (last - first + 1) as usize;
-                return Ok(if ticks >= rules.steps {
-                    EmulatorEvent::Finished { ticks }
+            if planned > 0 && stopped.iter().all(|s| *s) {
+                return Ok(if planned >= rules.steps {
+                    EmulatorEvent::Finished { ticks: planned }
                 } else {
-                    EmulatorEvent::Ended { ticks }
+                    EmulatorEvent::Ended { ticks: planned }
                 });
             }
             wire.flush()?;
             if wire.other_run_announced(rules.stamp)? {
-                return Ok(EmulatorEvent::Superseded {
-                    ticks: driven(first_driven, step / substeps) as usize,
-                });
+                return Ok(EmulatorEvent::Superseded { ticks: planned });
             }
             if last_answer.elapsed() >= rules.timeout {
-                return Ok(EmulatorEvent::Abandoned {
-                    ticks: driven(first_driven, step / substeps) as usize,
-                });
+                return Ok(EmulatorEvent::Abandoned { ticks: planned });
             }
             if Instant::now() >= due {
                 break;
@@ -93,17 +88,13 @@ pub(super) fn play(
         // A tick: the run's end, the middleware's faults, the list.
         if step.is_multiple_of(substeps) {
             let tick = step / substeps;
-            if driven(first_driven, tick) >= rules.steps as u64 {
-                return Ok(EmulatorEvent::Finished {
-                    ticks: driven(first_driven, tick) as usize,
-                });
+            if planned >= rules.steps {
+                return Ok(EmulatorEvent::Finished { ticks: planned });
             }
             if restarts.next_if(|at_ns| *at_ns <= now_ns).is_some() {
                 on_event(EmulatorEvent::Fault(format!("restarting at tick {tick}")));
                 if !wire.restart(rules.stamp, &stage.ids, rules.timeout)? {
-                    return Ok(EmulatorEvent::Abandoned {
-                        ticks: driven(first_driven, tick) as usize,
-                    });
+                    return Ok(EmulatorEvent::Abandoned { ticks: planned });
                 }
                 // The vehicles drove on meanwhile: their steps catch up from here.
                 start = stage.start_trigger(now_ns);
@@ -121,15 +112,8 @@ pub(super) fn play(
         }
         stage.step(now_ns);
         if rules.on_collision && step.is_multiple_of(substeps) && stage.collided() {
-            return Ok(EmulatorEvent::Finished {
-                ticks: driven(first_driven, step / substeps) as usize,
-            });
+            return Ok(EmulatorEvent::Finished { ticks: planned });
         }
         step += 1;
     }
-}
-
-/// Ticks since the first one the planner drove (none before it).
-fn driven(first_driven: Option<u64>, tick: u64) -> u64 {
-    first_driven.map_or(0, |first| tick.saturating_sub(first))
 }
