@@ -8,7 +8,7 @@
 //!   lead time it cost recorded.
 //! - `at25_lab_runs_in_real_time_miss_no_lead_time`: at25's planner and policies (three cars,
 //!   MLP actors on the CPM Lab map, 180 ticks) as a lab fidelity, one run in CI; all of at25's
-//!   27 lab runs with `--ignored` (`cargo test --test lab_realtime -- --ignored`, about 10
+//!   27 lab runs with `--ignored` (`cargo test --test lab_realtime -- --ignored`, 8.5
 //!   minutes).
 //!
 //! The machine is loaded by whatever else runs (CI: the other tests); the bound is the lab's,
