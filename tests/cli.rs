@@ -118,6 +118,40 @@ fn exit_codes_follow_the_cli_contract() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+#[test]
+fn a_far_start_is_located_beside_the_specs_other_problems_and_plan_does_not_blame_the_path() {
+    let dir = std::env::temp_dir().join(format!("cpmx-far-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let spec = dir.join("far.yaml");
+    let quickstart = std::fs::read_to_string(root().join("experiments/quickstart.yaml")).unwrap();
+    let far = quickstart.replace(
+        "{ref_path: 1, arc_length: 0.3}",
+        "{ref_path: 1, arc_length: 40.0}",
+    ) + "planner: {control_horizon: 9, prediction_horizon: 4}\n";
+    let line = far.lines().position(|l| l.contains("arc_length: 40.0")).unwrap() + 1;
+    std::fs::write(&spec, &far).unwrap();
+    let out = cpmx(&["validate", spec.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("cpmx::map::arc-length"), "{stderr}");
+    assert!(
+        stderr.contains(&format!("far.yaml:{line}:")),
+        "located at line {line}: {stderr}"
+    );
+    assert!(
+        stderr.contains("cpmx::check::horizon"),
+        "both problems in one pass: {stderr}"
+    );
+    let out = cpmx(&["plan", spec.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("cpmx::map::arc-length") && !stderr.contains("has no reference path"),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// Runs `spec` with one and with two threads and asserts that every file is identical.
 fn assert_identical_for_one_and_two_threads(spec: &str, min_files: usize) {
     let base = std::env::temp_dir().join(format!(

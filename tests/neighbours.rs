@@ -91,19 +91,23 @@ fn ideal_layers_change_nothing_and_real_ones_do() {
 }
 
 #[test]
-fn a_sweep_gives_a_row_per_point_and_sensitivity_curves() {
+fn a_sweep_grid_gives_a_row_per_point_sensitivity_curves_and_a_folder_report_reads() {
     let dir = scratch("sweep");
     let text = SPEC.replace(
         "  sim-deaf: {control: direct, dynamics: kinematic, communication: {drop_probability: 1}}\n",
-        "  sim-deaf: {control: direct, dynamics: kinematic, communication: {drop_probability: {sweep: [0, 0.5, 1]}}}\n",
+        "  sim-deaf: {control: direct, dynamics: kinematic, communication: {drop_probability: {sweep: [0, 0.5, 1]}, latency_ms: {sweep: [0, 200]}}}\n",
     );
     let spec = spec_in(&dir, &text);
     let plan = ok(&cpmx(&["plan", spec.to_str().unwrap(), "--format", "csv"]));
     for p in ["0", "0.5", "1"] {
-        assert!(
-            plan.contains(&format!("sim-deaf@drop_probability={p}/network/crossing/rep1")),
-            "{plan}"
-        );
+        for l in ["0", "200"] {
+            assert!(
+                plan.contains(&format!(
+                    "sim-deaf@drop_probability={p}+latency_ms={l}/network/crossing/rep1"
+                )),
+                "{plan}"
+            );
+        }
     }
     let out = dir.join("out");
     let table = ok(&cpmx(&[
@@ -111,20 +115,31 @@ fn a_sweep_gives_a_row_per_point_and_sensitivity_curves() {
         spec.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
+        "--only",
+        "fidelity=sim,sim-deaf",
     ]));
     for p in ["0", "0.5", "1"] {
         assert!(
-            table.contains(&format!("| sim-deaf@drop_probability={p} | network |")),
+            table.contains(&format!(
+                "| sim-deaf@drop_probability={p}+latency_ms=200 | network |"
+            )),
             "{table}"
         );
     }
-    // Without losses the link is ideal: that point is the sim run.
-    assert!(trajectory(&out, "sim") == trajectory(&out, "sim-deaf@drop_probability=0"));
-    assert!(
-        out.join("plots/sensitivity-sim-deaf-drop_probability.svg")
-            .is_file()
-    );
+    // Without losses and latency the link is ideal: that point is the sim run.
+    assert!(trajectory(&out, "sim") == trajectory(&out, "sim-deaf@drop_probability=0+latency_ms=0"));
+    for parameter in ["drop_probability", "latency_ms"] {
+        assert!(
+            out.join(format!("plots/sensitivity-sim-deaf-{parameter}-cra_a.svg"))
+                .is_file(),
+            "{parameter}"
+        );
+    }
     let page = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(page.contains("id=\"sensitivity\""));
+    // The folder is a database a later `cpmx report` reads back to the same summary.
+    let summary = std::fs::read(out.join("summary.md")).unwrap();
+    ok(&cpmx(&["report", out.to_str().unwrap()]));
+    assert_eq!(std::fs::read(out.join("summary.md")).unwrap(), summary);
     std::fs::remove_dir_all(&dir).ok();
 }

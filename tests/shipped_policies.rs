@@ -14,7 +14,8 @@ use cpmx_spec::{DataPath, SpecSource};
 use cpmx_train::TrainingSetup;
 use support::{reference, root};
 
-/// Checks every `mlp: {trained}` policy of `spec`; returns how many it checked.
+/// Checks every shipped actor of the `mlp: {trained}` policies of `spec`; returns how many it
+/// checked.
 fn check_shipped(spec: &str) -> usize {
     let path = root().join(spec);
     let source = SpecSource::read(&path).unwrap();
@@ -38,7 +39,10 @@ fn check_shipped(spec: &str) -> usize {
             .join(trained.relative_file(&checked.spec.name, Some(training)));
         let dir = actor.parent().unwrap();
         let what = format!("{spec}: policy `{}` ({})", policy.name, dir.display());
-        assert!(actor.is_file(), "{what}: no actor");
+        if !actor.is_file() {
+            // Not shipped (yet): the callers count the policies they expect.
+            continue;
+        }
         let run: serde_json::Value =
             serde_json::from_slice(&std::fs::read(dir.join("run.json")).unwrap()).unwrap();
         assert_eq!(
@@ -90,6 +94,8 @@ fn check_curve(dir: &Path, planned: u64, run: &serde_json::Value, what: &str) {
 fn the_shipped_actors_were_trained_by_the_experiments_training_sections() {
     assert_eq!(check_shipped("experiments/transfer.yaml"), 3);
     assert_eq!(check_shipped("experiments/at25.yaml"), 3);
+    // The intersection-trained seeds shipped so far (seed 1; seeds 2 and 3 are in training).
+    assert!(check_shipped("experiments/domain-shift.yaml") >= 1);
 }
 
 /// `training.lookahead` enters a fingerprint only where it changes what trains: a planning

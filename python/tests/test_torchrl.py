@@ -14,7 +14,8 @@ def test_check_env_specs(at25, reference, fidelity):
     env = CpmxEnv(at25, fidelity=fidelity, num_envs=4, seed=0, data=reference)
     check_env_specs(env)
     assert env.batch_size == torch.Size([4])
-    assert env.action_spec.shape == (4, env.n_agents, 2)
+    assert env.action_key == ("agents", "action")
+    assert env.full_action_spec["agents", "action"].shape == (4, env.n_agents, 2)
 
 
 def test_rollout_crosses_episode_ends(at25, reference):

@@ -62,7 +62,7 @@ const SWEEPS: &str = "## Sweeps\n\n\
     `perception`), of a metric's parameters or of the training section's `algorithm` and `reward` \
     may be `{sweep: [v1, v2, ...]}`: an axis of the run matrix. Each value makes a point, named \
     after the parameter's key (`twin@delay_ms=80`; a dotted path when two sweeps share a key); \
-    several sweeps make a grid (`twin@latency_ms=100,drop_probability=0.3`). A swept fidelity \
+    several sweeps make a grid (`twin@latency_ms=100+drop_probability=0.3`). A swept fidelity \
     becomes one fidelity per point, and a metric's sweep makes a point of every fidelity: run keys, \
     `cpmx plan`, `--only`, shards and `--resume` treat points as fidelities, paired like them (the \
     same seeds at every point). The summary gives a row per point and `report.html` draws each \

@@ -229,7 +229,7 @@ pub fn grid(sweeps: &[&Sweep]) -> Vec<Vec<usize>> {
     points
 }
 
-/// A point's name suffix: `@delay_ms=80,drop_probability=0.1` (empty without sweeps).
+/// A point's name suffix: `@delay_ms=80+drop_probability=0.1` (empty without sweeps).
 pub fn point_suffix(sweeps: &[&Sweep], point: &[usize]) -> String {
     if sweeps.is_empty() {
         return String::new();
@@ -239,7 +239,7 @@ pub fn point_suffix(sweeps: &[&Sweep], point: &[usize]) -> String {
         .zip(point)
         .map(|(s, &k)| format!("{}={}", s.label, s.values[k]))
         .collect();
-    format!("@{}", parts.join(","))
+    format!("@{}", parts.join("+"))
 }
 
 #[cfg(test)]
@@ -263,7 +263,7 @@ mod tests {
         assert_eq!(points[0], [0, 0]);
         assert_eq!(points[1], [0, 1]);
         assert_eq!(points[3], [1, 0]);
-        assert_eq!(point_suffix(&[&a, &b], &points[5]), "@a=2,b=80");
+        assert_eq!(point_suffix(&[&a, &b], &points[5]), "@a=2+b=80");
         assert_eq!(grid(&[]), vec![Vec::<usize>::new()]);
     }
 }
@@ -339,7 +339,7 @@ pub(crate) fn fidelity_points(
 /// The training section at one point of its sweeps.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrainingPoint {
-    /// `lr=0.001,epochs=10` (empty without training sweeps): the point's folder below
+    /// `lr=0.001+epochs=10` (empty without training sweeps): the point's folder below
     /// `cpmx train`'s output folder, and what `mlp: {trained: {point}}` names.
     pub name: String,
     /// The section as it trains at this point.

@@ -82,7 +82,7 @@ fn two_sweeps_make_a_grid_and_a_metric_sweep_applies_to_every_fidelity() {
     assert_eq!(names.len(), 2 + 8, "{names:?}");
     assert_eq!(names[0], "sim@slack=0");
     assert!(
-        names.contains(&&"twin@delay_ms=80,drop_probability=0.5,slack=0.1".to_owned()),
+        names.contains(&&"twin@delay_ms=80+drop_probability=0.5+slack=0.1".to_owned()),
         "{names:?}"
     );
     assert_eq!(

@@ -335,10 +335,10 @@ fn write_plots(
             svg.as_bytes(),
         )?;
     }
-    for (name, svg) in cpmx_report::sensitivity_svgs(summary) {
+    for plot in cpmx_report::sensitivity_svgs(summary) {
         write_atomic(
-            &plots.join(format!("{}.svg", name.replace('/', "_"))),
-            svg.as_bytes(),
+            &plots.join(format!("{}.svg", plot.name.replace('/', "_"))),
+            plot.svg.as_bytes(),
         )?;
     }
     for (record, recording) in records.iter().zip(recordings) {

@@ -132,7 +132,8 @@ fn pairs(runs: &[PageRun<'_>]) -> Vec<Value> {
 /// first sample: starts are shared by every run of the configuration), and per group of the
 /// summary (its `group_by`: a fidelity and policy by default) the run of the configuration whose
 /// CD is closest to the group's mean CD, so that a caption never quotes a mean pooled over
-/// policies the reader did not ask to pool.
+/// policies the reader did not ask to pool. Captions name policies: the configuration's
+/// (every one starts from the setup) and each group's (more than one when it pools them).
 fn figure3(runs: &[PageRun<'_>], summary: &cpmx_report::Summary) -> Vec<Value> {
     let mut configurations: Vec<&str> = Vec::new();
     for run in runs {
@@ -153,6 +154,11 @@ fn figure3(runs: &[PageRun<'_>], summary: &cpmx_report::Summary) -> Vec<Value> {
         .map(|configuration| {
             let of_configuration = |i: &usize| runs[*i].record.plan.initial_configuration == configuration;
             let setup = (0..runs.len()).find(of_configuration);
+            let policies = distinct(
+                (0..runs.len())
+                    .filter(of_configuration)
+                    .map(|i| &runs[i].record.plan.policy),
+            );
             let representatives: Vec<Value> = summary
                 .groups
                 .iter()
@@ -172,8 +178,14 @@ fn figure3(runs: &[PageRun<'_>], summary: &cpmx_report::Summary) -> Vec<Value> {
                         .filter(of_configuration)
                         .filter(|&i| in_group(&runs[i], group))
                         .min_by(|&a, &b| gap(a).total_cmp(&gap(b)))?;
+                    let group_policies = distinct(
+                        runs.iter()
+                            .filter(|run| in_group(run, group))
+                            .map(|run| &run.record.plan.policy),
+                    );
                     Some(json!({
                         "group": group.key.join(" · "),
+                        "group_policies": group_policies,
                         "policy": runs[best].record.plan.policy,
                         "fidelity": runs[best].record.plan.fidelity,
                         "mean_cd_m": number(mean, 5),
@@ -181,9 +193,25 @@ fn figure3(runs: &[PageRun<'_>], summary: &cpmx_report::Summary) -> Vec<Value> {
                     }))
                 })
                 .collect();
-            json!({"configuration": configuration, "setup": setup, "representatives": representatives})
+            json!({
+                "configuration": configuration,
+                "policies": policies,
+                "setup": setup,
+                "representatives": representatives,
+            })
         })
         .collect()
+}
+
+/// The distinct values, in order of first appearance.
+pub(crate) fn distinct<'a>(values: impl IntoIterator<Item = &'a String>) -> Vec<&'a str> {
+    let mut out: Vec<&str> = Vec::new();
+    for value in values {
+        if !out.contains(&value.as_str()) {
+            out.push(value);
+        }
+    }
+    out
 }
 
 /// A polyline without the points that lie within `tolerance_m` of the line through their

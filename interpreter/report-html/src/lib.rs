@@ -1,22 +1,27 @@
 //! The run folder's `report.html`: one self-contained page (no network, no CDN; it works from
 //! `file://` and as a CI artefact) with the summary tables, the paper's Figure 3 for every
 //! initial configuration, replays of any run with the runs of the other fidelities side by
-//! side in sync, the metric distributions and the learning curves of a training.
+//! side in sync, the sensitivity curves of sweeps, the metric distributions and the learning
+//! curves of a training. Figures share a grid that uses the page's width (three a row on a
+//! wide screen, one on a phone), and every caption names the policies its figure shows.
 //!
 //! Modules: `data` (the JSON the page draws from: map, runs decimated for display, Figure 3's
-//! choices; snapshot-tested), `tables` (the summary as HTML tables). The page's style and
-//! script are `assets/page.css` and `assets/replay.js`, embedded at build time.
+//! choices; snapshot-tested), `tables` (the summary as HTML tables), `figures` (the SVG
+//! figures and their captions). The page's style and script are `assets/page.css` and
+//! `assets/replay.js` (the canvases: Figure 3, replays, learning curves), embedded at build
+//! time.
 //!
 //! Like every renderer of cpmx this crate reads no file and runs no engine: the caller hands
 //! it the summary, the map and the recordings. The output is a pure function of them.
 
 mod data;
+mod figures;
 mod tables;
 
 use std::fmt::Write as _;
 
 use cpmx_recording::Recording;
-use cpmx_report::{Metric, RunRecord, Summary, distribution_svg};
+use cpmx_report::{RunRecord, Summary};
 use cpmx_vehicle::VehicleParams;
 use cpmx_world::Map;
 
@@ -63,16 +68,22 @@ pub fn report_html(page: &Page<'_>) -> String {
     );
 
     // The header and the table of contents.
+    let sensitivity = cpmx_report::sensitivity_svgs(page.summary);
     let units: usize = page.summary.groups.iter().map(|g| g.units).sum();
     let _ = writeln!(
         out,
         "<header><h1>{name}</h1>{}<p class=\"counts\">{} runs ({units} independent units), written by cpmx</p>\
          <nav><a href=\"#summary\">Summary</a> · <a href=\"#figure3\">Initial configurations</a> · \
-         <a href=\"#replay\">Replay</a> · <a href=\"#runs\">Runs</a> · <a href=\"#distributions\">Distributions</a>{}</nav></header>",
+         <a href=\"#replay\">Replay</a> · <a href=\"#runs\">Runs</a> · {}<a href=\"#distributions\">Distributions</a>{}</nav></header>",
         page.description
             .map(|d| format!("<p>{}</p>", tables::escape(d)))
             .unwrap_or_default(),
         page.runs.len(),
+        if sensitivity.is_empty() {
+            ""
+        } else {
+            "<a href=\"#sensitivity\">Sensitivity</a> · "
+        },
         if page.learning_curves.is_empty() {
             ""
         } else {
@@ -91,41 +102,31 @@ pub fn report_html(page: &Page<'_>) -> String {
          <p>For each initial configuration: the setup with each agent's reference path, then per row of the summary \
          (fidelity and policy unless the spec pools) the run whose CD is closest to that row's mean (as the \
          paper chooses its Figure 3). \
-         Red: collision events; orange: lane violations.</p>\n<div id=\"figure3-body\"></div></section>\n\
+         Agents take colour-blind-safe colours (Okabe and Ito's); lane violations and collision events are marked \
+         in inks no agent takes, without hiding the trajectories.</p>\n\
+         <div id=\"figure3-legend\" class=\"legend\"></div>\n<div id=\"figure3-body\"></div></section>\n\
          <section id=\"replay\"><h2>Replay</h2>\n<p>The runs of one policy, initial configuration and \
          repetition in every fidelity, in sync (the paired design). Choose a run in the table below.</p>\n\
          <div class=\"controls\"><button id=\"play\" type=\"button\">Play</button>\
          <input id=\"scrub\" type=\"range\" min=\"0\" max=\"0\" value=\"0\" aria-label=\"time\">\
          <label>speed <select id=\"speed\"><option>0.5</option><option selected>1</option><option>2</option>\
          <option>4</option><option>8</option></select>×</label> <span id=\"clock\">t = 0.0 s</span>\
-         <span id=\"replay-title\"></span></div>\n<div id=\"replay-body\" class=\"panels\"></div></section>\n\
+         <span id=\"replay-title\"></span></div>\n<div id=\"replay-legend\" class=\"legend\"></div>\n\
+         <div id=\"replay-body\" class=\"panels\"></div></section>\n\
          <section id=\"runs\"><h2>Runs</h2><div id=\"runs-body\"></div></section>\n",
     );
 
-    // Distributions, and the training's learning curves.
-    let curves = cpmx_report::sensitivity_svgs(page.summary);
-    if !curves.is_empty() {
-        out.push_str(
-            "<section id=\"sensitivity\"><h2>Sensitivity</h2>\n<p>Each metric against a swept \
-             parameter: per line the other sweeps' values and the policy held fixed; points are a \
-             row's mean over its independent units, bars its t 95 % interval.</p><div class=\"panels\">\n",
-        );
-        for (_, svg) in &curves {
-            out.push_str(svg);
-        }
-        out.push_str("</div></section>\n");
-    }
-    out.push_str("<section id=\"distributions\"><h2>Metric distributions</h2><div class=\"panels\">\n");
-    for metric in Metric::ALL {
-        out.push_str("<figure>");
-        out.push_str(&distribution_svg(page.summary, metric));
-        out.push_str("</figure>\n");
-    }
-    out.push_str("</div></section>\n");
+    // The sensitivity curves of sweeps, the distributions, and the training's learning curves.
+    figures::sensitivity(&mut out, page.summary, &page.runs, &sensitivity);
+    figures::distributions(&mut out, page.summary, &page.runs);
     if !page.learning_curves.is_empty() {
-        out.push_str(
-            "<section id=\"training\"><h2>Training</h2><p>episode_reward_mean per iteration.</p>\
-             <canvas id=\"learning-curves\" width=\"900\" height=\"360\"></canvas></section>\n",
+        let names: Vec<&str> = page.learning_curves.iter().map(|c| c.name.as_str()).collect();
+        let _ = writeln!(
+            out,
+            "<section id=\"training\"><h2>Training</h2><div class=\"panels\"><figure class=\"panel full\">\
+             <canvas id=\"learning-curves\" style=\"aspect-ratio: 2.5\"></canvas><figcaption>episode_reward_mean per \
+             iteration of the policies this folder trained: {}</figcaption></figure></div></section>",
+            tables::escape(&names.join(", "))
         );
     }
 
@@ -136,4 +137,38 @@ pub fn report_html(page: &Page<'_>) -> String {
         "<script id=\"cpmx-data\" type=\"application/json\">{json}</script>\n<script>\n{SCRIPT}</script>\n</body>\n</html>\n"
     );
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The quoted `#RRGGBB` colours of the script's line that starts with `start`.
+    fn script_colours(start: &str) -> Vec<String> {
+        let line = SCRIPT
+            .lines()
+            .map(str::trim)
+            .find(|line| line.starts_with(start))
+            .unwrap_or_else(|| panic!("the script has `{start}`"));
+        line.split('"')
+            .filter(|part| part.starts_with('#'))
+            .map(str::to_uppercase)
+            .collect()
+    }
+
+    #[test]
+    fn the_script_draws_agents_and_events_in_the_plots_colours() {
+        let upper = |colours: &[&str]| colours.iter().map(|c| c.to_uppercase()).collect::<Vec<_>>();
+        let agents = script_colours("const COLOURS");
+        assert_eq!(agents, upper(&cpmx_report::AGENT_COLOURS));
+        let inks = script_colours("const COLLISION_INK");
+        assert_eq!(
+            inks,
+            upper(&[cpmx_report::COLLISION_INK, cpmx_report::VIOLATION_INK])
+        );
+        assert!(
+            inks.iter().all(|ink| !agents.contains(ink)),
+            "no event ink is an agent's colour"
+        );
+    }
 }

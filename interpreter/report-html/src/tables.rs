@@ -43,7 +43,8 @@ fn markdown_to_html(markdown: &str) -> String {
     out
 }
 
-/// A pipe table: header row, alignment row, body rows.
+/// A pipe table: header row, alignment row, body rows; in a box that scrolls sideways when
+/// the table is wider than the page (a phone).
 fn table(rows: &[&str]) -> String {
     let cells = |row: &str| -> Vec<String> {
         let inner = row.trim().trim_start_matches('|').trim_end_matches('|');
@@ -73,7 +74,7 @@ fn table(rows: &[&str]) -> String {
                 .collect()
         })
         .unwrap_or_default();
-    let mut out = String::from("<table>\n<thead><tr>");
+    let mut out = String::from("<div class=\"table-wrap\"><table>\n<thead><tr>");
     for cell in cells(rows[0]) {
         out.push_str(&format!("<th>{}</th>", inline(&cell)));
     }
@@ -90,7 +91,7 @@ fn table(rows: &[&str]) -> String {
         }
         out.push_str("</tr>\n");
     }
-    out.push_str("</tbody>\n</table>\n");
+    out.push_str("</tbody>\n</table></div>\n");
     out
 }
 
@@ -143,8 +144,8 @@ mod tests {
         assert_eq!(
             html,
             "<p class=\"note\">Some <strong>bold</strong> and <code>code</code> &lt;b&gt;.</p>\n\
-             <table>\n<thead><tr><th>a</th><th>b | c</th></tr></thead>\n<tbody>\n\
-             <tr><td>1</td><td class=\"num\"><strong>2</strong></td></tr>\n</tbody>\n</table>\n\
+             <div class=\"table-wrap\"><table>\n<thead><tr><th>a</th><th>b | c</th></tr></thead>\n<tbody>\n\
+             <tr><td>1</td><td class=\"num\"><strong>2</strong></td></tr>\n</tbody>\n</table></div>\n\
              <h3>Notes</h3>\n<ul>\n<li>one</li>\n<li>two</li>\n</ul>\n<h4>Detail</h4>\n"
         );
     }

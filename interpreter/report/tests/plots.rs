@@ -5,7 +5,9 @@ mod common;
 
 use cpmx_metrics::{MetricsConfig, PathGeometry, RunMetrics, evaluate};
 use cpmx_recording::{AgentSample, Recording};
-use cpmx_report::{Metric, Origins, distribution_svg, summarize, trajectory_svg};
+use cpmx_report::{
+    AGENT_COLOURS, Metric, Origins, distribution_svg, sensitivity_svgs, summarize, trajectory_svg,
+};
 use cpmx_spec::model::GroupKey;
 use cpmx_vehicle::VehicleParams;
 use cpmx_world::Map;
@@ -69,8 +71,38 @@ fn trajectory_plot_has_one_path_per_agent_and_marks_events() {
     let doc = roxmltree::Document::parse(&svg).unwrap();
     assert_eq!(count(&doc, "path", "trajectory"), 3);
     assert_eq!(count(&doc, "circle", "start"), 3);
+    // Events in inks no agent takes, unfilled or translucent: they hide no trajectory.
     assert_eq!(count(&doc, "polygon", "collision"), 2);
-    assert_eq!(count(&doc, "polygon", "violation"), 1);
+    assert_eq!(count(&doc, "path", "collision-mark"), 1);
+    assert_eq!(count(&doc, "circle", "violation"), 1);
+    assert_eq!(count(&doc, "path", "violation-band"), 1);
+    let agent_inks: Vec<&str> = doc
+        .descendants()
+        .filter(|n| n.attribute("class") == Some("trajectory"))
+        .filter_map(|n| n.attribute("stroke"))
+        .collect();
+    for class in ["collision", "collision-mark", "violation", "violation-band"] {
+        for mark in doc.descendants().filter(|n| n.attribute("class") == Some(class)) {
+            assert!(
+                matches!(mark.attribute("fill"), None | Some("none")),
+                "{class} is not filled"
+            );
+            let ink = mark.attribute("stroke").unwrap();
+            assert!(
+                !agent_inks.contains(&ink),
+                "{class} drawn in an agent's colour {ink}"
+            );
+        }
+    }
+    // The trajectories are drawn over the bands, the crosses and rings over the trajectories.
+    let position = |class: &str| {
+        doc.descendants()
+            .position(|n| n.attribute("class") == Some(class))
+            .unwrap()
+    };
+    assert!(position("violation-band") < position("trajectory"));
+    assert!(position("trajectory") < position("collision-mark"));
+    assert!(position("trajectory") < position("violation"));
     assert_eq!(count(&doc, "path", "ref-path"), 3);
     let lanelets = doc
         .descendants()
@@ -104,7 +136,8 @@ fn out_of_range_event_samples_are_skipped() {
     let svg = trajectory_svg(&map, &recording, &metrics, &VehicleParams::MU_CAR);
     let doc = roxmltree::Document::parse(&svg).unwrap();
     assert_eq!(count(&doc, "polygon", "collision"), 0);
-    assert_eq!(count(&doc, "polygon", "violation"), 0);
+    assert_eq!(count(&doc, "circle", "violation"), 0);
+    assert_eq!(count(&doc, "path", "violation-band"), 0);
 }
 
 #[test]
@@ -153,4 +186,109 @@ fn distribution_plot_of_nothing_is_still_svg() {
     let doc = roxmltree::Document::parse(&svg).unwrap();
     assert_eq!(count(&doc, "circle", "run"), 0);
     assert_eq!(count(&doc, "line", "mean"), 0);
+}
+
+#[test]
+fn a_metric_zero_everywhere_gets_an_axis_from_zero_to_one_and_says_so() {
+    let zeros = vec![
+        common::record("sim", "p", "i", 1, [0.0; 4], 0.0),
+        common::record("sim", "p", "i", 2, [0.0; 4], 0.0),
+    ];
+    let summary = summarize(
+        "zeros",
+        &zeros,
+        &common::report(&[GroupKey::Fidelity]),
+        &Origins::default(),
+    );
+    let svg = distribution_svg(&summary, Metric::CraA);
+    let doc = roxmltree::Document::parse(&svg).unwrap();
+    let ticks: Vec<f64> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("text") && n.attribute("class") == Some("tick"))
+        .filter_map(|n| n.text()?.parse().ok())
+        .collect();
+    assert_eq!(ticks.first(), Some(&0.0), "{ticks:?}");
+    assert_eq!(ticks.last(), Some(&1.0), "{ticks:?}");
+    let constant = doc
+        .descendants()
+        .find(|n| n.attribute("class") == Some("constant"))
+        .expect("the value written");
+    assert_eq!(constant.text(), Some("every run: 0.00"));
+}
+
+#[test]
+fn sensitivity_plots_are_one_metric_each_in_the_agents_colours() {
+    // Two policies at three points of a swept delay: CRA-A zero everywhere.
+    let mut runs = Vec::new();
+    for delay in [0, 40, 80] {
+        for (p, policy) in ["a", "b"].into_iter().enumerate() {
+            for r in 1..=2 {
+                let cd = 0.01 + 0.001 * f64::from(delay) / 40.0 + 0.002 * p as f64 + 0.0005 * f64::from(r);
+                let fidelity = format!("twin@delay_ms={delay}");
+                runs.push(common::record(
+                    &fidelity,
+                    policy,
+                    "i",
+                    r,
+                    [0.0, 1.0, cd, 0.5],
+                    10.0,
+                ));
+            }
+        }
+    }
+    let summary = summarize(
+        "sweep",
+        &runs,
+        &common::report(&[GroupKey::Fidelity, GroupKey::Policy]),
+        &Origins::default(),
+    );
+    let plots = sensitivity_svgs(&summary);
+    let names: Vec<&str> = plots.iter().map(|p| p.name.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "sensitivity-twin-delay_ms-cra_a",
+            "sensitivity-twin-delay_ms-cra_l",
+            "sensitivity-twin-delay_ms-cd_m",
+            "sensitivity-twin-delay_ms-as_mps"
+        ]
+    );
+    for plot in &plots {
+        assert_eq!(plot.lines, ["a", "b"]);
+        let doc = roxmltree::Document::parse(&plot.svg).unwrap();
+        let svg = doc.root_element();
+        assert!(svg.attribute("viewBox").is_some());
+        let width: f64 = svg.attribute("width").unwrap().parse().unwrap();
+        assert!((400.0..=600.0).contains(&width), "a column's width: {width}");
+        let inks: Vec<&str> = doc
+            .descendants()
+            .filter(|n| n.attribute("class") == Some("line"))
+            .map(|n| n.attribute("stroke").unwrap())
+            .collect();
+        assert_eq!(inks, AGENT_COLOURS[..2]);
+        assert_eq!(count(&doc, "circle", "point"), 6);
+    }
+    // Zero everywhere: an axis from 0 to 1, and the value written.
+    let doc = roxmltree::Document::parse(&plots[0].svg).unwrap();
+    let ticks: Vec<f64> = doc
+        .descendants()
+        .filter(|n| n.attribute("class") == Some("tick"))
+        .filter_map(|n| n.text()?.parse().ok())
+        .collect();
+    assert_eq!(
+        (ticks.first(), ticks.last()),
+        (Some(&0.0), Some(&1.0)),
+        "{ticks:?}"
+    );
+    let constant = doc
+        .descendants()
+        .find(|n| n.attribute("class") == Some("constant"))
+        .expect("the value written");
+    assert_eq!(constant.text(), Some("every point: 0.00"));
+    // CD varies: no note.
+    let doc = roxmltree::Document::parse(&plots[2].svg).unwrap();
+    assert!(
+        doc.descendants()
+            .all(|n| n.attribute("class") != Some("constant"))
+    );
 }

@@ -4,13 +4,16 @@
 
 use std::fmt::Write;
 
+use super::axis::Axis;
 use super::{colour, escape, open, px};
 use crate::Summary;
 use crate::metric::Metric;
-use crate::table::fixed;
 
-/// Width of one group's column [px].
+/// Width of one group's column [px], at least: columns widen for long labels and to fill the
+/// drawing.
 const COLUMN_PX: f64 = 110.0;
+/// The narrowest drawing [px] (about the width a page shows it at, so text keeps its size).
+const MIN_WIDTH_PX: f64 = 420.0;
 /// Height of the value axis [px].
 const PLOT_PX: f64 = 240.0;
 /// Space left of the axis for tick labels [px].
@@ -22,10 +25,25 @@ const BOTTOM_PX: f64 = 50.0;
 /// The legend line under the title.
 const LEGEND: &str = "dots: runs; solid: mean; dashed: IQM";
 
-/// The SVG of `metric`'s per-run values in every group of `summary`.
+/// The SVG of `metric`'s per-run values in every group of `summary`. A metric with one value
+/// in every run (zero everywhere, say) is drawn on an axis from zero to that value (0 to 1
+/// for zero) and the value is written beside the legend.
 pub fn distribution_svg(summary: &Summary, metric: Metric) -> String {
-    let axis = Axis::of(summary, metric);
-    let width_px = (LEFT_PX + COLUMN_PX * summary.groups.len().max(1) as f64 + 20.0).max(300.0);
+    let values = summary
+        .groups
+        .iter()
+        .filter_map(|g| g.metric(metric))
+        .flat_map(|m| m.values.iter().copied());
+    let axis = Axis::of(values, TOP_PX, PLOT_PX);
+    let columns = summary.groups.len().max(1) as f64;
+    // Wide enough for the longest group label (sans-serif at 12 px: about 7 px a character).
+    let label_px = summary
+        .groups
+        .iter()
+        .map(|g| 7.0 * g.key.join(" / ").chars().count() as f64 + 10.0)
+        .fold(COLUMN_PX, f64::max);
+    let width_px = (LEFT_PX + label_px * columns + 20.0).max(MIN_WIDTH_PX);
+    let column_px = (width_px - LEFT_PX - 20.0) / columns;
     let mut out = open(width_px, TOP_PX + PLOT_PX + BOTTOM_PX);
     let title = format!(
         "{} {} [{}]",
@@ -45,13 +63,14 @@ pub fn distribution_svg(summary: &Summary, metric: Metric) -> String {
         "<text x=\"{}\" y=\"34\" font-size=\"10\">{LEGEND}</text>",
         px(LEFT_PX)
     );
-    value_axis(&mut out, &axis, width_px);
+    axis.note_constant(&mut out, "every run", metric.decimals(), width_px - 20.0, 34.0);
+    axis.draw(&mut out, LEFT_PX, width_px - 20.0, 12);
 
     for (index, group) in summary.groups.iter().enumerate() {
         let Some(m) = group.metric(metric) else {
             continue;
         };
-        let centre_px = LEFT_PX + COLUMN_PX * (index as f64 + 0.5);
+        let centre_px = LEFT_PX + column_px * (index as f64 + 0.5);
         let _ = writeln!(
             out,
             "<g class=\"group\" data-group=\"{}\">",
@@ -119,88 +138,6 @@ fn jitter(j: usize) -> f64 {
     (j as f64 * PHI).fract() - 0.5
 }
 
-/// The value range of the plot.
-struct Axis {
-    low: f64,
-    high: f64,
-}
-
-impl Axis {
-    /// The range of every finite value of `metric`, padded by 5 % (a constant or missing
-    /// sample gets a small range around it).
-    fn of(summary: &Summary, metric: Metric) -> Axis {
-        let values = summary
-            .groups
-            .iter()
-            .filter_map(|g| g.metric(metric))
-            .flat_map(|m| m.values.iter().copied())
-            .filter(|v| v.is_finite());
-        let (low, high) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-            (l.min(v), h.max(v))
-        });
-        if low > high {
-            return Axis { low: 0.0, high: 1.0 };
-        }
-        let pad = if high > low {
-            0.05 * (high - low)
-        } else {
-            (0.1 * low.abs()).max(1e-3)
-        };
-        Axis {
-            low: low - pad,
-            high: high + pad,
-        }
-    }
-
-    fn to_px(&self, value: f64) -> f64 {
-        TOP_PX + PLOT_PX * (self.high - value) / (self.high - self.low)
-    }
-}
-
-/// The axis line, and tick labels with light grid lines at round values.
-fn value_axis(out: &mut String, axis: &Axis, width_px: f64) {
-    let _ = writeln!(
-        out,
-        "<line class=\"axis\" x1=\"{x}\" y1=\"{}\" x2=\"{x}\" y2=\"{}\" stroke=\"black\"/>",
-        px(TOP_PX),
-        px(TOP_PX + PLOT_PX),
-        x = px(LEFT_PX)
-    );
-    let (step, decimals) = nice_step((axis.high - axis.low) / 5.0);
-    let first = (axis.low / step).ceil();
-    for k in 0..12 {
-        let value = (first + k as f64) * step;
-        if value > axis.high {
-            break;
-        }
-        let y = px(axis.to_px(value));
-        let _ = writeln!(
-            out,
-            "<line x1=\"{}\" y1=\"{y}\" x2=\"{}\" y2=\"{y}\" stroke=\"#e0e0e0\"/>\
-             <text x=\"{}\" y=\"{y}\" text-anchor=\"end\" dominant-baseline=\"middle\">{}</text>",
-            px(LEFT_PX),
-            px(width_px - 20.0),
-            px(LEFT_PX - 6.0),
-            fixed(value, decimals)
-        );
-    }
-}
-
-/// The smallest step of the form {1, 2, 5} x 10^k (k from -12) that is at least `raw`,
-/// with the decimals it needs.
-fn nice_step(raw: f64) -> (f64, usize) {
-    for exponent in -12i32..=15 {
-        for multiple in [1, 2, 5] {
-            // Parsing gives the correctly rounded value of the decimal, with no accumulated error.
-            let step: f64 = format!("{multiple}e{exponent}").parse().unwrap_or(f64::INFINITY);
-            if step >= raw {
-                return (step, (-exponent).max(0) as usize);
-            }
-        }
-    }
-    (raw.max(1e15), 0)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -209,14 +146,5 @@ mod tests {
     fn jitter_stays_in_its_lane() {
         assert!((0..100).map(jitter).all(|j| (-0.5..0.5).contains(&j)));
         assert_eq!(jitter(0), -0.5);
-    }
-
-    #[test]
-    fn steps_are_round() {
-        assert_eq!(nice_step(2.3), (5.0, 0));
-        assert_eq!(nice_step(0.0013).1, 3);
-        assert!((nice_step(0.0013).0 - 0.002).abs() < 1e-15);
-        assert_eq!(nice_step(0.0), (1e-12, 12));
-        assert_eq!(nice_step(f64::NAN).1, 0);
     }
 }

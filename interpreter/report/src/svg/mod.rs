@@ -1,27 +1,37 @@
-//! Plots as hand-written SVG text: the map with each agent's trajectory, and the per-run
-//! distribution of a metric per group.
+//! Plots as hand-written SVG text: the map with each agent's trajectory (`trajectory`), the
+//! per-run distribution of a metric per group (`distribution`), a metric against a swept
+//! parameter (`sensitivity`), and their value axis (`axis`).
 //!
-//! This module owns the SVG helpers (number format, colours, escaping). Coordinates are
-//! written with one decimal of a pixel, so the bytes are stable; no fonts are embedded
-//! (text uses the viewer's sans-serif).
+//! This module owns the SVG helpers (number format, colours, escaping). Agents, groups and
+//! lines take Okabe–Ito's colour-blind-safe colours; events (collisions, lane violations) are
+//! drawn in black and grey, which no agent takes. Every drawing has a `viewBox`, so a page
+//! scales it to any width. Coordinates are written with one decimal of a pixel, so the bytes
+//! are stable; no fonts are embedded (text uses the viewer's sans-serif).
 
+mod axis;
 mod distribution;
 mod sensitivity;
 mod trajectory;
 
 pub use distribution::distribution_svg;
-pub use sensitivity::sensitivity_svgs;
+pub use sensitivity::{SensitivityPlot, sensitivity_svgs};
 pub use trajectory::trajectory_svg;
 
-/// Agent colours (the Tableau 10 palette), cycled.
-const PALETTE: [&str; 10] = [
-    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
-    "#17becf",
+/// Agent and group colours: Okabe–Ito's without black (as `cpmx-env`'s `render.rs` draws
+/// agents), distinguishable with every common colour-vision deficiency; cycled. `report.html`'s
+/// script draws agents in the same colours (a test of `cpmx-report-html` keeps them equal).
+pub const AGENT_COLOURS: [&str; 7] = [
+    "#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442",
 ];
+
+/// The ink of collision marks (no agent's colour).
+pub const COLLISION_INK: &str = "#000000";
+/// The ink of lane-violation marks (no agent's colour).
+pub const VIOLATION_INK: &str = "#404040";
 
 /// The colour of agent or group `index`.
 fn colour(index: usize) -> &'static str {
-    PALETTE[index % PALETTE.len()]
+    AGENT_COLOURS[index % AGENT_COLOURS.len()]
 }
 
 /// A pixel coordinate with one decimal (`-0.0` written as `0.0`).
@@ -96,7 +106,8 @@ mod tests {
         assert_eq!(px(12.345), "12.3");
         assert_eq!(path_data([(0.0, 1.0), (2.0, 3.0)]), "M0.0 1.0 L2.0 3.0");
         assert_eq!(escape("a<b & \"c\""), "a&lt;b &amp; &quot;c&quot;");
-        assert_eq!(colour(11), colour(1));
+        assert_eq!(colour(8), colour(1));
+        assert!(!AGENT_COLOURS.contains(&COLLISION_INK) && !AGENT_COLOURS.contains(&VIOLATION_INK));
     }
 
     #[test]

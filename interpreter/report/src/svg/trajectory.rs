@@ -1,6 +1,9 @@
 //! The map of one run: lanelet boundaries in light grey, each agent's reference path dashed
-//! and its trajectory solid in its own colour, start markers, and footprints at collision
-//! events (red) and at the first sample of each lane-violation episode (orange). y points up.
+//! and its trajectory solid in its own colour, start markers, and the events in inks no
+//! agent takes, drawn so that they hide no trajectory: a lane-violation episode as a
+//! translucent grey band under the trajectory's stretch with a hollow ring where it starts,
+//! a collision event as the two vehicles' outlines (unfilled) and a black cross between
+//! them. A legend above the map says so. y points up.
 
 use std::fmt::Write;
 
@@ -10,7 +13,7 @@ use cpmx_recording::{AgentSample, Recording};
 use cpmx_vehicle::{VehicleParams, footprint_corners};
 use cpmx_world::{Bounds, Map, Point};
 
-use super::{colour, open, path_data, px};
+use super::{AGENT_COLOURS, COLLISION_INK, VIOLATION_INK, colour, open, path_data, px};
 
 /// The largest drawing [px]: any map, from the 4.5 m lab to a few hundred metres, is scaled
 /// to fit (keeping its aspect ratio), with a scale bar.
@@ -33,11 +36,14 @@ pub fn trajectory_svg(
 ) -> String {
     // Put the states in the metrics' frame and time grid.
     let states = metric_states(recording, metrics);
-    let frame = Frame::new(map, &states);
+    let mut frame = Frame::new(map, &states);
+    let lines = legend_lines(recording.agent_count(), frame.width_px - 2.0 * MARGIN_PX);
+    frame.lower_by(LEGEND_LINE_PX * (lines.len() - 1) as f64);
     let mut out = open(frame.width_px, frame.height_px);
     let _ = writeln!(
         out,
-        "<title>{} agents over {} samples; red: collision events, orange: lane violations</title>",
+        "<title>{} agents over {} samples; black cross and outlines: collision events; grey band and ring: \
+         lane violations</title>",
         recording.agent_count(),
         states.len()
     );
@@ -50,6 +56,23 @@ pub fn trajectory_svg(
         }
     }
     out.push_str("</g>\n");
+
+    // Lane violations under everything an agent draws: a band along each episode.
+    let episodes = violation_episodes(metrics);
+    for &(agent, first, last) in &episodes {
+        let points: Vec<Point> = (first..=last)
+            .filter_map(|k| states.get(k).and_then(|row| row.get(agent)))
+            .map(|s| [s.x_m, s.y_m])
+            .collect();
+        if !points.is_empty() {
+            let _ = writeln!(
+                out,
+                "<path class=\"violation-band\" data-agent=\"{agent}\" d=\"{}\" fill=\"none\" stroke=\"{VIOLATION_INK}\" \
+                 stroke-opacity=\"0.25\" stroke-width=\"7\" stroke-linecap=\"round\" stroke-linejoin=\"round\"/>",
+                frame.path(&points)
+            );
+        }
+    }
     for (agent, &id) in recording.ref_paths.iter().enumerate() {
         if let Some(path) = map.reference_path(id) {
             let _ = writeln!(
@@ -87,34 +110,45 @@ pub fn trajectory_svg(
         }
     }
 
-    // Footprints at collision events and at the start of each lane-violation episode.
+    // Collision events over the trajectories, unfilled: the vehicles' outlines and a cross
+    // between them.
     for event in &metrics.pair_events {
+        let mut centres = Vec::new();
         for agent in event.agents {
-            footprint(
-                &mut out,
-                &frame,
-                &states,
-                vehicle,
-                (event.sample, agent),
-                Mark::Collision,
+            centres.extend(outline(&mut out, &frame, &states, vehicle, (event.sample, agent)));
+        }
+        if let [(x0, y0), (x1, y1)] = centres[..] {
+            let (x, y) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+            let _ = writeln!(
+                out,
+                "<path class=\"collision-mark\" data-sample=\"{}\" d=\"M{} {} L{} {} M{} {} L{} {}\" \
+                 stroke=\"{COLLISION_INK}\" stroke-width=\"2.5\"/>",
+                event.sample,
+                px(x - 5.0),
+                px(y - 5.0),
+                px(x + 5.0),
+                px(y + 5.0),
+                px(x - 5.0),
+                px(y + 5.0),
+                px(x + 5.0),
+                px(y - 5.0)
             );
         }
     }
-    for (agent, a) in metrics.agents.iter().enumerate() {
-        for (i, &sample) in a.violation_samples.iter().enumerate() {
-            let starts_episode = i == 0 || a.violation_samples[i - 1] + 1 != sample;
-            if starts_episode {
-                footprint(
-                    &mut out,
-                    &frame,
-                    &states,
-                    vehicle,
-                    (sample, agent),
-                    Mark::Violation,
-                );
-            }
+    // A hollow ring where each lane-violation episode starts.
+    for &(agent, first, _) in &episodes {
+        if let Some(s) = states.get(first).and_then(|row| row.get(agent)) {
+            let (cx, cy) = frame.to_px(s.x_m, s.y_m);
+            let _ = writeln!(
+                out,
+                "<circle class=\"violation\" data-agent=\"{agent}\" data-sample=\"{first}\" cx=\"{}\" cy=\"{}\" r=\"5\" \
+                 fill=\"none\" stroke=\"{VIOLATION_INK}\" stroke-width=\"1.5\"/>",
+                px(cx),
+                px(cy)
+            );
         }
     }
+    legend(&mut out, &lines);
     scale_bar(&mut out, &frame);
     out.push_str("</svg>\n");
     out
@@ -164,30 +198,32 @@ fn metric_states(recording: &Recording, metrics: &RunMetrics) -> Vec<Vec<AgentSa
         .collect()
 }
 
-/// Why a footprint is drawn.
-#[derive(Debug, Clone, Copy)]
-enum Mark {
-    Collision,
-    Violation,
+/// Each lane-violation episode (consecutive violation samples of one agent) as `(agent,
+/// first sample, last sample)`.
+fn violation_episodes(metrics: &RunMetrics) -> Vec<(usize, usize, usize)> {
+    let mut episodes = Vec::new();
+    for (agent, a) in metrics.agents.iter().enumerate() {
+        for &sample in &a.violation_samples {
+            match episodes.last_mut() {
+                Some((last_agent, _, last)) if *last_agent == agent && *last + 1 == sample => *last = sample,
+                _ => episodes.push((agent, sample, sample)),
+            }
+        }
+    }
+    episodes
 }
 
-/// Draws one agent's footprint at one sample (nothing when either is out of range).
-fn footprint(
+/// Draws one agent's footprint at one sample as an unfilled outline, and returns its centre
+/// in pixels (nothing when either is out of range).
+fn outline(
     out: &mut String,
     frame: &Frame,
     states: &[Vec<AgentSample>],
     vehicle: &VehicleParams,
     at: (usize, usize),
-    mark: Mark,
-) {
+) -> Option<(f64, f64)> {
     let (sample, agent) = at;
-    let Some(s) = states.get(sample).and_then(|row| row.get(agent)) else {
-        return;
-    };
-    let (class, fill) = match mark {
-        Mark::Collision => ("collision", "#ff0000"),
-        Mark::Violation => ("violation", "#ffa500"),
-    };
+    let s = states.get(sample).and_then(|row| row.get(agent))?;
     let corners = footprint_corners(vehicle, s.x_m, s.y_m, s.yaw_rad);
     let points: Vec<String> = corners
         .iter()
@@ -198,16 +234,121 @@ fn footprint(
         .collect();
     let _ = writeln!(
         out,
-        "<polygon class=\"{class}\" data-agent=\"{agent}\" data-sample=\"{sample}\" points=\"{}\" \
-         fill=\"{fill}\" fill-opacity=\"0.45\" stroke=\"{}\"/>",
-        points.join(" "),
-        colour(agent)
+        "<polygon class=\"collision\" data-agent=\"{agent}\" data-sample=\"{sample}\" points=\"{}\" \
+         fill=\"none\" stroke=\"{COLLISION_INK}\" stroke-width=\"1.5\"/>",
+        points.join(" ")
     );
+    Some(frame.to_px(s.x_m, s.y_m))
+}
+
+/// Height of one line of the legend [px].
+const LEGEND_LINE_PX: f64 = 16.0;
+
+/// A mark the legend explains.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Entry {
+    Agent(usize),
+    Violation,
+    Collision,
+}
+
+impl Entry {
+    fn label(self) -> String {
+        match self {
+            Entry::Agent(agent) => format!("agent {agent}"),
+            Entry::Violation => "lane violation (band: its stretch)".into(),
+            Entry::Collision => "collision (vehicles outlined)".into(),
+        }
+    }
+
+    /// Its width on a line [px]: a 20 px icon, the label (sans-serif at 11 px, about 6 px a
+    /// character) and a gap.
+    fn width_px(self) -> f64 {
+        28.0 + 6.0 * self.label().chars().count() as f64 + 12.0
+    }
+
+    /// The icon, 20 px wide from `x`, centred on `y`, and the label.
+    fn draw(self, out: &mut String, x: f64, y: f64) {
+        let (y0, ty) = (px(y), px(y + 4.0));
+        let _ = match self {
+            Entry::Agent(agent) => write!(
+                out,
+                "<path d=\"M{} {y0} L{} {y0}\" stroke=\"{}\" stroke-width=\"3\"/>",
+                px(x + 2.0),
+                px(x + 18.0),
+                colour(agent)
+            ),
+            Entry::Violation => write!(
+                out,
+                "<path d=\"M{} {y0} L{} {y0}\" stroke=\"{VIOLATION_INK}\" stroke-opacity=\"0.25\" stroke-width=\"7\" \
+                 stroke-linecap=\"round\"/><circle cx=\"{}\" cy=\"{y0}\" r=\"5\" fill=\"none\" stroke=\"{VIOLATION_INK}\" \
+                 stroke-width=\"1.5\"/>",
+                px(x + 4.0),
+                px(x + 18.0),
+                px(x + 5.0)
+            ),
+            Entry::Collision => write!(
+                out,
+                "<path d=\"M{} {} L{} {} M{} {} L{} {}\" stroke=\"{COLLISION_INK}\" stroke-width=\"2.5\"/>",
+                px(x + 5.0),
+                px(y - 5.0),
+                px(x + 15.0),
+                px(y + 5.0),
+                px(x + 5.0),
+                px(y + 5.0),
+                px(x + 15.0),
+                px(y - 5.0)
+            ),
+        };
+        let _ = writeln!(
+            out,
+            "<text x=\"{}\" y=\"{ty}\">{}</text>",
+            px(x + 24.0),
+            self.label()
+        );
+    }
+}
+
+/// The legend's entries (each agent's colour, up to the palette's length, then the event
+/// marks) in lines no wider than `width_px`.
+fn legend_lines(agents: usize, width_px: f64) -> Vec<Vec<Entry>> {
+    let entries = (0..agents.min(AGENT_COLOURS.len()))
+        .map(Entry::Agent)
+        .chain([Entry::Violation, Entry::Collision]);
+    let mut lines: Vec<Vec<Entry>> = vec![Vec::new()];
+    let mut used_px = 0.0;
+    for entry in entries {
+        let line = lines.last_mut().expect("a line");
+        if !line.is_empty() && used_px + entry.width_px() > width_px {
+            lines.push(vec![entry]);
+            used_px = entry.width_px();
+        } else {
+            line.push(entry);
+            used_px += entry.width_px();
+        }
+    }
+    lines
+}
+
+/// The legend in the top margin, one line under another.
+fn legend(out: &mut String, lines: &[Vec<Entry>]) {
+    out.push_str("<g class=\"legend\" font-size=\"11\">\n");
+    for (n, line) in lines.iter().enumerate() {
+        let y = MARGIN_PX / 2.0 + 2.0 + n as f64 * LEGEND_LINE_PX;
+        let mut x = MARGIN_PX;
+        for &entry in line {
+            entry.draw(out, x, y);
+            x += entry.width_px();
+        }
+    }
+    out.push_str("</g>\n");
 }
 
 /// Map metres to SVG pixels, y up, scaled to fit the largest drawing.
 struct Frame {
     bounds: Bounds,
+    /// The top margin (the legend's lines) [px].
+    top_px: f64,
     scale_px_per_m: f64,
     width_px: f64,
     height_px: f64,
@@ -232,16 +373,23 @@ impl Frame {
             ((MAX_WIDTH_PX - 2.0 * MARGIN_PX) / width_m).min((MAX_HEIGHT_PX - 2.0 * MARGIN_PX) / height_m);
         Frame {
             bounds,
+            top_px: MARGIN_PX,
             scale_px_per_m,
             width_px: width_m * scale_px_per_m + 2.0 * MARGIN_PX,
             height_px: height_m * scale_px_per_m + 2.0 * MARGIN_PX,
         }
     }
 
+    /// Room for `extra_px` more of the top margin: the drawing moves down, the frame grows.
+    fn lower_by(&mut self, extra_px: f64) {
+        self.top_px += extra_px;
+        self.height_px += extra_px;
+    }
+
     fn to_px(&self, x_m: f64, y_m: f64) -> (f64, f64) {
         (
             MARGIN_PX + (x_m - self.bounds.min_x_m) * self.scale_px_per_m,
-            MARGIN_PX + (self.bounds.max_y_m - y_m) * self.scale_px_per_m,
+            self.top_px + (self.bounds.max_y_m - y_m) * self.scale_px_per_m,
         )
     }
 
