@@ -11,6 +11,9 @@
 //! - `rti_subscriber_reads_the_lab_emulator`: `tests/rti/read_emulator.py` reads what
 //!   `cpmx lab emulate` publishes while `cpmx run` drives it, and checks the values; what it
 //!   decoded must equal what the driver recorded.
+//! - `rti_middleware_sees_the_driver_stop_a_car_that_lost_its_fixes`: `play_lab.py` plays a
+//!   car whose positioning fixes stop (its IPS age grows); the driver must fail the run naming
+//!   the fault, keep what it recorded, and command every vehicle to stop.
 //!
 //! Both move stamps above 2^53 (ns since 1970, the run seed in `next_start_stamp`) and the stop
 //! stamp 2^64 - 1 between rustdds and RTI, which Connector handles exactly only through its
@@ -148,6 +151,26 @@ fn workspace(name: &str, steps: usize) -> (PathBuf, PathBuf) {
     (dir, spec)
 }
 
+/// The spec's starts (`cpmx plan --format json`) as `play_lab.py --starts` wants them: a JSON
+/// list of `[x, y, yaw]` per vehicle, for the configuration `crossing`.
+fn starts_arg(spec: &Path) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .arg("plan")
+        .arg(spec)
+        .args(["--format", "json"])
+        .output()
+        .expect("cpmx plan runs");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let plan: Value = serde_json::from_slice(&out.stdout).expect("cpmx plan's JSON");
+    let poses: Vec<Value> = plan["starts"]["crossing"]
+        .as_array()
+        .expect("the configuration `crossing`")
+        .iter()
+        .map(|s| serde_json::json!([s["x_m"], s["y_m"], s["yaw_rad"]]))
+        .collect();
+    Value::from(poses).to_string()
+}
+
 /// A script of `tests/rti` with `args`, stdout and stderr to `<dir>/<log>.{json,log}`.
 fn script(python: &Path, dir: &Path, name: &str, args: &[&str]) -> Killed {
     Killed(
@@ -275,11 +298,12 @@ const SPEC_STEPS: usize = 36;
 
 fn middleware_scenario(python: &Path, deadline: Instant) {
     let (dir, spec) = workspace("middleware", SPEC_STEPS);
+    let starts = starts_arg(&spec);
     let mut middleware = script(
         python,
         &dir,
         "play_lab.py",
-        &["--ticks", &SCRIPT_TICKS.to_string()],
+        &["--ticks", &SCRIPT_TICKS.to_string(), "--starts", &starts],
     );
     let mut run = lab_run(&dir, &spec);
     let run_status = wait_until(&mut run, deadline, "cpmx run");
@@ -403,6 +427,132 @@ fn emulator_scenario(python: &Path, deadline: Instant) {
             recorded[2],
             recorded[3]
         );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn rti_middleware_sees_the_driver_stop_a_car_that_lost_its_fixes() {
+    in_namespace(
+        "rti_middleware_sees_the_driver_stop_a_car_that_lost_its_fixes",
+        lost_fixes_scenario,
+    );
+}
+
+/// The tick after which vehicle 2's positioning fixes stop.
+const STALL_AFTER: usize = 8;
+
+fn lost_fixes_scenario(python: &Path, deadline: Instant) {
+    let (dir, spec) = workspace("lost-fixes", SPEC_STEPS);
+    let starts = starts_arg(&spec);
+    let mut middleware = script(
+        python,
+        &dir,
+        "play_lab.py",
+        &[
+            "--ticks",
+            &SPEC_STEPS.to_string(),
+            "--starts",
+            &starts,
+            "--ips-stall-after",
+            &STALL_AFTER.to_string(),
+            "--ips-stall-vehicle",
+            "2",
+        ],
+    );
+    let mut run = lab_run(&dir, &spec);
+    let run_status = wait_until(&mut run, deadline, "cpmx run");
+    let script_status = wait_until(&mut middleware, deadline, "play_lab.py");
+    let logs = format!(
+        "cpmx run:\n{}\nplay_lab.py:\n{}",
+        common::read(&dir.join("run.log")),
+        common::read(&dir.join("play_lab.py.log"))
+    );
+    assert!(script_status.success(), "play_lab.py failed\n{logs}");
+    assert_eq!(run_status.code(), Some(3), "the run fails\n{logs}");
+    assert!(
+        logs.contains("vehicle 2's positioning fixes stopped"),
+        "the reason names the fault\n{logs}"
+    );
+
+    // What was recorded before is kept: the ticks until the fixes were 1 s old.
+    let run_dir = dir.join("out/runs/lab/lane/crossing/rep1");
+    assert!(!run_dir.join("metrics.json").exists(), "{logs}");
+    let failed = common::read(&run_dir.join("failed.json"));
+    assert!(failed.contains("positioning fixes stopped"), "{failed}");
+    let recorded = common::read(&run_dir.join("trajectory.csv")).lines().count() - 1;
+    assert!(
+        (STALL_AFTER * 2..SPEC_STEPS * 2).contains(&recorded),
+        "{recorded} rows\n{logs}"
+    );
+
+    // Every vehicle was commanded to stop, at the tick the driver noticed.
+    let played = summary(&dir, "play_lab.py");
+    let stopped = played["stopped"].as_object().expect("stopped");
+    for id in VEHICLE_IDS.split(',') {
+        assert!(stopped.contains_key(id), "vehicle {id} was not stopped: {played}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn rti_middleware_whose_clock_sticks_fails_the_run_within_its_timeout() {
+    in_namespace(
+        "rti_middleware_whose_clock_sticks_fails_the_run_within_its_timeout",
+        stuck_clock_scenario,
+    );
+}
+
+/// The tick after which the middleware's lists repeat that tick.
+const STUCK_AFTER: usize = 6;
+
+/// The lab's lists keep coming but bring no new tick: the driver answers the repeats, then
+/// fails the run after `timeout_s` (no hang), keeps what it recorded and stops every vehicle.
+fn stuck_clock_scenario(python: &Path, deadline: Instant) {
+    let (dir, spec) = workspace("stuck-clock", SPEC_STEPS);
+    let text = common::read(&spec);
+    assert!(text.contains("timeout_s: 20"), "{text}");
+    std::fs::write(&spec, text.replace("timeout_s: 20", "timeout_s: 3")).expect("spec");
+    let starts = starts_arg(&spec);
+    let mut middleware = script(
+        python,
+        &dir,
+        "play_lab.py",
+        &[
+            "--ticks",
+            &SPEC_STEPS.to_string(),
+            "--starts",
+            &starts,
+            "--stuck-after",
+            &STUCK_AFTER.to_string(),
+        ],
+    );
+    let started = Instant::now();
+    let mut run = lab_run(&dir, &spec);
+    let run_status = wait_until(&mut run, deadline, "cpmx run");
+    let took = started.elapsed();
+    let script_status = wait_until(&mut middleware, deadline, "play_lab.py");
+    let logs = format!(
+        "cpmx run:\n{}\nplay_lab.py:\n{}",
+        common::read(&dir.join("run.log")),
+        common::read(&dir.join("play_lab.py.log"))
+    );
+    assert!(script_status.success(), "play_lab.py failed\n{logs}");
+    assert_eq!(run_status.code(), Some(3), "the run fails\n{logs}");
+    assert!(took < Duration::from_secs(15), "the run took {took:?}\n{logs}");
+    let run_dir = dir.join("out/runs/lab/lane/crossing/rep1");
+    let failed = common::read(&run_dir.join("failed.json"));
+    assert!(
+        failed.contains("the lab sent no new tick for 3 s"),
+        "{failed}\n{logs}"
+    );
+    assert!(failed.contains("repeated ticks (answered again)"), "{failed}");
+    let recorded = common::read(&run_dir.join("trajectory.csv")).lines().count() - 1;
+    assert_eq!(recorded, (STUCK_AFTER + 1) * 2, "{logs}");
+    let played = summary(&dir, "play_lab.py");
+    let stopped = played["stopped"].as_object().expect("stopped");
+    for id in VEHICLE_IDS.split(',') {
+        assert!(stopped.contains_key(id), "vehicle {id} was not stopped: {played}");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -56,6 +56,8 @@ fn cpmx_reproduces_sigmarls_rollout() {
             plan,
             starts,
             fidelity: None,
+            stop: None,
+            operator: None,
         })
         .unwrap();
 

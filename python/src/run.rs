@@ -140,6 +140,7 @@ pub fn run<'py>(
         force,
         data,
         stop: Some(stop.clone()),
+        operator: None,
     };
 
     // Run in a thread of its own; this one waits without the GIL and looks for Ctrl-C.

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use crate::diagnostic::{ByteSpan, Problem};
 use crate::model::{
     ActionMode, Control, Distribution, Fidelity, InitialConfiguration, MapSpec, OutputHead, Parameter,
-    SimulatedFidelity, Spec,
+    ParameterRange, SimulatedFidelity, Spec,
 };
 use crate::paths::{DataPath, NotFound};
 use crate::yaml::{NodeSpans, SpannedDocument, escape_pointer};
@@ -607,6 +607,9 @@ fn check_fidelities(spec: &Spec, ctx: &mut CheckContext<'_>) {
                     ));
                 }
             }
+            if let Some(faults) = &lab.faults {
+                crate::check_lab::check_faults(faults, &lab.vehicle_ids, &format!("{pointer}/faults"), ctx);
+            }
         }
     }
 }
@@ -619,51 +622,57 @@ fn check_distributions(name: &str, pointer: &str, fidelity: &SimulatedFidelity, 
             continue;
         };
         let at = format!("{pointer}/{}", parameter.name.replace('.', "/"));
-        let range = parameter.range;
-        let problem = match distribution {
-            Distribution::Uniform([low, high]) if low.is_nan() || high.is_nan() || low >= high => Some((
-                "/uniform".to_owned(),
-                format!(
-                    "`{}` of fidelity `{name}` is drawn from {} range [{low}, {high}]",
-                    parameter.name,
-                    if low == high { "an empty" } else { "a reversed" }
-                ),
-                "low must be below high".to_owned(),
-                "write `{uniform: [LOW, HIGH]}` with LOW < HIGH, or the number itself".to_owned(),
-            )),
-            Distribution::Uniform([low, high]) if !range.contains(low) || !range.contains(high) => Some((
-                "/uniform".to_owned(),
-                format!(
-                    "`{}` of fidelity `{name}` is drawn from [{low}, {high}], outside its range {range}",
-                    parameter.name
-                ),
-                format!("outside {range}"),
-                format!("keep both ends in {range}"),
-            )),
-            Distribution::Normal(n) if n.std.is_nan() || n.std <= 0.0 || n.std.is_infinite() => Some((
-                "/normal/std".to_owned(),
-                format!(
-                    "`{}` of fidelity `{name}` is drawn from a normal with standard deviation {}",
-                    parameter.name, n.std
-                ),
-                "must be above 0".to_owned(),
-                "give a positive `std`, or the number itself".to_owned(),
-            )),
-            Distribution::Normal(n) if !range.contains(n.mean) => Some((
-                "/normal/mean".to_owned(),
-                format!(
-                    "`{}` of fidelity `{name}` is drawn from a normal with mean {}, outside its range {range}",
-                    parameter.name, n.mean
-                ),
-                format!("outside {range}"),
-                format!("draws outside {range} are drawn again, so the mean must lie in it"),
-            )),
-            _ => None,
-        };
-        if let Some((suffix, message, label, help)) = problem {
-            let span = ctx.span(&format!("{at}{suffix}"));
-            ctx.push(Problem::error("cpmx::check::distribution", message, span, label).with_help(help));
-        }
+        let what = format!("`{}` of fidelity `{name}`", parameter.name);
+        check_distribution(&what, &at, distribution, parameter.range, ctx);
+    }
+}
+
+/// A distribution must be one: a uniform range with `low < high` inside the parameter's range,
+/// a normal with `std > 0` whose mean is in the range. `what` names the parameter
+/// (`` `x` of fidelity `f` ``), `at` is its pointer.
+pub(crate) fn check_distribution(
+    what: &str,
+    at: &str,
+    distribution: Distribution,
+    range: ParameterRange,
+    ctx: &mut CheckContext<'_>,
+) {
+    let problem = match distribution {
+        Distribution::Uniform([low, high]) if low.is_nan() || high.is_nan() || low >= high => Some((
+            "/uniform".to_owned(),
+            format!(
+                "{what} is drawn from {} range [{low}, {high}]",
+                if low == high { "an empty" } else { "a reversed" }
+            ),
+            "low must be below high".to_owned(),
+            "write `{uniform: [LOW, HIGH]}` with LOW < HIGH, or the number itself".to_owned(),
+        )),
+        Distribution::Uniform([low, high]) if !range.contains(low) || !range.contains(high) => Some((
+            "/uniform".to_owned(),
+            format!("{what} is drawn from [{low}, {high}], outside its range {range}"),
+            format!("outside {range}"),
+            format!("keep both ends in {range}"),
+        )),
+        Distribution::Normal(n) if n.std.is_nan() || n.std <= 0.0 || n.std.is_infinite() => Some((
+            "/normal/std".to_owned(),
+            format!("{what} is drawn from a normal with standard deviation {}", n.std),
+            "must be above 0".to_owned(),
+            "give a positive `std`, or the number itself".to_owned(),
+        )),
+        Distribution::Normal(n) if !range.contains(n.mean) => Some((
+            "/normal/mean".to_owned(),
+            format!(
+                "{what} is drawn from a normal with mean {}, outside its range {range}",
+                n.mean
+            ),
+            format!("outside {range}"),
+            format!("draws outside {range} are drawn again, so the mean must lie in it"),
+        )),
+        _ => None,
+    };
+    if let Some((suffix, message, label, help)) = problem {
+        let span = ctx.span(&format!("{at}{suffix}"));
+        ctx.push(Problem::error("cpmx::check::distribution", message, span, label).with_help(help));
     }
 }
 

@@ -10,6 +10,7 @@
 //! ```
 
 mod check;
+mod check_lab;
 mod check_training;
 mod diagnostic;
 pub mod matrix;
@@ -293,6 +294,42 @@ pub fn check_scoped(
         doc,
         source: named,
     })
+}
+
+/// Reads and checks a faults file (`cpmx lab emulate --faults FILE`): the mapping of a lab
+/// fidelity's `faults`, for a lab that drives `vehicle_ids`.
+pub fn check_faults(
+    source: &SpecSource,
+    vehicle_ids: &[u8],
+) -> Result<model::LabFaults, Vec<SpecDiagnostic>> {
+    let named = Arc::new(miette::NamedSource::new(&source.name, source.text.clone()).with_language("yaml"));
+    let attach = |problems: Vec<Problem>| -> Vec<SpecDiagnostic> {
+        problems
+            .into_iter()
+            .map(|p| SpecDiagnostic::new(p, named.clone()))
+            .collect()
+    };
+    let doc = yaml::parse(&source.text).map_err(&attach)?;
+    let problems = schema::validate_faults(&doc);
+    if problems.iter().any(|p| p.level == Level::Error) {
+        return Err(attach(problems));
+    }
+    let faults: model::LabFaults = serde_json::from_value(doc.value.clone()).map_err(|e| {
+        attach(vec![Problem::error(
+            "cpmx::internal",
+            format!("the faults passed the schema but cannot be read ({e}); please report this"),
+            ByteSpan::new(0, 0),
+            "",
+        )])
+    })?;
+    let mut ctx = CheckContext::new(&doc);
+    check_lab::check_faults(&faults, vehicle_ids, "", &mut ctx);
+    let problems = ctx.into_problems();
+    if problems.is_empty() {
+        Ok(faults)
+    } else {
+        Err(attach(problems))
+    }
 }
 
 /// Keys a map-only spec may have.

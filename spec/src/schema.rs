@@ -97,6 +97,29 @@ fn reduce_presets(node: &mut Value) {
 /// Validates the expanded document against the strict schema; every error becomes a problem.
 pub fn validate(doc: &SpannedDocument) -> Vec<Problem> {
     let (schema, validator) = strict_schema();
+    validate_with(schema, validator.as_ref(), doc)
+}
+
+/// The schema of a faults file (`cpmx lab emulate --faults`): a lab fidelity's `faults`.
+fn faults_schema() -> &'static (Value, Option<Validator>) {
+    static FAULTS: OnceLock<(Value, Option<Validator>)> = OnceLock::new();
+    FAULTS.get_or_init(|| {
+        let schema = schemars::schema_for!(crate::model::LabFaults).to_value();
+        let validator = jsonschema::options()
+            .should_validate_formats(false)
+            .build(&schema)
+            .ok();
+        (schema, validator)
+    })
+}
+
+/// Validates a faults file against the schema of `faults`; every error becomes a problem.
+pub(crate) fn validate_faults(doc: &SpannedDocument) -> Vec<Problem> {
+    let (schema, validator) = faults_schema();
+    validate_with(schema, validator.as_ref(), doc)
+}
+
+fn validate_with(schema: &Value, validator: Option<&Validator>, doc: &SpannedDocument) -> Vec<Problem> {
     let Some(validator) = validator else {
         return vec![Problem::error(
             "cpmx::internal",

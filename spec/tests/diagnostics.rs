@@ -438,3 +438,89 @@ fn a_randomised_fidelity_has_repetitions_worth_running() {
     let deterministic = check(&VALID.replace("repetitions: 1", "repetitions: 3")).unwrap();
     assert!(!deterministic.warnings.is_empty());
 }
+
+/// The valid spec with a lab fidelity whose mapping continues with `lab_tail` (indented by
+/// four spaces), and a planner.
+fn with_lab(lab_tail: &str) -> String {
+    edit(
+        "  sim: {control: direct, dynamics: kinematic}\n",
+        &format!(
+            "  sim: {{control: direct, dynamics: kinematic}}\n  lab:\n    driver: cpm-dds\n    domain: 1\n    \
+             vehicle_ids: [1, 2]\n{lab_tail}"
+        ),
+    ) + "planner: {control_horizon: 4, prediction_horizon: 12}\n"
+}
+
+#[test]
+fn a_lab_fidelity_takes_a_preflight_and_faults() {
+    let text = with_lab(
+        "    preflight: {position_tolerance_m: 0.05, misplaced: record}\n    ips_age_limit_s: 2\n    faults:\n      \
+         seed: 3\n      topics: {vehicleStateList: {drop: 0.1, delay: 0.2, delay_ms: {uniform: [10, 50]}}}\n      \
+         ips_loss: [{vehicle: 2, at_s: {uniform: [1, 2]}, probability: 0.5}]\n      \
+         leave_lists: [{vehicle: 1, at_s: 1, for_s: 0.5, listed: stale}]\n      restarts: [{at_s: 2}]\n",
+    );
+    let checked = check(&text).expect("valid");
+    let Some(Fidelity::Lab(lab)) = checked.spec.fidelities.get("lab") else {
+        panic!("no lab fidelity");
+    };
+    assert_eq!(lab.preflight().misplaced, cpmx_spec::model::Misplaced::Record);
+    assert_eq!(lab.preflight().heading_tolerance_deg, 5.0, "a default");
+    assert_eq!(lab.ips_age_limit_s(), 2.0);
+    let faults = lab.faults.as_ref().expect("faults");
+    assert_eq!((faults.seed, faults.restarts.len()), (3, 1));
+}
+
+#[test]
+fn faults_name_the_lab_s_vehicles_and_times_that_are_times() {
+    let text = with_lab(
+        "    faults:\n      ips_loss: [{vehicle: 3, at_s: 1.0}]\n      pauses: [{at_s: {uniform: [2, 1]}, for_s: -1}]\n",
+    );
+    let diagnostics = check(&text).expect_err("rejected");
+    let messages: Vec<(usize, usize, &str)> = diagnostics
+        .iter()
+        .map(|d| (d.line, d.column, d.problem.message.as_str()))
+        .collect();
+    assert_eq!(
+        messages[0],
+        (
+            22,
+            28,
+            "the faults name vehicle 3, which the lab fidelity does not drive"
+        ),
+        "{messages:?}"
+    );
+    assert!(
+        messages
+            .iter()
+            .any(|(_, _, m)| m.contains("`at_s` is drawn from a reversed range [2, 1]")),
+        "{messages:?}"
+    );
+    assert!(
+        messages
+            .iter()
+            .any(|(_, _, m)| m.contains("`for_s` of a fault is -1, outside (0, inf]")),
+        "{messages:?}"
+    );
+}
+
+#[test]
+fn a_faults_file_is_checked_as_the_spec_s_faults_are() {
+    let source = |text: &str| cpmx_spec::SpecSource {
+        name: "faults.yaml".into(),
+        dir: ".".into(),
+        text: text.into(),
+    };
+    let faults = cpmx_spec::check_faults(
+        &source("seed: 4\nmisplaced: [{vehicle: 2, offset_m: [0.1, 0]}]\n"),
+        &[1, 2],
+    )
+    .expect("valid");
+    assert_eq!(faults.misplaced[0].offset_m, [0.1, 0.0]);
+    let typo = cpmx_spec::check_faults(&source("topics: {vehicleStateList: {drops: 0.1}}\n"), &[1, 2])
+        .expect_err("a typo");
+    assert_eq!((typo[0].line, typo[0].column), (1, 29), "{typo:?}");
+    assert_eq!(typo[0].problem.help.as_deref(), Some("did you mean `drop`?"));
+    let stranger = cpmx_spec::check_faults(&source("low_battery: [{vehicle: 9, voltage_v: 6}]\n"), &[1, 2])
+        .expect_err("not the lab's vehicle");
+    assert!(stranger[0].problem.message.contains("vehicle 9"), "{stranger:?}");
+}

@@ -3,6 +3,7 @@
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
 
 use cpmx_engine::{RunOutcome, Shard};
 use cpmx_report::{Format, render};
@@ -54,6 +55,13 @@ pub(crate) fn parse_shard(text: &str) -> Result<Shard, String> {
 pub fn run(args: &RunArgs) -> Result<(), Failure> {
     let only = cpmx_session::parse_only(&args.only).map_err(|e| session_failure(&e))?;
     let checked = load_checked(&args.spec, &args.data)?;
+    // The progress bar, once there is one: the operator's messages (a lab run's preflight
+    // table) and the runs' notes go above it on a terminal, else to stderr.
+    let bar: Arc<OnceLock<ProgressBar>> = Arc::new(OnceLock::new());
+    let operator = {
+        let bar = bar.clone();
+        cpmx_engine::Operator::new(move |message| say(bar.get(), message))
+    };
     let request = RunRequest {
         spec_path: args.spec.clone(),
         out: args.out.clone(),
@@ -64,13 +72,13 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         force: args.force,
         data: args.data.data.clone(),
         stop: Some(crate::interrupt::flag()),
+        operator: Some(operator),
     };
 
     // Policies bound from Python run only from Python.
     let plans = cpmx_session::selected_plans(&checked, &request).map_err(|e| session_failure(&e))?;
     refuse_python_policies(args, &checked, &plans)?;
 
-    let bar = std::sync::OnceLock::new();
     let on_total = |total: usize| {
         let _ = bar.set(progress_bar(total as u64));
     };
@@ -79,13 +87,16 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             return;
         };
         match outcome {
-            RunOutcome::Failed(reason) => bar.println(format!("failed: {}: {reason}", plan.key)),
+            // Without a terminal the failures are listed at the end.
+            RunOutcome::Failed(reason) if !bar.is_hidden() => {
+                bar.println(format!("failed: {}: {reason}", plan.key));
+            }
             RunOutcome::Finished(stored) => {
                 for note in &stored.notes {
-                    bar.println(format!("note: {}: {note}", plan.key));
+                    say(Some(bar), &format!("note: {}: {note}", plan.key));
                 }
             }
-            RunOutcome::Resumed(_) | RunOutcome::NotRun => {}
+            RunOutcome::Failed(_) | RunOutcome::Resumed(_) | RunOutcome::NotRun => {}
         }
         bar.inc(1);
     };
@@ -235,6 +246,14 @@ pub(crate) fn shell_word(word: &str) -> String {
         word.to_owned()
     } else {
         format!("'{}'", word.replace('\'', "'\\''"))
+    }
+}
+
+/// A message above the progress bar on a terminal, else on stderr.
+fn say(bar: Option<&ProgressBar>, message: &str) {
+    match bar {
+        Some(bar) if !bar.is_hidden() => bar.println(message),
+        _ => eprintln!("{message}"),
     }
 }
 

@@ -64,7 +64,14 @@ pub fn in_network_namespace(test_name: &str, marker: &str, deadline: Instant) ->
         Command::new("unshare")
             .args(["--net", "--pid", "--fork", "--kill-child", "--"])
             .arg(std::env::current_exe().expect("test binary"))
-            .args([test_name, "--exact", "--nocapture", "--test-threads=1"])
+            // `--include-ignored`: an `#[ignore]`d test asked for (`-- --ignored`) runs inside too.
+            .args([
+                test_name,
+                "--exact",
+                "--nocapture",
+                "--test-threads=1",
+                "--include-ignored",
+            ])
             .env(marker, "1")
             .stdout(file.try_clone().expect("log file"))
             .stderr(file)
@@ -77,6 +84,10 @@ pub fn in_network_namespace(test_name: &str, marker: &str, deadline: Instant) ->
     assert!(
         status.success(),
         "the test failed in its network namespace:\n{output}"
+    );
+    assert!(
+        output.contains("test result: ok. 1 passed"),
+        "the test did not run in its network namespace:\n{output}"
     );
     Namespace::RanInside
 }

@@ -68,6 +68,8 @@ fn run(experiment: &Experiment, plan: &RunPlan) -> usize {
             plan,
             starts,
             fidelity: None,
+            stop: None,
+            operator: None,
         })
         .expect("the sim run");
     recording.samples.len()

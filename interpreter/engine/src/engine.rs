@@ -5,6 +5,9 @@ use cpmx_policy::{
     AgentPaths, ExternalPolicy, LaneFollow, LaneFollowParams, MlpPolicy, Policy, PolicyError, ProcessConfig,
     ProcessPolicy,
 };
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
 use cpmx_recording::Recording;
 use cpmx_spec::RunPlan;
 use cpmx_spec::matrix::stream_key;
@@ -49,6 +52,19 @@ pub enum RunError {
     LabPeriod { period_ms: u64, dt_ms: u64 },
     #[error("the lab ended the run before its first tick: {0}")]
     LabStopped(String),
+    /// A fault of the lab ended the run (the vehicles were commanded to stop).
+    #[error("{0}; the run was stopped")]
+    LabFault(String),
+    /// The preflight did not pass within its wait.
+    #[error("the preflight did not pass within {waited_s:.0} s (the run did not start): {headline}\n{table}")]
+    Preflight {
+        headline: String,
+        table: String,
+        waited_s: f64,
+    },
+    /// The operator asked to stop (Ctrl-C).
+    #[error("interrupted (Ctrl-C); the vehicles were commanded to stop")]
+    Interrupted,
     #[error("the lab's middleware: {0}")]
     Lab(#[from] cpmx_lab::LabError),
     /// The run ended early; what was recorded until then is kept as the run's trajectory.
@@ -68,6 +84,34 @@ pub struct RunInputs<'a> {
     /// The run's simulated fidelity with its randomised parameters drawn for this run
     /// (`None` for the lab, and where an engine reads nothing from its layers).
     pub fidelity: Option<&'a DrawnFidelity>,
+    /// Set when the operator asks to stop (Ctrl-C): the lab driver stops the vehicles and
+    /// ends its run as interrupted, keeping what it recorded.
+    pub stop: Option<&'a AtomicBool>,
+    /// Where the lab driver tells the operator what it waits for (the preflight's table).
+    pub operator: Option<&'a Operator>,
+}
+
+/// Where a lab run tells the operator what it waits for, while it waits (the library prints
+/// nothing; the command line shows it).
+#[derive(Clone)]
+pub struct Operator(Arc<dyn Fn(&str) + Send + Sync>);
+
+impl Operator {
+    /// An operator shown messages by `show`.
+    pub fn new(show: impl Fn(&str) + Send + Sync + 'static) -> Self {
+        Self(Arc::new(show))
+    }
+
+    /// Shows `message`.
+    pub fn say(&self, message: &str) {
+        (self.0)(message);
+    }
+}
+
+impl std::fmt::Debug for Operator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Operator")
+    }
 }
 
 impl RunInputs<'_> {

@@ -53,7 +53,28 @@ pub fn context_hash(checked: &CheckedSpec) -> String {
         root.remove("report");
         root.remove("description");
     }
+    without_lab_session_keys(&mut resolved);
     sha256_hex(resolved.to_string().as_bytes())
+}
+
+/// Keys of a lab fidelity that decide whether a lab run starts or goes on, or what the emulator
+/// plays, but not what a finished run recorded: changing them leaves finished runs finished.
+const LAB_SESSION_KEYS: [&str; 3] = ["preflight", "ips_age_limit_s", "faults"];
+
+/// `spec` without its lab fidelities' [`LAB_SESSION_KEYS`].
+fn without_lab_session_keys(spec: &mut serde_json::Value) {
+    let Some(fidelities) = spec.get_mut("fidelities").and_then(|f| f.as_object_mut()) else {
+        return;
+    };
+    for fidelity in fidelities.values_mut() {
+        if let Some(lab) = fidelity.as_object_mut()
+            && lab.contains_key("driver")
+        {
+            for key in LAB_SESSION_KEYS {
+                lab.remove(key);
+            }
+        }
+    }
 }
 
 /// Where the files of a folder's spec were found when it was made: the folders of the data
@@ -109,7 +130,9 @@ pub fn differing_sections(existing: &str, checked: &CheckedSpec) -> Vec<String> 
     let Ok(old) = serde_saphyr::from_str::<serde_json::Value>(existing) else {
         return vec!["(unreadable)".into()];
     };
-    let new = resolved_spec(checked);
+    let (mut old, mut new) = (old, resolved_spec(checked));
+    without_lab_session_keys(&mut old);
+    without_lab_session_keys(&mut new);
     let (Some(old), Some(new)) = (old.as_object(), new.as_object()) else {
         return vec!["(not a mapping)".into()];
     };

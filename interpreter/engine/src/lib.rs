@@ -19,7 +19,7 @@ mod twin;
 pub use checks::BuildChecks;
 pub use cpmx_stack::{CONTROL_PERIOD_S, GreyBoxMpcModel, VehicleStack};
 pub use cpmx_stack::{control_periods, trajectory_points};
-pub use engine::{Engine, RunError, RunInputs, engine_for};
+pub use engine::{Engine, Operator, RunError, RunInputs, engine_for};
 pub use experiment::{
     Experiment, PrepareError, PreparedPolicy, Scoring, load_map, load_map_spec, metrics_config, observation,
     vehicle_params,

@@ -14,9 +14,11 @@ use cpmx_spec::model::{DrawnFidelity, Fidelity};
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 
-use crate::engine::{RunError, RunInputs, engine_for};
+use crate::engine::{Operator, RunError, RunInputs, engine_for};
 use crate::experiment::Experiment;
-use crate::store::{StoredRun, finished_run, run_dir, store_run, write_atomic};
+use crate::store::{
+    EARLIER_RECORDING, Failure, StoredRun, finished_run, run_dir, store_failure, store_run, write_atomic,
+};
 
 /// A slice of the matrix: runs whose index `i` (0-based, matrix order) has `i % count == index - 1`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -41,8 +43,11 @@ pub struct RunOptions {
     pub shard: Shard,
     pub resume: bool,
     /// Set (by a Ctrl-C handler) to start no further run: the runs under way finish and are
-    /// stored, the others come back [`RunOutcome::NotRun`].
+    /// stored, the others come back [`RunOutcome::NotRun`]. A lab run under way stops its
+    /// vehicles and ends as interrupted, keeping what it recorded.
     pub stop: Option<Arc<AtomicBool>>,
+    /// Where lab runs tell the operator what they wait for (the preflight's table).
+    pub operator: Option<Operator>,
 }
 
 /// What became of one run.
@@ -91,7 +96,7 @@ pub fn execute(
                         plan.fidelity
                     ))
                 } else {
-                    execute_one(experiment, plan, out, options.resume, context_hash, &silent)
+                    execute_one(experiment, plan, out, options, context_hash, &silent)
                 };
                 on_done(plan, &outcome);
                 ((*plan).clone(), outcome)
@@ -117,16 +122,35 @@ fn execute_one(
     experiment: &Experiment,
     plan: &RunPlan,
     out: &Path,
-    resume: bool,
+    options: &RunOptions,
     context_hash: &str,
     silent: &Mutex<BTreeSet<String>>,
 ) -> RunOutcome {
     let hash = inputs_hash(context_hash, plan);
-    if resume && let Some(stored) = finished_run(out, plan, &hash) {
+    if options.resume
+        && let Some(stored) = finished_run(out, plan, &hash)
+    {
         return RunOutcome::Resumed(Box::new(stored));
     }
     let (fidelity, drawn_parameters) = drawn_fidelity(experiment, plan);
-    match run_engine(experiment, plan, fidelity.as_ref()).and_then(|recording| {
+    let context = EngineContext {
+        stop: options.stop.as_deref(),
+        operator: options.operator.as_ref(),
+    };
+    let failed = |reason: String, notes: &[String]| {
+        let failure = Failure {
+            key: plan.key.clone(),
+            seed: plan.seed,
+            inputs_hash: hash.clone(),
+            reason: reason.clone(),
+            notes: notes.to_vec(),
+        };
+        match store_failure(out, plan, &failure) {
+            Ok(()) => RunOutcome::Failed(reason),
+            Err(e) => RunOutcome::Failed(format!("{reason}; cannot store failed.json: {e}")),
+        }
+    };
+    match run_engine(experiment, plan, fidelity.as_ref(), context).and_then(|recording| {
         let metrics = measure(experiment, &plan.fidelity, &recording)?;
         Ok((recording, metrics))
     }) {
@@ -134,7 +158,7 @@ fn execute_one(
             let stored = StoredRun {
                 key: plan.key.clone(),
                 seed: plan.seed,
-                inputs_hash: hash,
+                inputs_hash: hash.clone(),
                 notes: recording.notes.clone(),
                 drawn_parameters,
                 metrics,
@@ -145,17 +169,37 @@ fn execute_one(
             }
         }
         Err(RunFailure::Partial { reason, recording }) => match store_partial(out, plan, &recording) {
-            Ok(()) => RunOutcome::Failed(format!("{reason}; its trajectory.csv holds what was recorded")),
+            Ok(()) => failed(
+                format!("{reason}; its trajectory.csv holds what was recorded"),
+                &recording.notes,
+            ),
             Err(e) => RunOutcome::Failed(format!("{reason}; cannot store what was recorded: {e}")),
         },
-        Err(RunFailure::Reason(reason)) => RunOutcome::Failed(reason),
+        Err(RunFailure::Reason(reason)) => failed(reason, &earlier_recording(out, plan)),
         Err(RunFailure::LabSilent(reason)) => {
             if let Ok(mut silent) = silent.lock() {
                 silent.insert(plan.fidelity.clone());
             }
-            RunOutcome::Failed(reason)
+            failed(reason, &earlier_recording(out, plan))
         }
     }
+}
+
+/// A note for the `failed.json` of an attempt that recorded nothing, when the folder keeps an
+/// earlier attempt's `trajectory.csv` (never deleted: nothing recorded is lost).
+fn earlier_recording(out: &Path, plan: &RunPlan) -> Vec<String> {
+    if run_dir(out, plan).join("trajectory.csv").is_file() {
+        vec![format!("{EARLIER_RECORDING}; this attempt recorded nothing")]
+    } else {
+        Vec::new()
+    }
+}
+
+/// What the runner hands an engine besides the run: the stop flag and the operator.
+#[derive(Clone, Copy)]
+struct EngineContext<'a> {
+    stop: Option<&'a AtomicBool>,
+    operator: Option<&'a Operator>,
 }
 
 /// Why a run has no result: a reason, and what it recorded before it failed, if anything.
@@ -216,7 +260,11 @@ fn store_partial(out: &Path, plan: &RunPlan, recording: &Recording) -> std::io::
 /// Runs the engine of the plan's fidelity and measures the recording.
 pub fn simulate(experiment: &Experiment, plan: &RunPlan) -> Result<(Recording, RunMetrics), String> {
     let (fidelity, _) = drawn_fidelity(experiment, plan);
-    let recording = run_engine(experiment, plan, fidelity.as_ref()).map_err(RunFailure::reason)?;
+    let context = EngineContext {
+        stop: None,
+        operator: None,
+    };
+    let recording = run_engine(experiment, plan, fidelity.as_ref(), context).map_err(RunFailure::reason)?;
     let metrics = measure(experiment, &plan.fidelity, &recording)?;
     Ok((recording, metrics))
 }
@@ -238,6 +286,7 @@ fn run_engine(
     experiment: &Experiment,
     plan: &RunPlan,
     drawn: Option<&DrawnFidelity>,
+    context: EngineContext<'_>,
 ) -> Result<Recording, RunFailure> {
     let fidelity = experiment
         .spec
@@ -253,6 +302,8 @@ fn run_engine(
         plan,
         starts,
         fidelity: drawn,
+        stop: context.stop,
+        operator: context.operator,
     })?)
 }
 

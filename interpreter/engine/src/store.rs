@@ -48,6 +48,37 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     std::fs::rename(&tmp, path)
 }
 
+/// What `failed.json` holds: why a run failed, and what it noticed before (a lab run's
+/// irregularities). The folder of a failed run holds it beside the `trajectory.csv` of what
+/// was recorded, if anything was; the run finishing later removes it.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Failure {
+    pub key: String,
+    pub seed: u64,
+    pub inputs_hash: String,
+    pub reason: String,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
+}
+
+/// The name of a failed run's record.
+pub const FAILED_FILE: &str = "failed.json";
+
+/// The note of a failed run whose folder keeps the `trajectory.csv` an earlier attempt recorded.
+pub const EARLIER_RECORDING: &str = "trajectory.csv holds what an earlier attempt recorded";
+
+/// Stores why a run failed (`failed.json`). The run is not finished: a `metrics.json` of an
+/// earlier attempt goes (its recording stays, and the notes say so).
+pub fn store_failure(out: &Path, plan: &RunPlan, failure: &Failure) -> std::io::Result<()> {
+    let dir = run_dir(out, plan);
+    match std::fs::remove_file(dir.join("metrics.json")) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(e),
+        _ => {}
+    }
+    let json = serde_json::to_vec_pretty(failure).map_err(std::io::Error::other)?;
+    write_atomic(&dir.join(FAILED_FILE), &json)
+}
+
 /// Stores a finished run: trajectory first, then `metrics.json` (the "finished" mark).
 pub fn store_run(
     out: &Path,
@@ -62,7 +93,11 @@ pub fn store_run(
         .map_err(std::io::Error::other)?;
     write_atomic(&dir.join("trajectory.csv"), &trajectory)?;
     let json = serde_json::to_vec_pretty(stored).map_err(std::io::Error::other)?;
-    write_atomic(&dir.join("metrics.json"), &json)
+    write_atomic(&dir.join("metrics.json"), &json)?;
+    match std::fs::remove_file(dir.join(FAILED_FILE)) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
+        _ => Ok(()),
+    }
 }
 
 /// The stored result of a run, if it finished with the same inputs.

@@ -22,6 +22,9 @@ pub struct OnCarSensing {
     localization: Localization,
     /// The measurement time of the newest fix that arrived [s].
     newest_fix_s: f64,
+    /// Whether the fixes stop reaching the car (the positioning lost it; `cpmx lab emulate`'s
+    /// fault): frames are still drawn, so the random stream stays as without the fault.
+    fixes_lost: bool,
 }
 
 impl OnCarSensing {
@@ -37,6 +40,7 @@ impl OnCarSensing {
             ips: IpsModel::new(ips)?,
             localization: Localization::new(localization, initial_pose, initial_speed_mps, start_time_s)?,
             newest_fix_s: start_time_s,
+            fixes_lost: false,
         })
     }
 
@@ -50,13 +54,22 @@ impl OnCarSensing {
         reading: &OdometryReading,
         rng: &mut ChaCha20Rng,
     ) -> Estimate {
-        let fixes = self.ips.step(time_s, true_pose, rng);
+        let mut fixes = self.ips.step(time_s, true_pose, rng);
         self.localization.step(reading, rng);
+        if self.fixes_lost {
+            fixes.clear();
+        }
         for fix in &fixes {
             self.newest_fix_s = self.newest_fix_s.max(fix.measured_at_s);
             self.localization.apply_fix(fix);
         }
         self.localization.estimate()
+    }
+
+    /// Stops (or resumes) the fixes reaching the car: it drives on dead reckoning and the age
+    /// of its newest fix grows.
+    pub fn lose_fixes(&mut self, lost: bool) {
+        self.fixes_lost = lost;
     }
 
     /// Time since the newest fix that arrived was measured, at `time_s` [s] (never negative).

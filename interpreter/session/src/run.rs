@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
-use cpmx_engine::{Experiment, RunOptions, RunOutcome, Shard, execute, folder};
+use cpmx_engine::{Experiment, Operator, RunOptions, RunOutcome, Shard, execute, folder};
 use cpmx_report::Summary;
 use cpmx_spec::{CheckedSpec, RunPlan};
 
@@ -72,8 +72,11 @@ pub struct RunRequest {
     pub force: bool,
     /// The data path's folders given with the request (before `CPMX_DATA`).
     pub data: Vec<PathBuf>,
-    /// Set to start no further run (Ctrl-C); runs under way finish and are kept.
+    /// Set to start no further run (Ctrl-C); runs under way finish and are kept (a lab run
+    /// stops its vehicles and ends as interrupted).
     pub stop: Option<Arc<AtomicBool>>,
+    /// Where lab runs tell the operator what they wait for (the preflight's table).
+    pub operator: Option<Operator>,
 }
 
 /// Why a matrix could not be run; nothing was run (runs that fail are outcomes, not this).
@@ -290,6 +293,7 @@ pub fn run_matrix(
         shard,
         resume: request.resume,
         stop: request.stop.clone(),
+        operator: request.operator.clone(),
     };
     let context = folder::context_hash(checked);
     let outcomes =

@@ -18,8 +18,8 @@ pub use neighbours::{communication_params, neighbour_knowledge, perception_param
 pub use plants::GreyBoxMpcModel;
 pub use randomise::{draw_fidelity, draw_value};
 pub use stack::{
-    CONTROL_PERIOD_NS, CONTROL_PERIOD_S, STATE_VALID_AFTER_NS, STATE_VALID_AFTER_S, StampedState,
-    VehicleStack,
+    CONTROL_PERIOD_NS, CONTROL_PERIOD_S, NOMINAL_BATTERY_V, STATE_VALID_AFTER_NS, STATE_VALID_AFTER_S,
+    StampedState, VehicleStack,
 };
 pub use timing::{
     RUN_START_NS, VEHICLE_LEAD_NS, VEHICLE_LEAD_S, anchor_ns, anchored_time_ns, control_periods, duration_ns,

@@ -51,6 +51,10 @@ pub const STATE_VALID_AFTER_NS: u64 = 60_000_000;
 /// How many published states a vehicle keeps for the middleware to choose from.
 const PUBLISHED_STATES: usize = 8;
 
+/// The battery voltage a vehicle reports before it has measured one, and always with a plant
+/// that has no battery (the lab's simulated vehicles' 7.8 V) [V].
+pub const NOMINAL_BATTERY_V: f64 = 7.8;
+
 /// A state as a vehicle publishes it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StampedState {
@@ -61,6 +65,8 @@ pub struct StampedState {
     /// Time since the newest IPS fix the car received was measured, at `create_ns` [ns]
     /// (the lab's `IPS_update_age_nanoseconds`; 0 with ideal sensing).
     pub ips_update_age_ns: u64,
+    /// The battery voltage the car measures [V].
+    pub battery_voltage_v: f64,
 }
 
 impl StampedState {
@@ -91,6 +97,10 @@ pub struct Vehicle<P: Plant<NX, NU>, const NX: usize, const NU: usize> {
     sensing: Option<OnCarSensing>,
     /// The run's stream `sensing/<agent>`.
     rng: ChaCha20Rng,
+    /// Since when the positioning fixes do not reach the car (`cpmx lab emulate`'s fault) [ns].
+    ips_lost_since_ns: Option<u64>,
+    /// The battery voltage last measured [V].
+    battery_voltage_v: f64,
 }
 
 macro_rules! each {
@@ -167,6 +177,21 @@ impl VehicleStack {
     pub fn pose(&self) -> Pose2 {
         each!(self, v => v.plant.pose(&v.state))
     }
+
+    /// From `now_ns` on, the positioning fixes stop reaching the car (`lost`) or reach it
+    /// again: it drives on dead reckoning, the age of its newest fix grows, and its controller
+    /// stops it once that passes 3 s. (With ideal sensing the age counts from `now_ns`.)
+    pub fn lose_ips(&mut self, now_ns: u64, lost: bool) {
+        each!(self, v => {
+            if let Some(sensing) = &mut v.sensing {
+                sensing.lose_fixes(lost);
+            }
+            v.ips_lost_since_ns = match (lost, v.ips_lost_since_ns) {
+                (true, since) => since.or(Some(now_ns)),
+                (false, _) => None,
+            };
+        })
+    }
 }
 
 impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
@@ -218,6 +243,8 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
             delay,
             sensing,
             rng: ChaCha20Rng::from_seed(stream_key(run_seed, &format!("sensing/{agent}"))),
+            ips_lost_since_ns: None,
+            battery_voltage_v: NOMINAL_BATTERY_V,
         };
         // The vehicle stood at its start before the run: that state is valid at the run's
         // start (for a start with speed, it is 60 ms early).
@@ -233,6 +260,7 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
             create_ns,
             state,
             ips_update_age_ns,
+            battery_voltage_v: self.battery_voltage_v,
         });
         if self.published.len() > PUBLISHED_STATES {
             self.published.pop_front();
@@ -250,15 +278,18 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
                 create_ns: t_now_ns,
                 state: self.reported_state(),
                 ips_update_age_ns: self.ips_update_age_ns(t_now_ns),
+                battery_voltage_v: self.battery_voltage_v,
             })
     }
 
     /// Time since the newest IPS fix that reached the car was measured [ns]: what the lab's
     /// controller stops on after 3 s; 0 with ideal sensing (the car always knows its pose).
     fn ips_update_age_ns(&self, now_ns: u64) -> u64 {
-        self.sensing.as_ref().map_or(0, |sensing| {
-            duration_ns(sensing.ips_update_age_s(sensing_time_s(now_ns)))
-        })
+        match (&self.sensing, self.ips_lost_since_ns) {
+            (Some(sensing), _) => duration_ns(sensing.ips_update_age_s(sensing_time_s(now_ns))),
+            (None, Some(since_ns)) => now_ns.saturating_sub(since_ns),
+            (None, None) => 0,
+        }
     }
 
     fn receive(&mut self, points: Vec<TrajectoryPoint>, create_stamp_ns: u64, valid_after_ns: u64) {
@@ -298,6 +329,7 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
         self.state = step.state;
         if let Some(voltage_v) = step.battery_voltage_v {
             self.follower.measure_battery_voltage(voltage_v);
+            self.battery_voltage_v = voltage_v;
         }
         if let Some(sensing) = &mut self.sensing {
             let after = self.plant.pose(&self.state);

@@ -5,6 +5,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use super::PresetOr;
+use super::faults::LabFaults;
 use super::parameter::Parameter;
 
 /// One fidelity level.
@@ -270,6 +271,20 @@ pub struct LabFidelity {
     #[serde(default = "default_lab_timeout_s")]
     #[schemars(extend("exclusiveMinimum" = 0))]
     pub timeout_s: f64,
+    /// The checks before every run: every vehicle reports, fresh positioning, battery, and
+    /// each vehicle at its planned start. Does not enter the runs' input hash.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preflight: Option<Preflight>,
+    /// A vehicle whose positioning fixes are older than this during a run is stopped and the
+    /// run fails [s] (the lab's controller stops such a car at 3 s). Default: 1. Does not enter
+    /// the runs' input hash.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub ips_age_limit_s: Option<f64>,
+    /// Faults `cpmx lab emulate` plays (the driver ignores them; they do not enter the runs'
+    /// input hash). The same mapping as `cpmx lab emulate --faults FILE`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub faults: Option<LabFaults>,
     /// A communication layer applied to the states the middleware delivers, so that the real
     /// lab runs communication-limited experiments (see the simulated fidelities' layer).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -278,6 +293,95 @@ pub struct LabFidelity {
 
 fn default_lab_timeout_s() -> f64 {
     30.0
+}
+
+impl LabFidelity {
+    /// The preflight's parameters (the defaults when the spec gives none).
+    pub fn preflight(&self) -> Preflight {
+        self.preflight.clone().unwrap_or_default()
+    }
+
+    /// The positioning age that stops a run [s].
+    pub fn ips_age_limit_s(&self) -> f64 {
+        self.ips_age_limit_s.unwrap_or(DEFAULT_IPS_AGE_LIMIT_S)
+    }
+}
+
+/// The default of `ips_age_limit_s` [s].
+pub const DEFAULT_IPS_AGE_LIMIT_S: f64 = 1.0;
+
+/// The checks before a lab run, on the state lists the lab sends before the first planned tick.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Preflight {
+    /// How far a vehicle may stand from its planned start [m]. Default: 0.02.
+    #[serde(default = "default_position_tolerance_m")]
+    #[schemars(range(min = 0.0))]
+    pub position_tolerance_m: f64,
+    /// How far its heading may differ from the start's [deg]. Default: 5.
+    #[serde(default = "default_heading_tolerance_deg")]
+    #[schemars(range(min = 0.0, max = 180.0))]
+    pub heading_tolerance_deg: f64,
+    /// The oldest positioning fix a vehicle may report (`IPS_update_age_nanoseconds`) [ms].
+    /// Default: 500.
+    #[serde(default = "default_max_ips_age_ms")]
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub max_ips_age_ms: f64,
+    /// The lowest battery voltage a vehicle may report [V]. Default: 7.0 (3.5 V a cell of the
+    /// µCar's two-cell battery).
+    #[serde(default = "default_min_battery_v")]
+    #[schemars(range(min = 0.0, max = 20.0))]
+    pub min_battery_v: f64,
+    /// What a misplaced vehicle does: `wait` for the operator to place it (the run starts once
+    /// every check passes, or fails after `wait_s`), or `record`: start anyway and record where
+    /// the vehicles stood, so that `from_runs` starts the simulated fidelities there.
+    /// Default: `wait`.
+    #[serde(default)]
+    pub misplaced: Misplaced,
+    /// How long to wait for the operator before the run fails [s]. Default: 120.
+    #[serde(default = "default_preflight_wait_s")]
+    #[schemars(range(min = 0.0))]
+    pub wait_s: f64,
+}
+
+impl Default for Preflight {
+    fn default() -> Self {
+        Self {
+            position_tolerance_m: default_position_tolerance_m(),
+            heading_tolerance_deg: default_heading_tolerance_deg(),
+            max_ips_age_ms: default_max_ips_age_ms(),
+            min_battery_v: default_min_battery_v(),
+            misplaced: Misplaced::default(),
+            wait_s: default_preflight_wait_s(),
+        }
+    }
+}
+
+fn default_position_tolerance_m() -> f64 {
+    0.02
+}
+fn default_heading_tolerance_deg() -> f64 {
+    5.0
+}
+fn default_max_ips_age_ms() -> f64 {
+    500.0
+}
+fn default_min_battery_v() -> f64 {
+    7.0
+}
+fn default_preflight_wait_s() -> f64 {
+    120.0
+}
+
+/// What the preflight does with a vehicle off its planned start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum Misplaced {
+    /// Wait for the operator to place it; the run does not start until it stands there.
+    #[default]
+    Wait,
+    /// Start anyway and record the actual starts (the run's first sample and a note).
+    Record,
 }
 
 /// Lab drivers.

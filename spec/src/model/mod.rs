@@ -6,6 +6,7 @@
 //! marked for the schema with `PresetOr<T>`.
 
 mod experiment;
+mod faults;
 mod fidelity;
 mod metrics;
 mod parameter;
@@ -18,10 +19,14 @@ pub use experiment::{
     AfterControlHorizon, MapFile, MapFormat, MapSpec, OnCollision, Planner, RefPathDefinition, Spec,
     SpeedAfterHc, SteeringAfterHc, StopAtPathEnd, Timing, VehicleSpec,
 };
+pub use faults::{
+    LabFaults, ListOutage, ListedAs, LowBattery, Misplacement, Pause, Restart, SampleFaults, TopicFaults,
+    VehicleOutage,
+};
 pub use fidelity::{
-    ActuationLayer, ActuationModel, CommunicationLayer, Control, DynamicsLayer, Fidelity, FollowerSolver,
-    FollowerSpec, GreyBoxModel, IdealKeyword, KinematicKeyword, LabDriver, LabFidelity, PerceptionLayer,
-    SensingLayer, SensingModel, SimulatedFidelity,
+    ActuationLayer, ActuationModel, CommunicationLayer, Control, DEFAULT_IPS_AGE_LIMIT_S, DynamicsLayer,
+    Fidelity, FollowerSolver, FollowerSpec, GreyBoxModel, IdealKeyword, KinematicKeyword, LabDriver,
+    LabFidelity, Misplaced, PerceptionLayer, Preflight, SensingLayer, SensingModel, SimulatedFidelity,
 };
 pub use metrics::{
     AsSpec, Bootstrap, CdSpec, CollisionCount, CollisionGeometry, Compare, CraASpec, CraLSpec, GroupKey,

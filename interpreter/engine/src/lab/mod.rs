@@ -1,19 +1,33 @@
 //! The physical fidelity (`driver: cpm-dds`) and its stand-in: the lab driver ([`LabEngine`]),
 //! which plays the CPM Lab's high-level controller over the lab's DDS topics, and the lab
 //! emulator ([`Emulator`], `cpmx lab emulate`), which plays the lab's middleware and vehicles
-//! from a simulated fidelity of the same spec.
+//! from a simulated fidelity of the same spec, on simulated or wall-clock time, with faults.
 //!
 //! What both sides share lives here: how a spec's lab fidelity becomes a DDS discovery
 //! configuration, the conversions between the lab's nanosecond stamps and a run's seconds,
-//! and the lead time the vehicles need. The mapping of states between the lab's messages and
-//! the planner's bicycle is in `mapping`.
+//! the lead time the vehicles need, and the stop command (`safe_stop`). The mapping of states
+//! between the lab's messages and the planner's bicycle is in `mapping`.
 //!
-//! This module does not compute metrics and does not write files; the start-up protocol of
-//! each side is in its own module.
+//! The driver: `driver` (the run), `session` (its endpoints and what it waits for),
+//! `preflight` (the checks before a run), `irregular` (what a run notices without ending),
+//! `safe_stop`. The emulator: `emulator` (serving runs), `stage` (a run's vehicles and
+//! lists), `wire` (its endpoints, a restart), `faults` (drawing a run's faults, faulty
+//! topics), `lockstep` and `realtime` (its two clocks).
+//!
+//! This module does not compute metrics and does not write files.
 
 mod driver;
 mod emulator;
+mod faults;
+mod irregular;
+mod lockstep;
 mod mapping;
+mod preflight;
+mod realtime;
+mod safe_stop;
+mod session;
+mod stage;
+mod wire;
 
 use std::net::IpAddr;
 use std::time::Duration;
@@ -22,8 +36,9 @@ use cpmx_lab::{DiscoveryConfig, MAX_DOMAIN_ID};
 use cpmx_spec::model::LabFidelity;
 
 pub use driver::LabEngine;
-pub use emulator::{EmulateError, Emulator, EmulatorEvent};
+pub use emulator::{EmulateError, Emulator, EmulatorClock, EmulatorEvent, RESEND_INTERVAL};
 pub use mapping::{lab_state, policy_state};
+pub use safe_stop::{STOP_WINDOW, is_stop_command, stop_command};
 
 pub use cpmx_stack::VEHICLE_LEAD_S;
 
@@ -122,6 +137,9 @@ mod tests {
             initial_peers: peers.iter().map(|p| (*p).to_owned()).collect(),
             interface: interface.map(str::to_owned),
             timeout_s: 30.0,
+            preflight: None,
+            ips_age_limit_s: None,
+            faults: None,
             communication: None,
         }
     }
