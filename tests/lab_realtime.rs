@@ -178,6 +178,18 @@ metrics: stdlib:at25
     let kept = notes(dir, "lab/lane/crossing/rep1");
     assert_eq!(lead_misses(&kept), 0, "{kept}\n{logs}");
     assert!(kept.contains("over 40 ticks"), "{kept}");
+    // The latency of every tick is kept with the run.
+    let stored: serde_json::Value = serde_json::from_str(&kept).expect("metrics.json");
+    let latency = stored["planning_latency_ms"]
+        .as_array()
+        .expect("per-tick latency");
+    assert_eq!(latency.len(), 40, "{kept}");
+    assert!(
+        latency
+            .iter()
+            .all(|l| l.as_f64().is_some_and(|ms| ms > 0.0 && ms < 100.0)),
+        "{kept}"
+    );
 
     // A 1.5 s pause: the vehicles ran out of trajectory; the run completes and says so.
     let faults = dir.join("pause.yaml");
