@@ -13,13 +13,8 @@ use std::path::{Path, PathBuf};
 use cpmx_onnx::{Activation, LinearStyle, mlp_to_onnx};
 
 fn reference() -> PathBuf {
-    let dir = root().join("../shared/reference");
-    assert!(
-        dir.join("policy/actor.safetensors").is_file(),
-        "SigmaRL's reference data must be at {}",
-        dir.display()
-    );
-    dir
+    cpmx_testdata::reference_file("policy/actor.safetensors");
+    cpmx_testdata::reference()
 }
 
 fn export(weights: &Path, to: &Path, style: LinearStyle) {

@@ -5,20 +5,14 @@
 
 mod support;
 
-use support::{cpmx_in as cpmx, root, temp, walk};
+use support::{cpmx_in as cpmx, temp, walk};
 
 use std::path::{Path, PathBuf};
 
 use cpmx_world::Map;
 
 fn example_map() -> PathBuf {
-    let path = root().join("../shared/reference/maps/lanelet2/mapping_example.osm");
-    assert!(
-        path.is_file(),
-        "the Lanelet2 example map must be at {}",
-        path.display()
-    );
-    path
+    cpmx_testdata::reference_file("maps/lanelet2/mapping_example.osm")
 }
 
 #[test]

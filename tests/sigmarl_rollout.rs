@@ -8,13 +8,7 @@ use cpmx_engine::{Engine, Experiment, RunInputs, SimEngine};
 use cpmx_spec::{DataPath, SpecSource};
 
 fn reference() -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/reference");
-    assert!(
-        dir.is_dir(),
-        "SigmaRL's reference data must be at {}",
-        dir.display()
-    );
-    dir
+    cpmx_testdata::reference()
 }
 
 /// A spec that starts from the rollout's initial states.

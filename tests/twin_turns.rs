@@ -7,7 +7,6 @@
 //! The four turns: the left turns from the four approaches (the map's loops turn only left
 //! through the intersection), two agents per configuration on opposite approaches.
 
-use std::path::PathBuf;
 
 use cpmx_engine::{Experiment, simulate};
 use cpmx_recording::Recording;
@@ -54,12 +53,8 @@ const MAX_HEADING_ERROR_RAD: f64 = 0.35;
 const MAX_CD_GAP_M: f64 = 0.02;
 
 fn experiment() -> (Experiment, Vec<cpmx_spec::RunPlan>) {
-    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/reference");
-    assert!(
-        data.join("maps/cpm.xml").is_file(),
-        "the CPM Lab map must be at {}/maps/cpm.xml",
-        data.display()
-    );
+    cpmx_testdata::reference_file("maps/cpm.xml");
+    let data = cpmx_testdata::reference();
     let source = SpecSource {
         name: "twin-turns.yaml".into(),
         dir: data.clone(),

@@ -2,22 +2,26 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 
 REPOSITORY = Path(__file__).resolve().parents[2]
-REFERENCE = REPOSITORY.parent / "shared" / "reference"
+OVERRIDE = os.environ.get("CPMX_REFERENCE_DIR")
+REFERENCE = Path(OVERRIDE).resolve() if OVERRIDE else REPOSITORY.parent / "shared" / "reference"
+SOURCE = (
+    "CPMX_REFERENCE_DIR"
+    if OVERRIDE
+    else "../shared/reference beside the checkout; CPMX_REFERENCE_DIR overrides it"
+)
 
 
 @pytest.fixture(scope="session")
 def reference() -> Path:
     """SigmaRL's reference data (the CPM Lab map, the reference actors)."""
     if not (REFERENCE / "maps").is_dir():
-        pytest.fail(
-            f"needs SigmaRL's reference data at {REFERENCE} (../shared/reference beside the "
-            "checkout): not found"
-        )
+        pytest.fail(f"needs SigmaRL's reference data at {REFERENCE} ({SOURCE}): not found")
     return REFERENCE
 
 

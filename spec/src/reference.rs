@@ -211,6 +211,45 @@ mod tests {
     }
 
     #[test]
+    fn no_key_is_both_required_and_defaulted() {
+        let reference = language_reference_markdown();
+        let mut section = "";
+        let mut rows = 0;
+        for line in reference.lines() {
+            if let Some(name) = line.strip_prefix("## ") {
+                section = name;
+            }
+            if !line.starts_with("| `") {
+                continue;
+            }
+            // Cells split at the table's bars, not at escaped ones (`\|`) inside a cell.
+            let mut cells = Vec::new();
+            let mut cell = String::new();
+            let mut escaped = false;
+            for c in line.chars() {
+                if c == '|' && !escaped {
+                    cells.push(std::mem::take(&mut cell));
+                } else {
+                    cell.push(c);
+                }
+                escaped = c == '\\';
+            }
+            let [_, key, _, required, default, meaning, ..] = cells.as_slice() else {
+                panic!("{section}: a row without five cells: {line}");
+            };
+            rows += 1;
+            if required.trim() == "yes" {
+                assert!(
+                    default.trim().is_empty() && !meaning.contains("Default:"),
+                    "{section}.{}: required and defaulted: {line}",
+                    key.trim()
+                );
+            }
+        }
+        assert!(rows > 100, "{rows} rows");
+    }
+
+    #[test]
     fn types_read_as_words() {
         let schema = serde_json::json!({"type": "number", "minimum": 0, "maximum": 1});
         assert_eq!(type_of(&schema), "number (0 to 1)");

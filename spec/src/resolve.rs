@@ -51,17 +51,42 @@ const MATRIX_KEYS: [&str; 5] = [
     "seed",
 ];
 
+/// A key whose default is a preset, filled in before the schema sees the spec.
+pub(crate) struct PresetDefault {
+    /// The JSON pointer of the object that holds the key (`""`: the spec's top level).
+    pub parent: &'static str,
+    /// The schema definition of that object (`None`: the spec's top level).
+    pub definition: Option<&'static str>,
+    /// The key.
+    pub key: &'static str,
+    /// The preset it takes when the spec leaves it out.
+    pub value: &'static str,
+}
+
+/// The preset-valued defaults. The published schema marks these keys optional with this
+/// default (`schema.rs`), so the language reference never calls them required.
+pub(crate) const PRESET_DEFAULTS: [PresetDefault; 3] = [
+    PresetDefault { parent: "", definition: None, key: "vehicle", value: "stdlib:mu-car" },
+    PresetDefault { parent: "", definition: None, key: "metrics", value: "stdlib:at25" },
+    PresetDefault {
+        parent: "/training",
+        definition: Some("TrainingSpec"),
+        key: "observation",
+        value: "stdlib:sigmarl",
+    },
+];
+
 /// Inserts the preset-valued defaults where the spec leaves them out.
 fn insert_defaults(doc: &mut Value) {
+    for default in &PRESET_DEFAULTS {
+        if let Some(object) = doc.pointer_mut(default.parent).and_then(Value::as_object_mut) {
+            object
+                .entry(default.key)
+                .or_insert_with(|| Value::from(default.value));
+        }
+    }
     let Some(root) = doc.as_object_mut() else { return };
-    root.entry("vehicle")
-        .or_insert_with(|| Value::from("stdlib:mu-car"));
-    root.entry("metrics")
-        .or_insert_with(|| Value::from("stdlib:at25"));
-    if let Some(training) = root.get_mut("training").and_then(Value::as_object_mut) {
-        training
-            .entry("observation")
-            .or_insert_with(|| Value::from("stdlib:sigmarl"));
+    if root.get("training").is_some_and(Value::is_object) {
         // A spec that only trains (no key of the run matrix): SigmaRL's step and, unless it
         // defines its own fidelities, SigmaRL's simulation as `sim` (the default
         // `training.fidelity`, whether the section names it or not).

@@ -24,7 +24,33 @@ pub fn json_schema() -> Value {
             Value::from("https://cpmx.dev/schema/v1/cpmx.schema.json"),
         );
     }
+    mark_preset_defaults(&mut schema);
     schema
+}
+
+/// The keys cpmx fills with a preset when a spec leaves them out (`vehicle`, `metrics`,
+/// `training.observation`): optional, with that preset as their default, since serde sees
+/// them only after `resolve` has inserted them.
+fn mark_preset_defaults(schema: &mut Value) {
+    for default in &crate::resolve::PRESET_DEFAULTS {
+        let object = match default.definition {
+            None => Some(&mut *schema),
+            Some(name) => schema.pointer_mut(&format!("/$defs/{name}")),
+        };
+        let Some(object) = object.and_then(Value::as_object_mut) else {
+            continue;
+        };
+        if let Some(required) = object.get_mut("required").and_then(Value::as_array_mut) {
+            required.retain(|key| key != default.key);
+        }
+        if let Some(property) = object
+            .get_mut("properties")
+            .and_then(|p| p.get_mut(default.key))
+            .and_then(Value::as_object_mut)
+        {
+            property.insert("default".into(), Value::from(default.value));
+        }
+    }
 }
 
 /// The published schema as pretty-printed text with a final newline (`cpmx.schema.json`).

@@ -11,16 +11,22 @@ pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// SigmaRL's reference data beside the repository (`../shared/reference`); tests that need it
-/// call this first, so a missing folder is named.
+/// SigmaRL's reference data beside the repository (`../shared/reference`, or
+/// `CPMX_REFERENCE_DIR`); tests that need it call this first, so that without it they fail
+/// with one line naming the folder.
+#[track_caller]
 pub fn reference() -> PathBuf {
-    let dir = root().join("../shared/reference");
-    assert!(
-        dir.is_dir(),
-        "SigmaRL's reference data must be at {}",
-        dir.display()
-    );
-    dir
+    cpmx_testdata::reference()
+}
+
+/// The first line of a failure that may come from missing reference data: the line naming the
+/// folder when it is not there, nothing when it is.
+pub fn reference_note() -> String {
+    if cpmx_testdata::reference_available() {
+        String::new()
+    } else {
+        format!("{}\n", cpmx_testdata::missing(&cpmx_testdata::reference_dir()))
+    }
 }
 
 /// The Python interpreter of the test venv (`CPMX_PYTHON`, set by `scripts/test`), or `None`
@@ -53,7 +59,7 @@ pub fn cpmx(args: &[&str]) -> Output {
 pub fn cpmx_with_data(args: &[&str]) -> Output {
     let mut command = Command::new(env!("CARGO_BIN_EXE_cpmx"));
     command.args(args).current_dir(root());
-    let data = root().join("../shared/reference");
+    let data = cpmx_testdata::reference_dir();
     if data.is_dir() {
         command.env("CPMX_DATA", data);
     } else {

@@ -22,13 +22,7 @@ const STEPS: u64 = 180;
 
 /// SigmaRL's reference data (the CPM Lab map and the actors).
 fn reference() -> PathBuf {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference");
-    assert!(
-        dir.is_dir(),
-        "SigmaRL's reference data must be at {}",
-        dir.display()
-    );
-    dir
+    cpmx_testdata::reference()
 }
 
 /// The paper design's `sim` setup for the reference actor and its first configuration.

@@ -17,10 +17,9 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha20Rng;
 
-const REFERENCE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/reference");
 
 fn bench_steps(c: &mut Criterion) {
-    let paths = sigmarl_intersection_paths(&PathBuf::from(format!("{REFERENCE}/maps/cpm.xml"))).expect("map");
+    let paths = sigmarl_intersection_paths(&cpmx_testdata::reference_file("maps/cpm.xml")).expect("map");
     let config = EnvConfig::default();
     let envs = config.scenario.envs;
     let n = envs * config.scenario.agents;

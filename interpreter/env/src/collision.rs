@@ -127,6 +127,7 @@ mod tests {
     }
 
     proptest! {
+        #![proptest_config(ProptestConfig { failure_persistence: None, ..ProptestConfig::default() })]
         /// The bounding-box pruning never changes the answer of the plain all-pairs test.
         #[test]
         fn pruning_agrees_with_all_pairs(ax in -2.0..2.0f64, ay in -2.0..2.0f64, yaw in -4.0..4.0f64,

@@ -238,9 +238,8 @@ mod tests {
     }
 
     fn map_paths() -> Vec<cpmx_world::ReferencePath> {
-        let map =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference/maps/cpm.xml");
-        crate::sigmarl_intersection_paths(&map).expect("the CPM Lab map of ../shared/reference")
+        let map = cpmx_testdata::reference_file("maps/cpm.xml");
+        crate::sigmarl_intersection_paths(&map).expect("the CPM Lab map of SigmaRL's reference data")
     }
 
     fn small_env(envs: usize, seed: u64) -> VecEnv {

@@ -3,7 +3,6 @@
 //! the shaping terms SigmaRL's training reward lacks (speed, centre line) follow their
 //! definitions.
 
-use std::path::PathBuf;
 
 use cpmx_env::{CentreLineTerm, EnvConfig, SpeedTerm, StepResult, VecEnv, sigmarl_intersection_paths};
 use cpmx_world::ReferencePath;
@@ -11,10 +10,9 @@ use proptest::prelude::*;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha20Rng;
 
-const REFERENCE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/reference");
 
 fn paths() -> Vec<ReferencePath> {
-    sigmarl_intersection_paths(&PathBuf::from(format!("{REFERENCE}/maps/cpm.xml"))).expect("map")
+    sigmarl_intersection_paths(&cpmx_testdata::reference_file("maps/cpm.xml")).expect("map")
 }
 
 fn config(envs: usize) -> EnvConfig {
@@ -182,7 +180,7 @@ fn shaping_terms_follow_their_definitions_and_leave_the_others_alone() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(12))]
+    #![proptest_config(ProptestConfig { cases: 12, failure_persistence: None, ..ProptestConfig::default() })]
 
     /// Every placement (whole resets and single-agent resets) keeps the minimum gap to the
     /// agents it must avoid, a start index in [3, n/2) and a speed in [0, 1).

@@ -4,19 +4,16 @@
 //! every reward term, the reward, the running return, every collision and line flag, done,
 //! the single-agent resets, the moved states and the observations the policy received agree.
 
-use std::path::PathBuf;
 
 use cpmx_env::{EnvConfig, Placement, StepResult, VecEnv, sigmarl_intersection_paths};
 use cpmx_vehicle::BicycleState;
 use serde_json::Value;
 
-const REFERENCE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/reference");
 const TOL: f64 = 1e-5;
 
 fn json(relative: &str) -> Value {
-    let path = format!("{REFERENCE}/{relative}");
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("reference data {path}: {e}"));
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"))
+    let text = cpmx_testdata::read_reference(relative);
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{relative}: {e}"))
 }
 
 fn num(v: &Value) -> f64 {
@@ -24,7 +21,7 @@ fn num(v: &Value) -> f64 {
 }
 
 fn env_of(agents: usize) -> VecEnv {
-    let paths = sigmarl_intersection_paths(&PathBuf::from(format!("{REFERENCE}/maps/cpm.xml"))).expect("map");
+    let paths = sigmarl_intersection_paths(&cpmx_testdata::reference_file("maps/cpm.xml")).expect("map");
     assert_eq!(paths.len(), 24);
     let mut config = EnvConfig::default();
     config.scenario.envs = 1;

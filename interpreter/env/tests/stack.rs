@@ -3,7 +3,6 @@
 //! results on any number of threads, and a saved state restores by replay to exactly the same
 //! continuation.
 
-use std::path::PathBuf;
 
 use cpmx_env::{EnvConfig, Plant, StackPlant, StepResult, VecEnv, sigmarl_intersection_paths};
 use cpmx_planner::{PlannerParams, SteeringAfterHc};
@@ -15,10 +14,9 @@ use cpmx_world::ReferencePath;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha20Rng;
 
-const REFERENCE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/reference");
 
 fn paths() -> Vec<ReferencePath> {
-    sigmarl_intersection_paths(&PathBuf::from(format!("{REFERENCE}/maps/cpm.xml"))).expect("map")
+    sigmarl_intersection_paths(&cpmx_testdata::reference_file("maps/cpm.xml")).expect("map")
 }
 
 const PAPER_PLANNER: PlannerParams = PlannerParams {

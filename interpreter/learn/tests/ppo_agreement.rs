@@ -9,10 +9,9 @@ use cpmx_learn::ppo::{LossConfig, LossInput, gae, ppo_loss};
 use cpmx_learn::tanh_normal;
 use serde_json::Value;
 
-const REFERENCE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/reference");
 
 fn json() -> Value {
-    let text = std::fs::read_to_string(format!("{REFERENCE}/training/ppo_cases.json")).unwrap();
+    let text = cpmx_testdata::read_reference("training/ppo_cases.json");
     serde_json::from_str(&text).unwrap()
 }
 
@@ -31,7 +30,7 @@ fn f32s(v: &Value) -> Vec<f32> {
 }
 
 fn network(file: &str, prefix: &str) -> Mlp {
-    Mlp::from_safetensors(&std::fs::read(format!("{REFERENCE}/{file}")).unwrap(), prefix).unwrap()
+    Mlp::from_safetensors(&std::fs::read(cpmx_testdata::reference_file(file)).unwrap(), prefix).unwrap()
 }
 
 fn rel(got: f64, want: f64) -> f64 {
@@ -342,11 +341,11 @@ fn network_gradients_match_central_differences() {
 /// over unchanged.
 #[test]
 fn training_and_inference_networks_agree() {
-    let bytes = std::fs::read(format!("{REFERENCE}/policy/actor.safetensors")).unwrap();
+    let bytes = std::fs::read(cpmx_testdata::reference_file("policy/actor.safetensors")).unwrap();
     let mlp = Mlp::from_safetensors(&bytes, "actor").unwrap();
     let actor = cpmx_policy::MlpActor::from_bytes_inferred(&bytes, "actor").unwrap();
     assert_eq!(mlp.to_actor().unwrap(), actor);
-    let text = std::fs::read_to_string(format!("{REFERENCE}/policy/actor_layout.json")).unwrap();
+    let text = cpmx_testdata::read_reference("policy/actor_layout.json");
     let layout: Value = serde_json::from_str(&text).unwrap();
     let vectors = layout["test_vectors"].as_array().unwrap();
     let obs: Vec<f32> = vectors.iter().flat_map(|v| f32s(&v["obs"])).collect();

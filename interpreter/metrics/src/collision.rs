@@ -205,6 +205,7 @@ mod tests {
         }
 
         proptest! {
+            #![proptest_config(ProptestConfig { failure_persistence: None, ..ProptestConfig::default() })]
             #[test]
             fn both_geometries_are_symmetric(a in any_box(), b in any_box()) {
                 for g in [CollisionGeometry::Mtv, CollisionGeometry::SigmarlMtv] {

@@ -364,6 +364,7 @@ mod tests {
     }
 
     proptest! {
+        #![proptest_config(ProptestConfig { failure_persistence: None, ..ProptestConfig::default() })]
         #[test]
         fn per_pair_counts_are_half_the_per_agent_counts(
             rows in proptest::collection::vec(

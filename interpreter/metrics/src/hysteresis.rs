@@ -97,6 +97,7 @@ mod tests {
         }
 
         proptest! {
+            #![proptest_config(ProptestConfig { failure_persistence: None, ..ProptestConfig::default() })]
             #[test]
             fn runs_shorter_than_enter_never_count((pattern, h) in case()) {
                 let longest = pattern

@@ -17,15 +17,7 @@ use rand_chacha::ChaCha20Rng;
 const TOLERANCE: f32 = 1e-5;
 
 fn reference(file: &str) -> PathBuf {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/reference")
-        .join(file);
-    assert!(
-        path.is_file(),
-        "SigmaRL's reference data must be at {} (see README: Reference data)",
-        path.display()
-    );
-    path
+    cpmx_testdata::reference_file(file)
 }
 
 fn json(file: &str) -> serde_json::Value {

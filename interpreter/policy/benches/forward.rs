@@ -11,7 +11,7 @@ mod common;
 
 use std::hint::black_box;
 
-use common::{REFERENCE, json, nums, reference_paths};
+use common::{json, nums, reference_file, reference_paths};
 use cpmx_policy::{
     ActionMode, AgentPaths, AgentState, MlpActor, MlpLayout, MlpPolicy, ObservationInput, Policy,
     SigmarlObservation,
@@ -26,7 +26,7 @@ const AGENTS: usize = 3;
 
 /// The reference actor's weights.
 fn weights() -> std::path::PathBuf {
-    format!("{REFERENCE}/policy/actor.safetensors").into()
+    reference_file("policy/actor.safetensors")
 }
 
 /// The first step of SigmaRL's reference rollout (3 agents on paths 6, 2, 3).

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{REFERENCE, json, max_abs_diff, nums};
+use common::{json, max_abs_diff, nums, reference_file};
 use cpmx_policy::{ActionHead, ActionMode, ActorError, MlpActor, MlpLayout};
 use rand::SeedableRng;
 use rand_chacha::ChaCha20Rng;
@@ -17,7 +17,7 @@ const TOLERANCE: f64 = 3e-6;
 const EXACT_TOLERANCE: f64 = 2e-6;
 
 fn weights() -> std::path::PathBuf {
-    format!("{REFERENCE}/policy/actor.safetensors").into()
+    reference_file("policy/actor.safetensors")
 }
 
 #[test]
@@ -203,7 +203,7 @@ fn the_layout_is_read_from_the_weights() {
         MlpLayout::sigmarl()
     );
     // The reference critic: 128 -> 256 x 3 -> 1.
-    let critic = std::fs::read(format!("{REFERENCE}/training/critic.safetensors")).unwrap();
+    let critic = std::fs::read(reference_file("training/critic.safetensors")).unwrap();
     let layout = MlpLayout::from_safetensors(&critic, "critic").unwrap();
     assert_eq!(layout.sizes(), [128, 256, 256, 256, 1]);
     assert!(matches!(

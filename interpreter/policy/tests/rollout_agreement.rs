@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{REFERENCE, json, max_abs_diff, num, nums, reference_paths};
+use common::{json, max_abs_diff, num, nums, reference_file, reference_paths};
 use cpmx_policy::{
     ActionMode, AgentPaths, AgentState, MlpPolicy, ObservationInput, Policy, SigmarlObservation,
 };
@@ -34,7 +34,7 @@ fn rollout() -> Rollout {
 }
 
 fn policy() -> MlpPolicy {
-    let weights = format!("{REFERENCE}/policy/actor.safetensors");
+    let weights = reference_file("policy/actor.safetensors");
     MlpPolicy::from_file(
         weights.as_ref(),
         SigmarlObservation::default(),

@@ -6,7 +6,7 @@ mod common;
 
 use std::time::Instant;
 
-use common::{REFERENCE, reference_paths};
+use common::{reference_file, reference_paths};
 use cpmx_policy::{
     ActionMode, AgentPaths, AgentState, MlpPolicy, ObservationInput, Policy, SigmarlObservation,
 };
@@ -18,7 +18,7 @@ fn measure(agents: usize, steps: usize) -> (f64, f64) {
     let all = reference_paths();
     let paths = AgentPaths::new((0..agents).map(|i| &all[(i * 7) % all.len()]));
     let vehicle = VehicleParams::MU_CAR;
-    let weights = format!("{REFERENCE}/policy/actor.safetensors");
+    let weights = reference_file("policy/actor.safetensors");
     let mut policy = MlpPolicy::from_file(
         weights.as_ref(),
         SigmarlObservation::default(),

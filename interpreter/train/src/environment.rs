@@ -159,9 +159,8 @@ mod tests {
     }
 
     fn stacked_env_with(seed: u64, lookahead: Lookahead) -> TrainingEnv {
-        let map =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference/maps/cpm.xml");
-        let paths = sigmarl_intersection_paths(&map).expect("the CPM Lab map of ../shared/reference");
+        let map = cpmx_testdata::reference_file("maps/cpm.xml");
+        let paths = sigmarl_intersection_paths(&map).expect("the CPM Lab map of SigmaRL's reference data");
         let mut config = EnvConfig::default();
         config.scenario.envs = 3;
         config.scenario.agents = 2;

@@ -8,13 +8,9 @@
 use cpmx_vehicle::{BicycleState, Command, KinematicBicycle, Precision, StepOutput, VehicleParams};
 use serde_json::Value;
 
-const CASES: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/dynamics/bicycle_steps.json"
-);
 
 fn cases() -> Vec<Value> {
-    let text = std::fs::read_to_string(CASES).unwrap_or_else(|e| panic!("reference data {CASES}: {e}"));
+    let text = cpmx_testdata::read_reference("dynamics/bicycle_steps.json");
     let root: Value = serde_json::from_str(&text).expect("valid JSON");
     root["cases"].as_array().expect("cases").clone()
 }

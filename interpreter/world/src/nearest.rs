@@ -193,7 +193,7 @@ mod tests {
 
     proptest! {
         // Each case builds a full grid; a few dozen cases keep the suite fast.
-        #![proptest_config(ProptestConfig::with_cases(48))]
+        #![proptest_config(ProptestConfig { cases: 48, failure_persistence: None, ..ProptestConfig::default() })]
 
         #[test]
         fn grid_equals_brute_force(line in polyline_strategy(),

@@ -5,14 +5,6 @@
 use cpmx_world::{DrivingDirection, Map, PathSet, Polyline};
 use serde_json::Value;
 
-const MAP: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/maps/cpm.xml"
-);
-const PATHS: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/maps/cpm_reference_paths.json"
-);
 
 /// The tolerance for every coordinate [m].
 const TOLERANCE_M: f64 = 1e-9;
@@ -20,12 +12,13 @@ const TOLERANCE_M: f64 = 1e-9;
 const YAW_TOLERANCE_RAD: f64 = 1.2e-7;
 
 fn reference() -> Value {
-    let text = std::fs::read_to_string(PATHS).unwrap_or_else(|e| panic!("{PATHS}: {e}"));
+    let text = cpmx_testdata::read_reference("maps/cpm_reference_paths.json");
     serde_json::from_str(&text).expect("reference JSON")
 }
 
 fn map() -> Map {
-    Map::load(MAP).unwrap_or_else(|e| panic!("{MAP}: {e}"))
+    let map = cpmx_testdata::reference_file("maps/cpm.xml");
+    Map::load(&map).unwrap_or_else(|e| panic!("{}: {e}", map.display()))
 }
 
 /// A JSON coordinate: the shortest decimal of a float32, so round it back to that float32.

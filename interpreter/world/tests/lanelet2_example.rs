@@ -6,10 +6,6 @@ use std::collections::HashSet;
 
 use cpmx_world::{Map, MapKind, reversed_id};
 
-const MAP: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/maps/lanelet2/mapping_example.osm"
-);
 
 /// Lanelet relations of the file by a plain reading: (id, subtype, one_way, participant tags).
 fn relations(text: &str) -> Vec<(i64, Option<String>, Option<String>, bool)> {
@@ -39,8 +35,9 @@ fn relations(text: &str) -> Vec<(i64, Option<String>, Option<String>, bool)> {
 
 #[test]
 fn the_example_map_loads_with_lanelet2_semantics() {
-    let text = std::fs::read_to_string(MAP).expect("the Lanelet2 example map is in ../shared");
-    let map = Map::load(MAP).expect("the example map loads");
+    let path = cpmx_testdata::reference_file("maps/lanelet2/mapping_example.osm");
+    let text = std::fs::read_to_string(&path).expect("the Lanelet2 example map is readable");
+    let map = Map::load(&path).expect("the example map loads");
     assert_eq!(map.kind(), MapKind::Generic);
     let ids: HashSet<i64> = map.lanelets().map(|l| l.id).collect();
 
@@ -120,8 +117,9 @@ fn the_example_map_loads_with_lanelet2_semantics() {
 
 #[test]
 fn a_user_path_through_a_two_way_lanelet_backwards() {
-    let text = std::fs::read_to_string(MAP).expect("the Lanelet2 example map is in ../shared");
-    let mut map = Map::load(MAP).expect("loads");
+    let path = cpmx_testdata::reference_file("maps/lanelet2/mapping_example.osm");
+    let text = std::fs::read_to_string(&path).expect("the Lanelet2 example map is readable");
+    let mut map = Map::load(&path).expect("loads");
     let two_way = relations(&text)
         .into_iter()
         .find(|(id, s, w, p)| {

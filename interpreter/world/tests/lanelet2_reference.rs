@@ -77,7 +77,7 @@ fn reference(python: &Path, maps: &[PathBuf]) -> HashMap<String, Value> {
 fn lanelet2_maps() -> Vec<PathBuf> {
     let data = Path::new(MANIFEST).join("tests/data");
     let mut maps = vec![
-        Path::new(MANIFEST).join("../../../shared/reference/maps/lanelet2/mapping_example.osm"),
+        cpmx_testdata::reference_file("maps/lanelet2/mapping_example.osm"),
         data.join("two_lanes.osm"),
     ];
     maps.extend(files_in(&data.join("lanelet2/autoware"), "osm"));
@@ -262,7 +262,7 @@ fn lanelet2_maps_read_as_lanelet2_reads_them() {
 #[test]
 fn commonroad_maps_read_as_commonroad_io_reads_them() {
     let Some(python) = python() else { return };
-    let mut maps = vec![Path::new(MANIFEST).join("../../../shared/reference/maps/cpm.xml")];
+    let mut maps = vec![cpmx_testdata::reference_file("maps/cpm.xml")];
     maps.extend(files_in(
         &Path::new(MANIFEST).join("tests/data/commonroad"),
         "xml",

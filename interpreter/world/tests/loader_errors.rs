@@ -3,10 +3,6 @@
 
 use cpmx_world::{Map, MapError, MapFormat};
 
-const MAP: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/maps/cpm.xml"
-);
 
 fn lanelet(id: u32, left: &[(f64, f64)], right: &[(f64, f64)], extra: &str) -> String {
     let pts = |ps: &[(f64, f64)]| {
@@ -140,7 +136,7 @@ fn lcg(state: &mut u64) -> usize {
 
 #[test]
 fn truncated_and_mutated_maps_never_panic() {
-    let full = std::fs::read_to_string(MAP).unwrap_or_else(|e| panic!("{MAP}: {e}"));
+    let full = cpmx_testdata::read_reference("maps/cpm.xml");
     // Truncations of the whole file at spread-out byte offsets.
     let mut state = 7;
     for k in 0..12 {

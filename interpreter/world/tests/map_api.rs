@@ -5,14 +5,11 @@ use std::time::Instant;
 
 use cpmx_world::{Map, MapError, PathError, PathSet, Point};
 
-const MAP: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/maps/cpm.xml"
-);
 const OSM: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/two_lanes.osm");
 
 fn map() -> Map {
-    Map::load(MAP).unwrap_or_else(|e| panic!("{MAP}: {e}"))
+    let map = cpmx_testdata::reference_file("maps/cpm.xml");
+    Map::load(&map).unwrap_or_else(|e| panic!("{}: {e}", map.display()))
 }
 
 /// Corners of a 0.22 m x 0.107 m car at a pose (front-left, front-right, rear-right, rear-left).

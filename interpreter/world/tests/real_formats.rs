@@ -7,10 +7,6 @@
 use cpmx_world::{Map, MapError, MapFormat, SourceLocation, reversed_id};
 use proptest::prelude::*;
 
-const EXAMPLE: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/maps/lanelet2/mapping_example.osm"
-);
 
 /// A JOSM-style lanelet2 map (lat/lon, negative ids of new elements): lanelet -10 continues
 /// into -11 (two-way, `one_way=no`); -12 is a crosswalk over -11; a traffic light regulatory
@@ -576,7 +572,7 @@ fn truncated_maps_are_located_where_they_break_off() {
 /// The real example map, damaged: truncated, a dangling reference, a duplicate id.
 #[test]
 fn the_damaged_example_map_gives_located_diagnostics() {
-    let text = std::fs::read_to_string(EXAMPLE).expect("the Lanelet2 example map is in ../shared");
+    let text = cpmx_testdata::read_reference("maps/lanelet2/mapping_example.osm");
     let cut = text.len() * 2 / 3;
     let cut = (0..=cut).rev().find(|&c| text.is_char_boundary(c)).unwrap_or(0);
     let e = load(&text[..cut]).expect_err("truncated");
@@ -602,7 +598,7 @@ fn the_damaged_example_map_gives_located_diagnostics() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(96))]
+    #![proptest_config(ProptestConfig { cases: 96, failure_persistence: None, ..ProptestConfig::default() })]
 
     /// Truncated or byte-mutated maps of both formats never make the loader panic.
     #[test]

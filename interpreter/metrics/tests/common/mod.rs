@@ -1,5 +1,5 @@
 //! Loading the shared reference data (SigmaRL's map dump, metric cases, rollout) for the
-//! agreement tests. A missing file fails the test.
+//! agreement tests. A missing file fails the test with a message naming the folder.
 
 #![allow(dead_code)]
 
@@ -8,26 +8,16 @@ use cpmx_recording::{AgentSample, Recording};
 use cpmx_world::Point;
 use serde_json::Value;
 
-pub const MAP: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/maps/cpm_reference_paths.json"
-);
-pub const CASES: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/metrics/cases.json"
-);
-pub const ROLLOUT: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/rollouts/rollout_1.json"
-);
-pub const ROLLOUT_METRICS: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/rollouts/metrics_1.json"
-);
+pub const MAP: &str = "maps/cpm_reference_paths.json";
+pub const CASES: &str = "metrics/cases.json";
+pub const ROLLOUT: &str = "rollouts/rollout_1.json";
+pub const ROLLOUT_METRICS: &str = "rollouts/metrics_1.json";
 
+/// A JSON file of the reference data, by its path in the folder (fails the test, naming the
+/// folder, when it is missing).
+#[track_caller]
 pub fn read_json(path: &str) -> Value {
-    let text =
-        std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reference file {path} is missing: {e}"));
+    let text = cpmx_testdata::read_reference(path);
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"))
 }
 

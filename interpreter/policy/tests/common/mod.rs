@@ -4,14 +4,17 @@
 use cpmx_world::{Polyline, ReferencePath};
 use serde_json::Value;
 
-/// Folder of the read-only SigmaRL reference data.
-pub const REFERENCE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/reference");
+/// A file of the read-only SigmaRL reference data (fails the test, naming the folder, if it is
+/// missing).
+pub fn reference_file(relative: &str) -> std::path::PathBuf {
+    cpmx_testdata::reference_file(relative)
+}
 
 /// A reference JSON file (fails the test if it is missing).
+#[track_caller]
 pub fn json(relative: &str) -> Value {
-    let path = format!("{REFERENCE}/{relative}");
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("reference data {path}: {e}"));
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"))
+    let text = cpmx_testdata::read_reference(relative);
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{relative}: {e}"))
 }
 
 /// A number.

@@ -250,6 +250,7 @@ mod tests {
     }
 
     proptest! {
+        #![proptest_config(ProptestConfig { failure_persistence: None, ..ProptestConfig::default() })]
         /// On any smooth lane the centre line runs from the first midpoint to the last, each
         /// of its points the midpoint of a left and a right bound point.
         #[test]

@@ -150,6 +150,7 @@ mod tests {
     }
 
     proptest! {
+        #![proptest_config(ProptestConfig { failure_persistence: None, ..ProptestConfig::default() })]
         /// A lane bent either way, rotated and stored in any order, is driven the way its roles
         /// say: the left way on the left. (The rule is Lanelet2's heuristic: a bend so sharp
         /// that a two-point bound's chord leaves the lane can fool it, in Lanelet2 as here; the
