@@ -51,7 +51,11 @@ fn tests_find_the_reference_data_only_through_cpmx_testdata() {
         let text = std::fs::read_to_string(&file).unwrap();
         for (line, code) in code_lines(&text) {
             if code.contains("shared/reference") {
-                found.push(format!("{}:{line}: {}", file.strip_prefix(root()).unwrap().display(), code.trim()));
+                found.push(format!(
+                    "{}:{line}: {}",
+                    file.strip_prefix(root()).unwrap().display(),
+                    code.trim()
+                ));
             }
         }
     }
@@ -79,7 +83,11 @@ fn property_tests_keep_their_regressions_out_of_the_tree() {
                     .take_while(|l| !l.contains("fn "))
                     .any(|l| l.contains("failure_persistence: None"));
                 if !config {
-                    missing.push(format!("{}:{}", file.strip_prefix(root()).unwrap().display(), i + 1));
+                    missing.push(format!(
+                        "{}:{}",
+                        file.strip_prefix(root()).unwrap().display(),
+                        i + 1
+                    ));
                 }
             }
         }

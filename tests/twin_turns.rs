@@ -7,7 +7,6 @@
 //! The four turns: the left turns from the four approaches (the map's loops turn only left
 //! through the intersection), two agents per configuration on opposite approaches.
 
-
 use cpmx_engine::{Experiment, simulate};
 use cpmx_recording::Recording;
 use cpmx_spec::{DataPath, SpecSource};

@@ -66,8 +66,18 @@ pub(crate) struct PresetDefault {
 /// The preset-valued defaults. The published schema marks these keys optional with this
 /// default (`schema.rs`), so the language reference never calls them required.
 pub(crate) const PRESET_DEFAULTS: [PresetDefault; 3] = [
-    PresetDefault { parent: "", definition: None, key: "vehicle", value: "stdlib:mu-car" },
-    PresetDefault { parent: "", definition: None, key: "metrics", value: "stdlib:at25" },
+    PresetDefault {
+        parent: "",
+        definition: None,
+        key: "vehicle",
+        value: "stdlib:mu-car",
+    },
+    PresetDefault {
+        parent: "",
+        definition: None,
+        key: "metrics",
+        value: "stdlib:at25",
+    },
     PresetDefault {
         parent: "/training",
         definition: Some("TrainingSpec"),

@@ -110,7 +110,10 @@ mod tests {
         }
         let dir = reference_dir();
         assert!(dir.is_absolute());
-        assert_eq!(dir.parent().unwrap().parent().unwrap(), checkout().parent().unwrap());
+        assert_eq!(
+            dir.parent().unwrap().parent().unwrap(),
+            checkout().parent().unwrap()
+        );
         assert!(dir.ends_with("shared/reference"));
     }
 

@@ -52,7 +52,10 @@ const RUNNABLE: [&str; 12] = [
 #[test]
 fn the_readme_is_a_few_screens() {
     let lines = Page::read(&root(), "README.md").text.lines().count();
-    assert!(lines <= 250, "README.md has {lines} lines; the limit is 250: move detail into docs/");
+    assert!(
+        lines <= 250,
+        "README.md has {lines} lines; the limit is 250: move detail into docs/"
+    );
 }
 
 #[test]
@@ -61,7 +64,11 @@ fn every_whole_spec_in_the_docs_validates() {
     let mut validated = 0;
     for page in Page::all(&root()) {
         let scratch = Scratch::new(&page, "specs");
-        for block in page.blocks().iter().filter(|b| b.lang == "yaml" && b.is_whole_spec()) {
+        for block in page
+            .blocks()
+            .iter()
+            .filter(|b| b.lang == "yaml" && b.is_whole_spec())
+        {
             let at = format!("{}:{}", page.name, block.line);
             let path = match block.marker("file") {
                 Some(file) if root().join(file).is_file() => {
@@ -84,7 +91,10 @@ fn every_whole_spec_in_the_docs_validates() {
             let run = scratch.bash(&format!("cpmx validate {path} --data ../shared/reference"), false);
             validated += 1;
             if run.code != Some(0) {
-                failures.push(format!("{at}: `cpmx validate` of the spec failed:\n{}", run.both()));
+                failures.push(format!(
+                    "{at}: `cpmx validate` of the spec failed:\n{}",
+                    run.both()
+                ));
             }
         }
     }
@@ -99,7 +109,11 @@ fn every_spec_fragment_in_the_docs_fits_a_spec() {
     let (mut checked, mut skipped) = (0, 0);
     for page in Page::all(&root()) {
         let scratch = Scratch::new(&page, "fragments");
-        for block in page.blocks().iter().filter(|b| b.lang == "yaml" && !b.is_whole_spec()) {
+        for block in page
+            .blocks()
+            .iter()
+            .filter(|b| b.lang == "yaml" && !b.is_whole_spec())
+        {
             let at = format!("{}:{}", page.name, block.line);
             if block.marker("not validated").is_some() {
                 skipped += 1;
@@ -111,26 +125,30 @@ fn every_spec_fragment_in_the_docs_fits_a_spec() {
                     .map_err(|e| failures.push(format!("{at}: {what} is not YAML: {e}")))
                     .ok()
             };
-            let Some(mut spec) = parse(&std::fs::read_to_string(scratch.repo.join(base)).unwrap(), base) else {
+            let Some(mut spec) = parse(&std::fs::read_to_string(scratch.repo.join(base)).unwrap(), base)
+            else {
                 continue;
             };
             let Some(fragment) = parse(&block.body, "the fragment") else {
                 continue;
             };
             merge(&mut spec, fragment);
-            let file = Path::new(base)
-                .with_file_name(format!(".{}-{}.yaml", page.stem(), block.line));
-            scratch.write(&file.display().to_string(), &serde_json::to_string_pretty(&spec).unwrap());
+            let file = Path::new(base).with_file_name(format!(".{}-{}.yaml", page.stem(), block.line));
+            scratch.write(
+                &file.display().to_string(),
+                &serde_json::to_string_pretty(&spec).unwrap(),
+            );
             checked += 1;
             let data = [scratch.reference.clone()];
-            let diagnostics = match cpmx_session::load(&scratch.repo.join(&file), &data, cpmx_spec::CheckScope::Run) {
-                Ok(_) => continue,
-                Err(cpmx_session::LoadError::Read(e)) => {
-                    failures.push(format!("{at}: {e}"));
-                    continue;
-                }
-                Err(cpmx_session::LoadError::Invalid(diagnostics)) => diagnostics,
-            };
+            let diagnostics =
+                match cpmx_session::load(&scratch.repo.join(&file), &data, cpmx_spec::CheckScope::Run) {
+                    Ok(_) => continue,
+                    Err(cpmx_session::LoadError::Read(e)) => {
+                        failures.push(format!("{at}: {e}"));
+                        continue;
+                    }
+                    Err(cpmx_session::LoadError::Invalid(diagnostics)) => diagnostics,
+                };
             for d in diagnostics.iter().filter(|d| d.is_error()) {
                 if d.problem.code != "cpmx::check::missing-file" {
                     failures.push(format!(
@@ -227,7 +245,10 @@ fn every_command_in_the_docs_runs_or_parses() {
          checked, {not_run} other commands marked `not run`"
     );
     report(&failures, true);
-    assert!(ran >= 10 && parsed >= 5, "{ran} commands run, {parsed} parsed: fewer than the docs have");
+    assert!(
+        ran >= 10 && parsed >= 5,
+        "{ran} commands run, {parsed} parsed: fewer than the docs have"
+    );
 }
 
 #[test]
@@ -292,7 +313,11 @@ fn every_python_snippet_compiles() {
         for block in page.blocks().iter().filter(|b| b.lang == "python") {
             let at = format!("{}:{}", page.name, block.line);
             let child = std::process::Command::new("python3")
-                .args(["-c", "import sys; compile(sys.stdin.read(), sys.argv[1], 'exec')", &at])
+                .args([
+                    "-c",
+                    "import sys; compile(sys.stdin.read(), sys.argv[1], 'exec')",
+                    &at,
+                ])
                 .stdin(Stdio::piped())
                 .stdout(Stdio::piped())
                 .stderr(Stdio::piped())
@@ -302,7 +327,12 @@ fn every_python_snippet_compiles() {
                 return;
             };
             use std::io::Write;
-            child.stdin.take().unwrap().write_all(block.body.as_bytes()).unwrap();
+            child
+                .stdin
+                .take()
+                .unwrap()
+                .write_all(block.body.as_bytes())
+                .unwrap();
             let out = child.wait_with_output().unwrap();
             compiled += 1;
             if !out.status.success() {
@@ -327,7 +357,11 @@ fn every_link_in_the_docs_resolves() {
                 Some((file, anchor)) => (file, Some(anchor)),
                 None => (target.as_str(), None),
             };
-            let path = if file.is_empty() { page.path.clone() } else { dir.join(file) };
+            let path = if file.is_empty() {
+                page.path.clone()
+            } else {
+                dir.join(file)
+            };
             if !path.exists() {
                 failures.push(format!("{at}: `{target}`: {} does not exist", path.display()));
                 continue;
@@ -342,7 +376,10 @@ fn every_link_in_the_docs_resolves() {
                     path: path.clone(),
                 };
                 if !target_page.anchors().iter().any(|a| a == anchor) {
-                    failures.push(format!("{at}: `{target}`: no heading `#{anchor}` in {}", target_page.name));
+                    failures.push(format!(
+                        "{at}: `{target}`: no heading `#{anchor}` in {}",
+                        target_page.name
+                    ));
                 }
             }
         }
@@ -354,7 +391,14 @@ fn every_link_in_the_docs_resolves() {
 /// The files of the repository a command names (`experiments/…`, `examples/…`, `scripts/…`,
 /// `python/…`, `docs/…`) that do not exist.
 fn missing_repository_files(command: &str) -> Vec<String> {
-    const FOLDERS: [&str; 6] = ["experiments/", "examples/", "scripts/", "python/", "docs/", "tests/"];
+    const FOLDERS: [&str; 6] = [
+        "experiments/",
+        "examples/",
+        "scripts/",
+        "python/",
+        "docs/",
+        "tests/",
+    ];
     command
         .split_whitespace()
         .map(|w| w.trim_matches(['\'', '"']))
@@ -381,7 +425,9 @@ fn is_placeholder(word: &str) -> bool {
     let stem = word.split('.').next().unwrap_or_default();
     !stem.starts_with('-')
         && stem.chars().any(|c| c.is_ascii_uppercase())
-        && stem.chars().all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_' || c == '/')
+        && stem
+            .chars()
+            .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_' || c == '/')
 }
 
 /// The flag of a synopsis word: `--out` of `[--out`, `--only` of `--only=a`.
@@ -544,7 +590,11 @@ impl Scratch {
     /// Runs `command` with bash in the scratch repository; `parse_only` stops cpmx after its
     /// argument parser.
     fn bash(&self, command: &str, parse_only: bool) -> Ran {
-        let path = format!("{}:{}", self.bin.display(), std::env::var("PATH").unwrap_or_default());
+        let path = format!(
+            "{}:{}",
+            self.bin.display(),
+            std::env::var("PATH").unwrap_or_default()
+        );
         let out = self.repo.join("../output");
         let file = std::fs::File::create(&out).unwrap();
         let mut child = std::process::Command::new("bash")
@@ -594,10 +644,25 @@ fn copy_dir(from: &Path, to: &Path) {
 
 #[test]
 fn placeholders_make_a_synopsis() {
-    for word in ["SPEC", "DIR...", "N]", "RECORDING.csv", "stdlib:NAME", "K/N]", "ARGS"] {
+    for word in [
+        "SPEC",
+        "DIR...",
+        "N]",
+        "RECORDING.csv",
+        "stdlib:NAME",
+        "K/N]",
+        "ARGS",
+    ] {
         assert!(is_placeholder(word), "{word}");
     }
-    for word in ["--out", "seed=1,3", "experiments/at25.yaml", "fidelity=sim-mpc", "run", "1"] {
+    for word in [
+        "--out",
+        "seed=1,3",
+        "experiments/at25.yaml",
+        "fidelity=sim-mpc",
+        "run",
+        "1",
+    ] {
         assert!(!is_placeholder(word), "{word}");
     }
 }

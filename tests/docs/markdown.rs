@@ -26,7 +26,12 @@ impl Page {
     pub fn all(root: &Path) -> Vec<Page> {
         let mut names: Vec<String> = std::fs::read_dir(root.join("docs"))
             .expect("docs/")
-            .map(|e| e.expect("an entry of docs/").file_name().to_string_lossy().into_owned())
+            .map(|e| {
+                e.expect("an entry of docs/")
+                    .file_name()
+                    .to_string_lossy()
+                    .into_owned()
+            })
             .filter(|n| n.ends_with(".md"))
             .map(|n| format!("docs/{n}"))
             .collect();
@@ -174,7 +179,9 @@ impl Page {
         let mut seen: Vec<String> = Vec::new();
         let mut out = Vec::new();
         for (_, line) in self.prose() {
-            let Some(heading) = line.strip_prefix('#') else { continue };
+            let Some(heading) = line.strip_prefix('#') else {
+                continue;
+            };
             let heading = heading.trim_start_matches('#');
             if !heading.starts_with(' ') {
                 continue;
@@ -283,7 +290,10 @@ mod tests {
         let p = page("one `cpmx train\nSPEC --resume` two\n\n| `a \\| b` |\n");
         assert_eq!(
             p.inline_code(),
-            [(1, "cpmx train SPEC --resume".to_owned()), (4, "a | b".to_owned())]
+            [
+                (1, "cpmx train SPEC --resume".to_owned()),
+                (4, "a | b".to_owned())
+            ]
         );
     }
 }

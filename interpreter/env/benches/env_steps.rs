@@ -17,7 +17,6 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha20Rng;
 
-
 fn bench_steps(c: &mut Criterion) {
     let paths = sigmarl_intersection_paths(&cpmx_testdata::reference_file("maps/cpm.xml")).expect("map");
     let config = EnvConfig::default();

@@ -3,13 +3,11 @@
 //! the shaping terms SigmaRL's training reward lacks (speed, centre line) follow their
 //! definitions.
 
-
 use cpmx_env::{CentreLineTerm, EnvConfig, SpeedTerm, StepResult, VecEnv, sigmarl_intersection_paths};
 use cpmx_world::ReferencePath;
 use proptest::prelude::*;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha20Rng;
-
 
 fn paths() -> Vec<ReferencePath> {
     sigmarl_intersection_paths(&cpmx_testdata::reference_file("maps/cpm.xml")).expect("map")

@@ -4,7 +4,6 @@
 //! every reward term, the reward, the running return, every collision and line flag, done,
 //! the single-agent resets, the moved states and the observations the policy received agree.
 
-
 use cpmx_env::{EnvConfig, Placement, StepResult, VecEnv, sigmarl_intersection_paths};
 use cpmx_vehicle::BicycleState;
 use serde_json::Value;

@@ -3,7 +3,6 @@
 //! results on any number of threads, and a saved state restores by replay to exactly the same
 //! continuation.
 
-
 use cpmx_env::{EnvConfig, Plant, StackPlant, StepResult, VecEnv, sigmarl_intersection_paths};
 use cpmx_planner::{PlannerParams, SteeringAfterHc};
 use cpmx_spec::model::{
@@ -13,7 +12,6 @@ use cpmx_spec::model::{
 use cpmx_world::ReferencePath;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha20Rng;
-
 
 fn paths() -> Vec<ReferencePath> {
     sigmarl_intersection_paths(&cpmx_testdata::reference_file("maps/cpm.xml")).expect("map")

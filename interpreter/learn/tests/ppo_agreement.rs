@@ -9,7 +9,6 @@ use cpmx_learn::ppo::{LossConfig, LossInput, gae, ppo_loss};
 use cpmx_learn::tanh_normal;
 use serde_json::Value;
 
-
 fn json() -> Value {
     let text = cpmx_testdata::read_reference("training/ppo_cases.json");
     serde_json::from_str(&text).unwrap()
@@ -30,7 +29,11 @@ fn f32s(v: &Value) -> Vec<f32> {
 }
 
 fn network(file: &str, prefix: &str) -> Mlp {
-    Mlp::from_safetensors(&std::fs::read(cpmx_testdata::reference_file(file)).unwrap(), prefix).unwrap()
+    Mlp::from_safetensors(
+        &std::fs::read(cpmx_testdata::reference_file(file)).unwrap(),
+        prefix,
+    )
+    .unwrap()
 }
 
 fn rel(got: f64, want: f64) -> f64 {

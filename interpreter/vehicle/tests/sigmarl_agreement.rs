@@ -8,7 +8,6 @@
 use cpmx_vehicle::{BicycleState, Command, KinematicBicycle, Precision, StepOutput, VehicleParams};
 use serde_json::Value;
 
-
 fn cases() -> Vec<Value> {
     let text = cpmx_testdata::read_reference("dynamics/bicycle_steps.json");
     let root: Value = serde_json::from_str(&text).expect("valid JSON");

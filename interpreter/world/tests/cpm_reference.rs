@@ -5,7 +5,6 @@
 use cpmx_world::{DrivingDirection, Map, PathSet, Polyline};
 use serde_json::Value;
 
-
 /// The tolerance for every coordinate [m].
 const TOLERANCE_M: f64 = 1e-9;
 /// The README's tolerance for `center_line_yaw` [rad].

@@ -6,7 +6,6 @@ use std::collections::HashSet;
 
 use cpmx_world::{Map, MapKind, reversed_id};
 
-
 /// Lanelet relations of the file by a plain reading: (id, subtype, one_way, participant tags).
 fn relations(text: &str) -> Vec<(i64, Option<String>, Option<String>, bool)> {
     let doc = roxmltree::Document::parse(text).expect("the example is XML");

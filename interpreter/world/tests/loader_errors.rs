@@ -3,7 +3,6 @@
 
 use cpmx_world::{Map, MapError, MapFormat};
 
-
 fn lanelet(id: u32, left: &[(f64, f64)], right: &[(f64, f64)], extra: &str) -> String {
     let pts = |ps: &[(f64, f64)]| {
         ps.iter()

@@ -7,7 +7,6 @@
 use cpmx_world::{Map, MapError, MapFormat, SourceLocation, reversed_id};
 use proptest::prelude::*;
 
-
 /// A JOSM-style lanelet2 map (lat/lon, negative ids of new elements): lanelet -10 continues
 /// into -11 (two-way, `one_way=no`); -12 is a crosswalk over -11; a traffic light regulatory
 /// element and a parking area.
