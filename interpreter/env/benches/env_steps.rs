@@ -10,7 +10,6 @@
 //! Needs SigmaRL's reference map at `../shared/reference/maps/cpm.xml`.
 
 use std::hint::black_box;
-use std::path::PathBuf;
 
 use cpmx_env::{EnvConfig, StepResult, VecEnv, sigmarl_intersection_paths};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
