@@ -65,7 +65,7 @@ fn session(
 ) -> (bool, String) {
     let emulator_log = dir.join("emulator.log");
     let run_log = dir.join("run.log");
-    let data = root().join("../shared/reference");
+    let data = cpmx_testdata::reference_dir();
     let mut lab = Killed(
         Command::new(env!("CARGO_BIN_EXE_cpmx"))
             .args(["lab", "emulate", "--real-time", "--runs", &runs.to_string()])
@@ -223,6 +223,7 @@ fn at25_with_a_lab(repetitions: usize) -> String {
 
 #[test]
 fn at25_lab_runs_in_real_time_miss_no_lead_time() {
+    cpmx_testdata::reference(); // the CPM Lab map and at25's actors
     in_namespace(
         "at25_lab_runs_in_real_time_miss_no_lead_time",
         Duration::from_secs(150),
@@ -240,6 +241,7 @@ fn at25_lab_runs_in_real_time_miss_no_lead_time() {
 #[test]
 #[ignore = "27 lab runs of 18 s in real time"]
 fn every_at25_lab_run_in_real_time_misses_no_lead_time() {
+    cpmx_testdata::reference(); // the CPM Lab map and at25's actors
     in_namespace(
         "every_at25_lab_run_in_real_time_misses_no_lead_time",
         Duration::from_secs(1800),
