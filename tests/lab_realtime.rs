@@ -236,6 +236,7 @@ fn at25_with_a_lab(repetitions: usize) -> String {
 
 #[test]
 fn at25_lab_runs_in_real_time_miss_no_lead_time() {
+    cpmx_testdata::reference(); // the CPM Lab map and at25's actors
     in_namespace(
         "at25_lab_runs_in_real_time_miss_no_lead_time",
         Duration::from_secs(150),
@@ -253,6 +254,7 @@ fn at25_lab_runs_in_real_time_miss_no_lead_time() {
 #[test]
 #[ignore = "27 lab runs of 18 s in real time"]
 fn every_at25_lab_run_in_real_time_misses_no_lead_time() {
+    cpmx_testdata::reference(); // the CPM Lab map and at25's actors
     in_namespace(
         "every_at25_lab_run_in_real_time_misses_no_lead_time",
         Duration::from_secs(1800),

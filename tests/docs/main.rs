@@ -6,8 +6,10 @@
 //!   verbatim (a shipped spec), or, where PATH is not in the repository, saved there for the
 //!   commands that follow.
 //! - Any other ```yaml block is a fragment: merged into `examples/first.yaml` (or the spec of a
-//!   `<!-- base: PATH -->` marker), it passes every check but a missing file of the reader's
-//!   own (`cpmx::check::missing-file`).
+//!   `<!-- base: PATH -->` marker, or `examples/first.yaml` with the page's block marked
+//!   `<!-- name: NAME -->` for `<!-- base: NAME -->`), below the dotted path of an `<!-- at:
+//!   a.b -->` marker, it passes every check but a missing file of the reader's own
+//!   (`cpmx::check::missing-file`); `<!-- not validated: REASON -->` skips it.
 //! - Every command of a ```sh or ```console block runs, in order, in a scratch copy of
 //!   `experiments/` and `examples/` with `../shared/reference` beside it and `cpmx` on the
 //!   `PATH` (`cargo run --release --` is read as the `cpmx` it builds), and exits 0, or the code
@@ -120,19 +122,26 @@ fn every_spec_fragment_in_the_docs_fits_a_spec() {
                 continue;
             }
             let base = block.marker("base").unwrap_or(DEFAULT_BASE);
-            let mut parse = |text: &str, what: &str| -> Option<Value> {
-                serde_saphyr::from_str::<Value>(text)
-                    .map_err(|e| failures.push(format!("{at}: {what} is not YAML: {e}")))
-                    .ok()
+            let mut spec = match base_spec(&page, &scratch, base) {
+                Ok(spec) => spec,
+                Err(e) => {
+                    failures.push(format!("{at}: {e}"));
+                    continue;
+                }
             };
-            let Some(mut spec) = parse(&std::fs::read_to_string(scratch.repo.join(base)).unwrap(), base)
-            else {
-                continue;
+            match fragment_of(block) {
+                Ok(fragment) => merge(&mut spec, fragment),
+                Err(e) => {
+                    failures.push(format!("{at}: {e}"));
+                    continue;
+                }
+            }
+            // Named blocks stand for examples/first.yaml's folder (files resolve from there).
+            let base = if base.ends_with(".yaml") {
+                base
+            } else {
+                DEFAULT_BASE
             };
-            let Some(fragment) = parse(&block.body, "the fragment") else {
-                continue;
-            };
-            merge(&mut spec, fragment);
             let file = Path::new(base).with_file_name(format!(".{}-{}.yaml", page.stem(), block.line));
             scratch.write(
                 &file.display().to_string(),
@@ -511,6 +520,40 @@ fn workspace_packages() -> Vec<(String, PathBuf)> {
         .collect()
 }
 
+/// The spec a fragment is merged into: a spec of the repository (`examples/first.yaml`, or the
+/// `base:` marker's file), or, when the marker names a block of the same page (`<!-- name: N
+/// -->` above it), that block merged into `examples/first.yaml`.
+fn base_spec(page: &Page, scratch: &Scratch, base: &str) -> Result<Value, String> {
+    let read = |file: &str| -> Result<Value, String> {
+        let text = std::fs::read_to_string(scratch.repo.join(file)).map_err(|e| format!("{file}: {e}"))?;
+        serde_saphyr::from_str::<Value>(&text).map_err(|e| format!("{file} is not YAML: {e}"))
+    };
+    if base.ends_with(".yaml") {
+        return read(base);
+    }
+    let blocks = page.blocks();
+    let named = blocks
+        .iter()
+        .find(|b| b.marker("name") == Some(base))
+        .ok_or_else(|| format!("no block `<!-- name: {base} -->` in {}", page.name))?;
+    let mut spec = read(DEFAULT_BASE)?;
+    merge(&mut spec, fragment_of(named)?);
+    Ok(spec)
+}
+
+/// A fragment's YAML, placed at its `at:` marker's dotted path (`fidelities.lab.faults`) when it
+/// has one.
+fn fragment_of(block: &Block) -> Result<Value, String> {
+    let mut value =
+        serde_saphyr::from_str::<Value>(&block.body).map_err(|e| format!("the fragment is not YAML: {e}"))?;
+    if let Some(path) = block.marker("at") {
+        for key in path.rsplit('.') {
+            value = Value::Object([(key.to_owned(), value)].into_iter().collect());
+        }
+    }
+    Ok(value)
+}
+
 /// `fragment` laid over `base`: mappings merged key by key, anything else replaced.
 fn merge(base: &mut Value, fragment: Value) {
     match (base, fragment) {
@@ -533,13 +576,16 @@ fn report(failures: &[String], needs_reference: bool) {
     if failures.is_empty() {
         return;
     }
-    let mut text = String::new();
-    if needs_reference && !cpmx_testdata::reference_available() {
-        text.push_str(&cpmx_testdata::missing(&cpmx_testdata::reference_dir()));
-        text.push_str("; the docs' commands and specs that use it fail:\n");
-    }
-    text.push_str(&failures.join("\n\n"));
-    panic!("{} problems in the docs:\n{text}", failures.len());
+    let heading = if needs_reference && !cpmx_testdata::reference_available() {
+        format!(
+            "{}; the docs' commands and specs that use it fail ({} problems in the docs):",
+            cpmx_testdata::missing(&cpmx_testdata::reference_dir()),
+            failures.len()
+        )
+    } else {
+        format!("{} problems in the docs:", failures.len())
+    };
+    panic!("{heading}\n{}", failures.join("\n\n"));
 }
 
 /// A page's scratch copy of the repository's specs: `<tmp>/cpmx-docs-<page>-<pid>/cpmx/` with
@@ -624,6 +670,15 @@ impl Scratch {
         Ran {
             code: status.and_then(|s| s.code()),
             output: std::fs::read_to_string(out).unwrap_or_default(),
+        }
+    }
+}
+
+impl Drop for Scratch {
+    /// The scratch copy goes with its page (a failure's output is in the test's message).
+    fn drop(&mut self) {
+        if let Some(top) = self.repo.parent() {
+            let _ = std::fs::remove_dir_all(top);
         }
     }
 }
