@@ -94,7 +94,7 @@ metrics: stdlib:at25
 
 fn scenario(deadline: Instant) {
     let cpmx = env!("CARGO_BIN_EXE_cpmx");
-    let dir = std::env::temp_dir().join(format!("cpmx-lab-e2e-{}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!("cpmx-lab-e2e-{}", common::test_process_id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("temp folder");
     let spec = dir.join("lab.yaml");

@@ -37,7 +37,7 @@ fn a_middleware_period_other_than_dt_is_refused() {
         Namespace::Inside | Namespace::Unavailable => {}
     }
     let cpmx = env!("CARGO_BIN_EXE_cpmx");
-    let dir = std::env::temp_dir().join(format!("cpmx-lab-period-{}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!("cpmx-lab-period-{}", common::test_process_id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     // A domain of its own (lab_silent.rs and lab_e2e.rs use 100 + pid % 100).

@@ -35,7 +35,7 @@ fn in_namespace(test_name: &str, budget: Duration, scenario: fn(&Path, Instant))
     match in_network_namespace(test_name, INSIDE_NAMESPACE, deadline) {
         Namespace::RanInside => {}
         Namespace::Inside | Namespace::Unavailable => {
-            let dir = std::env::temp_dir().join(format!("cpmx-{test_name}-{}", std::process::id()));
+            let dir = std::env::temp_dir().join(format!("cpmx-{test_name}-{}", common::test_process_id()));
             let _ = std::fs::remove_dir_all(&dir);
             std::fs::create_dir_all(&dir).expect("temp folder");
             scenario(&dir, deadline);
@@ -65,6 +65,7 @@ fn session(
 ) -> (bool, String) {
     let emulator_log = dir.join("emulator.log");
     let run_log = dir.join("run.log");
+    // SigmaRL's reference data (at25's map) where it is expected; at25's tests ask for it.
     let data = cpmx_testdata::reference_dir();
     let mut lab = Killed(
         Command::new(env!("CARGO_BIN_EXE_cpmx"))
@@ -178,6 +179,18 @@ metrics: stdlib:at25
     let kept = notes(dir, "lab/lane/crossing/rep1");
     assert_eq!(lead_misses(&kept), 0, "{kept}\n{logs}");
     assert!(kept.contains("over 40 ticks"), "{kept}");
+    // The latency of every tick is kept with the run.
+    let stored: serde_json::Value = serde_json::from_str(&kept).expect("metrics.json");
+    let latency = stored["planning_latency_ms"]
+        .as_array()
+        .expect("per-tick latency");
+    assert_eq!(latency.len(), 40, "{kept}");
+    assert!(
+        latency
+            .iter()
+            .all(|l| l.as_f64().is_some_and(|ms| ms > 0.0 && ms < 100.0)),
+        "{kept}"
+    );
 
     // A 1.5 s pause: the vehicles ran out of trajectory; the run completes and says so.
     let faults = dir.join("pause.yaml");
@@ -250,6 +263,7 @@ fn every_at25_lab_run_in_real_time_misses_no_lead_time() {
 }
 
 fn at25(dir: &Path, deadline: Instant, repetitions: usize, only: &[&str]) {
+    cpmx_testdata::reference();
     let spec = dir.join("at25.yaml");
     std::fs::write(&spec, at25_with_a_lab(repetitions)).expect("spec");
     let runs = if only.is_empty() {

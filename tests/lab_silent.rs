@@ -20,7 +20,7 @@ fn a_silent_lab_costs_one_timeout() {
         Namespace::RanInside => return,
         Namespace::Inside | Namespace::Unavailable => {}
     }
-    let dir = std::env::temp_dir().join(format!("cpmx-lab-silent-{}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!("cpmx-lab-silent-{}", common::test_process_id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let domain = 100 + std::process::id() % 100;

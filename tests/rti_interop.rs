@@ -143,7 +143,7 @@ metrics: stdlib:at25
 
 /// A fresh folder with the spec for `steps` ticks.
 fn workspace(name: &str, steps: usize) -> (PathBuf, PathBuf) {
-    let dir = std::env::temp_dir().join(format!("cpmx-rti-{name}-{}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!("cpmx-rti-{name}-{}", common::test_process_id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("temp folder");
     let spec = dir.join("lab.yaml");

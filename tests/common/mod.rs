@@ -73,6 +73,7 @@ pub fn in_network_namespace(test_name: &str, marker: &str, deadline: Instant) ->
                 "--include-ignored",
             ])
             .env(marker, "1")
+            .env(OUTER_PID, test_process_id().to_string())
             .stdout(file.try_clone().expect("log file"))
             .stderr(file)
             .spawn()
@@ -90,6 +91,18 @@ pub fn in_network_namespace(test_name: &str, marker: &str, deadline: Instant) ->
         "the test did not run in its network namespace:\n{output}"
     );
     Namespace::RanInside
+}
+
+/// Set in the copy of a test that runs inside its network namespace: the process id outside.
+const OUTER_PID: &str = "CPMX_TEST_OUTER_PID";
+
+/// This test process's id, outside its namespace: inside a pid namespace every copy is process
+/// 1, so scratch folders named by it would collide with another checkout's run of the test.
+pub fn test_process_id() -> u32 {
+    std::env::var(OUTER_PID)
+        .ok()
+        .and_then(|pid| pid.parse().ok())
+        .unwrap_or_else(std::process::id)
 }
 
 /// Whether this sandbox lets us make a private network namespace with loopback up.

@@ -19,7 +19,7 @@ pub(crate) fn in_namespace(test_name: &str, budget: Duration, scenario: fn(&Path
     match in_network_namespace(test_name, INSIDE_NAMESPACE, deadline) {
         Namespace::RanInside => {}
         Namespace::Inside | Namespace::Unavailable => {
-            let dir = std::env::temp_dir().join(format!("cpmx-{test_name}-{}", std::process::id()));
+            let dir = std::env::temp_dir().join(format!("cpmx-{test_name}-{}", common::test_process_id()));
             let _ = std::fs::remove_dir_all(&dir);
             std::fs::create_dir_all(&dir).expect("temp folder");
             scenario(&dir, deadline);

@@ -137,13 +137,14 @@ fn execute_one(
         stop: options.stop.as_deref(),
         operator: options.operator.as_ref(),
     };
-    let failed = |reason: String, notes: &[String]| {
+    let failed = |reason: String, notes: &[String], latency_s: &[f64]| {
         let failure = Failure {
             key: plan.key.clone(),
             seed: plan.seed,
             inputs_hash: hash.clone(),
             reason: reason.clone(),
             notes: notes.to_vec(),
+            planning_latency_ms: milliseconds(latency_s),
         };
         match store_failure(out, plan, &failure) {
             Ok(()) => RunOutcome::Failed(reason),
@@ -161,6 +162,7 @@ fn execute_one(
                 inputs_hash: hash.clone(),
                 notes: recording.notes.clone(),
                 drawn_parameters,
+                planning_latency_ms: milliseconds(&recording.latency_s),
                 metrics,
             };
             match store_run(out, plan, &recording, &stored) {
@@ -172,17 +174,23 @@ fn execute_one(
             Ok(()) => failed(
                 format!("{reason}; its trajectory.csv holds what was recorded"),
                 &recording.notes,
+                &recording.latency_s,
             ),
             Err(e) => RunOutcome::Failed(format!("{reason}; cannot store what was recorded: {e}")),
         },
-        Err(RunFailure::Reason(reason)) => failed(reason, &earlier_recording(out, plan)),
+        Err(RunFailure::Reason(reason)) => failed(reason, &earlier_recording(out, plan), &[]),
         Err(RunFailure::LabSilent(reason)) => {
             if let Ok(mut silent) = silent.lock() {
                 silent.insert(plan.fidelity.clone());
             }
-            failed(reason, &earlier_recording(out, plan))
+            failed(reason, &earlier_recording(out, plan), &[])
         }
     }
+}
+
+/// Seconds as milliseconds, to the microsecond.
+fn milliseconds(seconds: &[f64]) -> Vec<f64> {
+    seconds.iter().map(|s| (s * 1e6).round() / 1e3).collect()
 }
 
 /// A note for the `failed.json` of an attempt that recorded nothing, when the folder keeps an

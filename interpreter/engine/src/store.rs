@@ -25,6 +25,9 @@ pub struct StoredRun {
     /// (`actuation.delay_ms`).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub drawn_parameters: BTreeMap<String, f64>,
+    /// A lab run's planning latency at each recorded tick [ms] (its notes summarise it).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub planning_latency_ms: Vec<f64>,
     pub metrics: RunMetrics,
 }
 
@@ -59,6 +62,9 @@ pub struct Failure {
     pub reason: String,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
+    /// A lab run's planning latency at each tick it recorded [ms].
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub planning_latency_ms: Vec<f64>,
 }
 
 /// The name of a failed run's record.

@@ -296,6 +296,7 @@ mod tests {
     fn recording(rows: Vec<Vec<AgentSample>>) -> Recording {
         Recording {
             notes: Vec::new(),
+            latency_s: Vec::new(),
             times_s: (0..rows.len()).map(|k| k as f64 * 0.1).collect(),
             ref_paths: vec![0; rows.first().map_or(0, Vec::len)],
             samples: rows,

@@ -33,6 +33,7 @@ pub fn resample(recording: &Recording, period_s: f64) -> Cow<'_, Recording> {
     let count = ((end_s - start_s) / period_s + ON_GRID_TOLERANCE).floor() as usize + 1;
     let mut out = Recording {
         notes: recording.notes.clone(),
+        latency_s: recording.latency_s.clone(),
         times_s: Vec::with_capacity(count),
         ref_paths: recording.ref_paths.clone(),
         samples: Vec::with_capacity(count),
@@ -93,6 +94,7 @@ mod tests {
     fn a_recording_on_the_grid_is_borrowed() {
         let r = Recording {
             notes: Vec::new(),
+            latency_s: Vec::new(),
             times_s: vec![0.0, 0.1, 0.2 + 1e-12],
             ref_paths: vec![0],
             samples: vec![
@@ -108,6 +110,7 @@ mod tests {
     fn a_coarse_recording_is_interpolated_with_yaw_on_the_short_arc() {
         let r = Recording {
             notes: Vec::new(),
+            latency_s: Vec::new(),
             times_s: vec![0.0, 0.2],
             ref_paths: vec![0],
             samples: vec![vec![sample(0.0, 3.0)], vec![sample(2.0, -3.0)]],

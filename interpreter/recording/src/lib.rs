@@ -29,6 +29,10 @@ pub struct Recording {
     /// What the engine noticed without failing (e.g. late lab ticks). Not part of
     /// `trajectory.csv`; the run folder keeps them in `metrics.json`.
     pub notes: Vec<String>,
+    /// A lab run's planning latency at each sample's tick [s]: from the tick's state list
+    /// arriving to its commands sent (empty for simulated runs). Not part of
+    /// `trajectory.csv`; the run folder keeps it in `metrics.json` (or `failed.json`).
+    pub latency_s: Vec<f64>,
 }
 
 /// Why a trajectory file could not be read.
@@ -234,6 +238,7 @@ mod tests {
     fn csv_round_trip_is_exact() {
         let recording = Recording {
             notes: Vec::new(),
+            latency_s: Vec::new(),
             times_s: vec![0.0, 0.1],
             ref_paths: vec![6, 1 << 40],
             samples: vec![

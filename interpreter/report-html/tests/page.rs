@@ -40,6 +40,7 @@ fn recording(map: &Map, offset_m: f64) -> Recording {
         ref_paths,
         samples,
         notes: vec![],
+        latency_s: Vec::new(),
     }
 }
 

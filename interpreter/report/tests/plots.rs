@@ -29,6 +29,7 @@ fn scene() -> (Map, Recording, RunMetrics) {
     };
     let mut recording = Recording {
         notes: Vec::new(),
+        latency_s: Vec::new(),
         times_s: vec![],
         ref_paths: vec![1, 1, 4],
         samples: vec![],

@@ -128,6 +128,7 @@ impl Engine for LabEngine {
             clock: None,
             recording: Recording {
                 notes: Vec::new(),
+                latency_s: Vec::new(),
                 times_s: Vec::with_capacity(spec.timing.steps as usize),
                 ref_paths: inputs.starts.iter().map(|s| s.ref_path).collect(),
                 samples: Vec::with_capacity(spec.timing.steps as usize),
@@ -217,6 +218,7 @@ impl Drive<'_> {
 
         let mut recording = self.recording;
         recording.notes = self.notes.notes(&self.lab.vehicle_ids);
+        recording.latency_s = self.notes.latency_s.clone();
         match ended {
             Ok(()) if recording.times_s.is_empty() => {
                 Err(RunError::LabStopped(self.notes.stopped.unwrap_or_default()))
