@@ -24,12 +24,11 @@ import struct
 import tempfile
 from pathlib import Path
 
+import cpmx
 import torch
 from benchmarl.algorithms import MappoConfig
 from benchmarl.experiment import Experiment, ExperimentConfig
 from benchmarl.models.mlp import MlpConfig
-
-import cpmx
 from cpmx.benchmarl import CpmxTask
 
 REPOSITORY = Path(__file__).resolve().parents[2]
@@ -74,8 +73,13 @@ def linear_layers(experiment: Experiment) -> list[tuple[torch.Tensor, torch.Tens
         parts = name.split(".")
         if parts[-1] in ("weight", "bias") and tensor.dim() in (1, 2):
             weights[name] = tensor.detach().cpu().float()
-    names = sorted({n.rsplit(".", 1)[0] for n in weights}, key=lambda n: [int(p) if p.isdigit() else p for p in n.split(".")])
-    layers = [(weights[f"{n}.weight"], weights[f"{n}.bias"]) for n in names if f"{n}.bias" in weights]
+    names = sorted(
+        {n.rsplit(".", 1)[0] for n in weights},
+        key=lambda n: [int(p) if p.isdigit() else p for p in n.split(".")],
+    )
+    layers = [
+        (weights[f"{n}.weight"], weights[f"{n}.bias"]) for n in names if f"{n}.bias" in weights
+    ]
     if not layers:
         raise RuntimeError(f"no linear layers in the policy: {list(policy.state_dict())}")
     return layers
@@ -108,7 +112,9 @@ def evaluate(actor: Path, data: str, out: Path) -> str:
         + f"policies:\n  - {{name: benchmarl-mappo, mlp: {{weights: {actor}}}, observation: stdlib:sigmarl, action: mean}}\n"
         + text[end:]
     )
-    spec = spec.split("\n# How cpmx trains policies")[0].replace("group_by: [fidelity]", "group_by: [fidelity, policy]")
+    spec = spec.split("\n# How cpmx trains policies")[0].replace(
+        "group_by: [fidelity]", "group_by: [fidelity, policy]"
+    )
     path = out / "benchmarl-at25.yaml"
     path.write_text(spec)
     return cpmx.run(path, out=out / "runs", data=data).summary
@@ -119,7 +125,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", required=True, help="the folder with maps/cpm.xml")
     parser.add_argument("--frames", type=int, default=300_000, help="frames BenchMARL collects")
-    parser.add_argument("--out", type=Path, default=None, help="where to write (default: a temporary folder)")
+    parser.add_argument(
+        "--out", type=Path, default=None, help="where to write (default: a temporary folder)"
+    )
     parser.add_argument("--quick", action="store_true", help="a smoke run: two small batches")
     args = parser.parse_args()
     out = args.out or Path(tempfile.mkdtemp(prefix="cpmx-benchmarl-"))

@@ -44,7 +44,9 @@ def vmas_road_traffic(seconds: float) -> float:
     """VMAS road_traffic env-steps/s (32 envs, 4 agents, random actions)."""
     import vmas
 
-    env = vmas.make_env("road_traffic", num_envs=ENVS, device="cpu", continuous_actions=True, n_agents=AGENTS)
+    env = vmas.make_env(
+        "road_traffic", num_envs=ENVS, device="cpu", continuous_actions=True, n_agents=AGENTS
+    )
     env.reset()
 
     def step() -> None:
@@ -123,9 +125,21 @@ def main() -> None:
 
     rows = [
         ("VMAS road_traffic (32 x 4, random)", vmas_road_traffic(args.seconds), "env-steps/s"),
-        ("cpmx.VecEnv sim (32 x 4, random)", cpmx_vecenv(args.spec, "sim", args.data, args.seconds), "env-steps/s"),
-        ("cpmx.torchrl.CpmxEnv sim", cpmx_torchrl(args.spec, args.data, args.seconds), "env-steps/s"),
-        ("cpmx.VecEnv twin (32 x 4, random)", cpmx_vecenv(args.spec, "twin", args.data, args.seconds), "env-steps/s"),
+        (
+            "cpmx.VecEnv sim (32 x 4, random)",
+            cpmx_vecenv(args.spec, "sim", args.data, args.seconds),
+            "env-steps/s",
+        ),
+        (
+            "cpmx.torchrl.CpmxEnv sim",
+            cpmx_torchrl(args.spec, args.data, args.seconds),
+            "env-steps/s",
+        ),
+        (
+            "cpmx.VecEnv twin (32 x 4, random)",
+            cpmx_vecenv(args.spec, "twin", args.data, args.seconds),
+            "env-steps/s",
+        ),
     ]
     if not args.skip_benchmarl:
         from benchmarl.environments.vmas.common import VmasClass
@@ -135,11 +149,21 @@ def main() -> None:
         road = VmasClass("road_traffic", {"max_steps": 128, "n_agents": AGENTS})
         at25 = CpmxTask.from_spec(args.spec, data=args.data)
         rows += [
-            ("BenchMARL MAPPO collection, road_traffic", benchmarl_collection(road, args.seconds), "frames/s"),
-            ("BenchMARL MAPPO collection, cpmx at25 sim", benchmarl_collection(at25, args.seconds), "frames/s"),
+            (
+                "BenchMARL MAPPO collection, road_traffic",
+                benchmarl_collection(road, args.seconds),
+                "frames/s",
+            ),
+            (
+                "BenchMARL MAPPO collection, cpmx at25 sim",
+                benchmarl_collection(at25, args.seconds),
+                "frames/s",
+            ),
         ]
-    print(f"# {time.strftime('%Y-%m-%d')}, {platform.processor() or platform.machine()}, one thread")
-    print("| what | rate | unit | × VMAS |")
+    print(
+        f"# {time.strftime('%Y-%m-%d')}, {platform.processor() or platform.machine()}, one thread"
+    )
+    print("| what | rate | unit | x VMAS |")
     print("|---|--:|---|--:|")
     base = {"env-steps/s": rows[0][1], "frames/s": rows[4][1] if len(rows) > 4 else float("nan")}
     for name, value, unit in rows:

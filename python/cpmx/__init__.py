@@ -59,6 +59,7 @@ class RunResult:
         failed: Runs that failed, by run key, with the reason (the others are kept).
         summary: The summary table (Markdown), as ``cpmx run`` prints it.
         notes: Notes about the folder (e.g. that ``force=True`` replaced its spec).
+
     """
 
     out: Path
@@ -128,10 +129,13 @@ def run(
             bound, or the folder cannot be written. A failing callable fails its runs only.
         KeyboardInterrupt: Ctrl-C: the runs under way finish and are kept, no other starts;
             ``resume=True`` continues.
+
     """
     bound = {name: _two_arguments(f, name) for name, f in (policies or {}).items()}
     if isinstance(only, Mapping):
-        only = {axis: [names] if isinstance(names, str) else list(names) for axis, names in only.items()}
+        only = {
+            axis: [names] if isinstance(names, str) else list(names) for axis, names in only.items()
+        }
     outcome = _run(
         os.fspath(spec),
         None if out is None else os.fspath(out),
@@ -173,6 +177,7 @@ def read_runs(folder: PathLike, *, frame: bool | None = None) -> Any:
 
     Metrics are floats (``nan`` where a metric is undefined), the repetition and the seed
     ints, the other columns text.
+
     """
     path = Path(folder) / "per_run.csv"
     if not path.is_file():

@@ -1,8 +1,8 @@
 """Type stubs of ``cpmx._cpmx``, the Rust extension (see ``python/src/``)."""
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from os import PathLike
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -11,7 +11,8 @@ __version__: str
 
 class CpmxError(Exception):
     """A problem cpmx found: an invalid spec (every diagnostic with file:line:col and help),
-    a map or weights it cannot use, or a run folder it cannot write."""
+    a map or weights it cannot use, or a run folder it cannot write.
+    """
 
 class Diagnostic:
     """One problem of a spec, as ``cpmx validate`` prints it."""
@@ -61,9 +62,12 @@ class VecEnv:
         not depend on it.
         """
 
-    def reset(self, seed: int | None = None, mask: Sequence[bool] | None = None) -> npt.NDArray[np.float32]:
+    def reset(
+        self, seed: int | None = None, mask: Sequence[bool] | None = None
+    ) -> npt.NDArray[np.float32]:
         """Re-place every environment (or those whose ``mask`` entry is true); ``seed`` first
-        restarts every random stream from it. Returns the observations ``float32[E, A, O]``."""
+        restarts every random stream from it. Returns the observations ``float32[E, A, O]``.
+        """
 
     def step(
         self, actions: npt.ArrayLike
@@ -89,7 +93,8 @@ class VecEnv:
 
     def render(self, env: int = 0, width: int = 640) -> npt.NDArray[np.uint8]:
         """Environment ``env`` as ``uint8[H, W, 3]``: road boundaries, the agents' reference
-        paths and footprints to scale."""
+        paths and footprints to scale.
+        """
 
     @property
     def agents(self) -> list[str]:
@@ -123,7 +128,8 @@ class VecEnv:
         """``"same-step"``: Gymnasium's ``AutoresetMode.SAME_STEP``."""
 
 def validate(
-    spec: str | PathLike[str], data: str | PathLike[str] | Sequence[str | PathLike[str]] | None = None
+    spec: str | PathLike[str],
+    data: str | PathLike[str] | Sequence[str | PathLike[str]] | None = None,
 ) -> list[Diagnostic]:
     """Every diagnostic ``cpmx validate`` gives ``spec``."""
 
@@ -138,4 +144,5 @@ def run(
     force: bool = False,
 ) -> dict[str, Any]:
     """``cpmx run`` with ``python: {}`` policies bound to callables ``f(observations[A, O],
-    states[A, 5]) -> actions[A, 2]``; see ``cpmx.run``."""
+    states[A, 5]) -> actions[A, 2]``; see ``cpmx.run``.
+    """

@@ -22,7 +22,7 @@ from __future__ import annotations
 import functools
 import os
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
@@ -36,7 +36,11 @@ __all__ = ["CpmxParallelEnv", "parallel_env"]
 class CpmxParallelEnv(ParallelEnv):
     """One environment of a cpmx spec's training scenario; see the module documentation."""
 
-    metadata = {"render_modes": ["rgb_array"], "name": "cpmx_v0", "is_parallelizable": True}
+    metadata: ClassVar[dict[str, object]] = {
+        "render_modes": ["rgb_array"],
+        "name": "cpmx_v0",
+        "is_parallelizable": True,
+    }
 
     def __init__(
         self,
@@ -54,6 +58,7 @@ class CpmxParallelEnv(ParallelEnv):
             seed: The random streams' seed until ``reset(seed=...)`` gives another (default 0).
             render_mode: ``"rgb_array"`` or ``None``.
             data: Folders to look up maps in (default: ``CPMX_DATA``).
+
         """
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be 'rgb_array' or None, got {render_mode!r}")
@@ -72,13 +77,13 @@ class CpmxParallelEnv(ParallelEnv):
         self._low = np.asarray(self._env.action_low, dtype=np.float32)
         self._high = np.asarray(self._env.action_high, dtype=np.float32)
 
-    @functools.lru_cache(maxsize=None)  # noqa: B019 - PettingZoo asks for the same object per agent
+    @functools.cache  # noqa: B019 - PettingZoo asks for the same object per agent
     def observation_space(self, agent: str) -> spaces.Box:
         """SigmaRL's observation of one agent (float32, unbounded)."""
         size = self._env.observation_size
         return spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float32)
 
-    @functools.lru_cache(maxsize=None)  # noqa: B019 - PettingZoo asks for the same object per agent
+    @functools.cache  # noqa: B019 - PettingZoo asks for the same object per agent
     def action_space(self, agent: str) -> spaces.Box:
         """Target speed [m/s] and steering angle [rad], within the vehicle's limits."""
         return spaces.Box(self._low, self._high, dtype=np.float32)

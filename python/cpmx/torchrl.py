@@ -62,6 +62,7 @@ class CpmxEnv(EnvBase):
             seed: The random streams' seed (``set_seed`` gives another).
             device: Where the tensors live.
             data: Folders to look up maps in (default: ``CPMX_DATA``).
+
         """
         super().__init__(device=device, batch_size=torch.Size([num_envs]))
         if data is not None and isinstance(data, str | os.PathLike):
@@ -96,8 +97,13 @@ class CpmxEnv(EnvBase):
         )
         self.full_action_spec = Composite(
             agents=Composite(
-                action=Bounded(low=low.clone(), high=high.clone(), shape=(e, a, 2), dtype=torch.float32,
-                               device=self.device),
+                action=Bounded(
+                    low=low.clone(),
+                    high=high.clone(),
+                    shape=(e, a, 2),
+                    dtype=torch.float32,
+                    device=self.device,
+                ),
                 shape=(e, a),
             ),
             shape=(e,),
@@ -157,7 +163,11 @@ class CpmxEnv(EnvBase):
         done = term | truncated
         self._observations = observations
         self._placed = done.copy()
-        shown = np.where(done[:, None, None], info["final_obs"], observations) if done.any() else observations
+        shown = (
+            np.where(done[:, None, None], info["final_obs"], observations)
+            if done.any()
+            else observations
+        )
         return TensorDict(
             {
                 "agents": TensorDict(

@@ -56,7 +56,10 @@ class NumpyActor:
 
     def __init__(self, weights: dict[str, np.ndarray]) -> None:
         self.layers = [
-            (weights[f"actor.{i}.weight"].astype(np.float64), weights[f"actor.{i}.bias"].astype(np.float64))
+            (
+                weights[f"actor.{i}.weight"].astype(np.float64),
+                weights[f"actor.{i}.bias"].astype(np.float64),
+            )
             for i in range(4)
         ]
         self.high = np.array([1.0, np.deg2rad(31.0)])
@@ -102,7 +105,9 @@ def test_states_reach_a_two_argument_policy_and_resume_keeps_runs(tmp_path, refe
         return np.zeros((len(states), 2))
 
     out = tmp_path / "out"
-    cpmx.run(spec, out=out, policies={"numpy": stand_still}, only={"policy": "numpy"}, data=reference)
+    cpmx.run(
+        spec, out=out, policies={"numpy": stand_still}, only={"policy": "numpy"}, data=reference
+    )
     assert seen and seen[0].shape == (3, 5)
     again = cpmx.run(spec, out=out, policies={"numpy": stand_still}, data=reference, resume=True)
     assert again.resumed == 1 and again.finished == 1

@@ -21,9 +21,13 @@ def test_shapes_and_spaces(at25, reference, fidelity):
     obs = env.reset()
     assert obs.shape == (4, env.num_agents, env.observation_size)
     assert obs.dtype == np.float32
-    assert env.action_low.shape == (2,) and np.all(env.action_low < 0) and np.all(env.action_high > 0)
+    assert (
+        env.action_low.shape == (2,) and np.all(env.action_low < 0) and np.all(env.action_high > 0)
+    )
     assert env.state().shape == (4, env.num_agents * env.observation_size)
-    obs, reward, terminated, truncated, info = env.step(random_actions(env, np.random.default_rng(0)))
+    obs, reward, terminated, truncated, info = env.step(
+        random_actions(env, np.random.default_rng(0))
+    )
     assert reward.shape == (4, env.num_agents) and reward.dtype == np.float32
     assert terminated.shape == (4, env.num_agents) and terminated.dtype == np.bool_
     assert truncated.shape == (4,)
@@ -73,7 +77,10 @@ def test_a_thread_count_changes_nothing(at25, reference):
     assert np.array_equal(one.reset(), two.reset())
     for _ in range(50):
         actions = random_actions(one, rng)
-        assert all(np.array_equal(x, y) for x, y in zip(one.step(actions)[:4], two.step(actions)[:4], strict=True))
+        assert all(
+            np.array_equal(x, y)
+            for x, y in zip(one.step(actions)[:4], two.step(actions)[:4], strict=True)
+        )
 
 
 @pytest.mark.parametrize("fidelity", ["sim", "sim-mpc"])
@@ -116,7 +123,9 @@ def test_bad_input_raises_with_the_diagnostic(tmp_path, at25, reference):
     with pytest.raises(ValueError, match="NaN"):
         env.step(np.full((2, 4, 2), np.nan, np.float32))
     spec = tmp_path / "bad.yaml"
-    spec.write_text(at25.read_text().replace("timing: {dt: 0.1, steps: 180}", 'timing: {dt: 0.1, steps: "180"}'))
+    spec.write_text(
+        at25.read_text().replace("timing: {dt: 0.1, steps: 180}", 'timing: {dt: 0.1, steps: "180"}')
+    )
     with pytest.raises(cpmx.CpmxError) as error:
         cpmx.VecEnv(spec, data=reference)
     text = str(error.value)

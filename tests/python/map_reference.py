@@ -186,9 +186,7 @@ def commonroad_map(path: str) -> Entry:
             other = getattr(lanelet, f"adj_{side}")
             same = getattr(lanelet, f"adj_{side}_same_direction")
             sides[side] = (
-                None
-                if other is None
-                else {"id": int(other), "same_direction": bool(same)}
+                None if other is None else {"id": int(other), "same_direction": bool(same)}
             )
         entries.append(
             {

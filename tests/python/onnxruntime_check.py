@@ -24,7 +24,9 @@ def load_safetensors(path: Path) -> dict[str, np.ndarray]:
     header = json.loads(data[8 : 8 + length])
     body = data[8 + length :]
     return {
-        name: np.frombuffer(body[e["data_offsets"][0] : e["data_offsets"][1]], "<f4").reshape(e["shape"])
+        name: np.frombuffer(body[e["data_offsets"][0] : e["data_offsets"][1]], "<f4").reshape(
+            e["shape"]
+        )
         for name, e in header.items()
         if name != "__metadata__"
     }
@@ -39,9 +41,11 @@ def main() -> None:
     while f"{prefix}.{len(layers)}.weight" in tensors:
         i = len(layers)
         layers.append((tensors[f"{prefix}.{i}.weight"], tensors[f"{prefix}.{i}.bias"]))
-    act = {"tanh": np.tanh, "relu": lambda x: np.maximum(x, 0), "elu": lambda x: np.where(x > 0, x, np.expm1(x))}[
-        activation
-    ]
+    act = {
+        "tanh": np.tanh,
+        "relu": lambda x: np.maximum(x, 0),
+        "elu": lambda x: np.where(x > 0, x, np.expm1(x)),
+    }[activation]
     rng = np.random.default_rng(0)
     x = rng.uniform(-2, 2, size=(512, layers[0][0].shape[1])).astype(np.float32)
     expected = x.astype(np.float64)
