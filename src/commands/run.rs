@@ -144,7 +144,17 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             done.out.display(),
             done.summarised,
             done.matrix_runs,
-            resume_command(args, &done.out)
+            resume_command(
+                &ResumeArgs {
+                    subcommand: "run",
+                    spec: &args.spec,
+                    only: &args.only,
+                    jobs: args.jobs,
+                    shard: args.shard,
+                    data: &args.data.data,
+                },
+                &done.out
+            )
         );
         return Err(Failure::Interrupted);
     }
@@ -211,16 +221,27 @@ pub(crate) fn session_failure(e: &RunError) -> Failure {
     }
 }
 
-/// The command that continues this one: the same arguments with `--out` and `--resume`.
-fn resume_command(args: &RunArgs, out: &Path) -> String {
+/// The arguments a resumed `cpmx run` or `cpmx train` repeats.
+pub(crate) struct ResumeArgs<'a> {
+    pub subcommand: &'a str,
+    pub spec: &'a Path,
+    pub only: &'a [String],
+    pub jobs: Option<usize>,
+    pub shard: Option<Shard>,
+    pub data: &'a [PathBuf],
+}
+
+/// The command that continues an interrupted one: the same arguments with `--out` and
+/// `--resume`.
+pub(crate) fn resume_command(args: &ResumeArgs<'_>, out: &Path) -> String {
     let mut words = vec![
         "cpmx".to_owned(),
-        "run".to_owned(),
+        args.subcommand.to_owned(),
         shell_word(&args.spec.display().to_string()),
         "--out".to_owned(),
         shell_word(&out.display().to_string()),
     ];
-    for only in &args.only {
+    for only in args.only {
         words.extend(["--only".to_owned(), shell_word(only)]);
     }
     if let Some(jobs) = args.jobs {
@@ -229,7 +250,7 @@ fn resume_command(args: &RunArgs, out: &Path) -> String {
     if let Some(shard) = args.shard {
         words.extend(["--shard".to_owned(), format!("{}/{}", shard.index, shard.count)]);
     }
-    for dir in &args.data.data {
+    for dir in args.data {
         words.extend(["--data".to_owned(), shell_word(&dir.display().to_string())]);
     }
     words.push("--resume".to_owned());

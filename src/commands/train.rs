@@ -231,7 +231,17 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
                     record.iteration,
                     run.planned(),
                     run.dir().display(),
-                    resume_command(args, &out)
+                    super::run::resume_command(
+                        &super::run::ResumeArgs {
+                            subcommand: "train",
+                            spec: &args.spec,
+                            only: &args.only,
+                            jobs: args.jobs,
+                            shard: args.shard,
+                            data: &args.data.data,
+                        },
+                        &out
+                    )
                 );
                 return Err(Failure::Interrupted);
             }
@@ -285,32 +295,6 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
         );
     }
     Ok(())
-}
-
-/// The command that continues this training: the same arguments with `--out` and `--resume`.
-fn resume_command(args: &TrainArgs, out: &Path) -> String {
-    use super::run::shell_word;
-    let mut words = vec![
-        "cpmx".to_owned(),
-        "train".to_owned(),
-        shell_word(&args.spec.display().to_string()),
-        "--out".to_owned(),
-        shell_word(&out.display().to_string()),
-    ];
-    for only in &args.only {
-        words.extend(["--only".to_owned(), shell_word(only)]);
-    }
-    if let Some(jobs) = args.jobs {
-        words.extend(["--jobs".to_owned(), jobs.to_string()]);
-    }
-    if let Some(shard) = args.shard {
-        words.extend(["--shard".to_owned(), format!("{}/{}", shard.index, shard.count)]);
-    }
-    for dir in &args.data.data {
-        words.extend(["--data".to_owned(), shell_word(&dir.display().to_string())]);
-    }
-    words.push("--resume".to_owned());
-    words.join(" ")
 }
 
 fn run_seed(run: &SeedRun) -> String {

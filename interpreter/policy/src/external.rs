@@ -6,8 +6,9 @@
 
 use std::sync::Arc;
 
-use cpmx_vehicle::{Command, Footprint, footprint_corners};
+use cpmx_vehicle::Command;
 
+use crate::memory::ObservationMemory;
 use crate::observation::{ObservationInput, SigmarlObservation};
 use crate::policy::{Policy, PolicyError, check_commands};
 
@@ -34,11 +35,9 @@ pub trait Decider: std::fmt::Debug + Send + Sync {
 pub struct ExternalPolicy {
     decider: Arc<dyn Decider>,
     observation: Option<SigmarlObservation>,
-    observations: Vec<f32>,
+    memory: ObservationMemory,
     states: Vec<f64>,
     actions: Vec<f64>,
-    previous_corners: Vec<Footprint>,
-    current_corners: Vec<Footprint>,
 }
 
 impl ExternalPolicy {
@@ -47,11 +46,9 @@ impl ExternalPolicy {
         ExternalPolicy {
             decider,
             observation,
-            observations: Vec::new(),
+            memory: ObservationMemory::default(),
             states: Vec::new(),
             actions: Vec::new(),
-            previous_corners: Vec::new(),
-            current_corners: Vec::new(),
         }
     }
 }
@@ -63,26 +60,10 @@ impl Policy for ExternalPolicy {
 
         // The observation, with SigmaRL's memory of the previous corners (as `MlpPolicy`).
         let size = self.observation.map_or(0, |o| o.size());
-        self.observations.resize(agents * size, 0.0);
-        if let Some(o) = self.observation {
-            if self.previous_corners.len() != agents {
-                self.previous_corners.clear();
-            }
-            let remembered = (!self.previous_corners.is_empty()).then_some(self.previous_corners.as_slice());
-            let observed = ObservationInput {
-                previous_corners: input.previous_corners.or(remembered),
-                ..*input
-            };
-            o.observe_all(&observed, &mut self.observations)?;
-            self.current_corners.clear();
-            self.current_corners.extend(
-                input
-                    .agents
-                    .iter()
-                    .map(|a| footprint_corners(input.vehicle, a.x_m, a.y_m, a.yaw_rad)),
-            );
-            std::mem::swap(&mut self.previous_corners, &mut self.current_corners);
-        }
+        let observations: &[f32] = match &self.observation {
+            Some(o) => self.memory.observe(o, input)?,
+            None => &[],
+        };
 
         // The states, then the decision.
         self.states.clear();
@@ -93,7 +74,7 @@ impl Policy for ExternalPolicy {
         self.actions.clear();
         self.actions.resize(agents * 2, 0.0);
         self.decider
-            .decide(&self.observations, size, &self.states, &mut self.actions)
+            .decide(observations, size, &self.states, &mut self.actions)
             .map_err(PolicyError::External)?;
         for (command, action) in out.iter_mut().zip(self.actions.chunks_exact(2)) {
             if !(action[0].is_finite() && action[1].is_finite()) {
@@ -111,7 +92,7 @@ impl Policy for ExternalPolicy {
     }
 
     fn reset(&mut self) {
-        self.previous_corners.clear();
+        self.memory.forget();
     }
 
     fn fork(&mut self) -> Box<dyn Policy> {

@@ -34,6 +34,7 @@ pub mod actor;
 pub mod external;
 pub mod geometry;
 pub mod lane_follow;
+mod memory;
 pub mod observation;
 pub mod policy;
 pub mod process;

@@ -8,12 +8,13 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use cpmx_vehicle::{Command, Footprint, footprint_corners};
+use cpmx_vehicle::Command;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha20Rng;
 
 use crate::action::{ActionHead, ActionMode, ActionOutput, OutputHead};
 use crate::actor::{ActorError, ActorWorkspace, MlpActor, MlpLayout};
+use crate::memory::ObservationMemory;
 use crate::observation::{ObservationError, ObservationInput, SigmarlObservation};
 
 /// Errors of building or calling a policy.
@@ -124,12 +125,11 @@ pub struct MlpPolicy {
     output: OutputHead,
     mode: ActionMode,
     rng: ChaCha20Rng,
-    observations: Vec<f32>,
+    /// The observations, with the corners of the states seen at the previous call (none after
+    /// a reset).
+    memory: ObservationMemory,
     raw: Vec<f32>,
     outputs: Vec<ActionOutput>,
-    /// Corners of the states seen at the previous call (empty after a reset).
-    previous_corners: Vec<Footprint>,
-    current_corners: Vec<Footprint>,
 }
 
 impl MlpPolicy {
@@ -198,11 +198,9 @@ impl MlpPolicy {
             output,
             mode,
             rng,
-            observations: Vec::new(),
+            memory: ObservationMemory::default(),
             raw: Vec::new(),
             outputs: Vec::new(),
-            previous_corners: Vec::new(),
-            current_corners: Vec::new(),
         })
     }
 
@@ -228,18 +226,13 @@ impl MlpPolicy {
 
     /// Observations of the last call (`agents * size` values, agent-major).
     pub fn observations(&self) -> &[f32] {
-        &self.observations
+        self.memory.observations()
     }
 
     /// Size buffers for `agents` (allocates only when the agent count grows).
     fn prepare(&mut self, agents: usize) {
-        self.observations.resize(agents * self.observation.size(), 0.0);
         self.raw.resize(agents * self.net.output_size(), 0.0);
         self.outputs.resize(agents, ActionOutput::default());
-        self.current_corners.resize(agents, Footprint::default());
-        if self.previous_corners.len() != agents {
-            self.previous_corners.clear();
-        }
         if let Net::Mlp { actor, workspace } = &mut self.net
             && workspace.capacity() < agents
         {
@@ -268,27 +261,15 @@ impl Policy for MlpPolicy {
         let agents = input.agents.len();
         self.prepare(agents);
 
-        // Observe all agents.
-        let remembered = (!self.previous_corners.is_empty()).then_some(self.previous_corners.as_slice());
-        let observed = ObservationInput {
-            previous_corners: input.previous_corners.or(remembered),
-            ..*input
-        };
-        self.observation.observe_all(&observed, &mut self.observations)?;
-
-        // Remember this step's corners for the next call.
-        for (slot, a) in self.current_corners.iter_mut().zip(input.agents) {
-            *slot = footprint_corners(input.vehicle, a.x_m, a.y_m, a.yaw_rad);
-        }
-        std::mem::swap(&mut self.previous_corners, &mut self.current_corners);
-        self.current_corners.resize(agents, Footprint::default());
+        // Observe all agents (remembering this step's corners for the next call).
+        let observations = self.memory.observe(&self.observation, input)?;
 
         // Network and action head.
         debug_assert_eq!(self.net.input_size(), self.observation.size());
         match &mut self.net {
-            Net::Mlp { actor, workspace } => actor.forward(&self.observations, workspace, &mut self.raw)?,
+            Net::Mlp { actor, workspace } => actor.forward(observations, workspace, &mut self.raw)?,
             Net::External(network) => network
-                .forward(&self.observations, &mut self.raw)
+                .forward(observations, &mut self.raw)
                 .map_err(PolicyError::Network)?,
         }
         for ((raw, output), command) in self
@@ -307,7 +288,7 @@ impl Policy for MlpPolicy {
     }
 
     fn reset(&mut self) {
-        self.previous_corners.clear();
+        self.memory.forget();
     }
 
     fn fork(&mut self) -> Box<dyn Policy> {

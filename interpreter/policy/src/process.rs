@@ -25,9 +25,10 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use cpmx_vehicle::{Command, Footprint, footprint_corners};
+use cpmx_vehicle::Command;
 use serde_json::{Value, json};
 
+use crate::memory::ObservationMemory;
 use crate::observation::{ObservationInput, SigmarlObservation};
 use crate::policy::{Policy, PolicyError, check_commands};
 
@@ -236,9 +237,7 @@ pub struct ProcessPolicy {
     greeted: Arc<Mutex<bool>>,
     /// The steering each agent was last commanded [rad].
     steering_rad: Vec<f64>,
-    observations: Vec<f32>,
-    previous_corners: Vec<Footprint>,
-    current_corners: Vec<Footprint>,
+    memory: ObservationMemory,
 }
 
 impl std::fmt::Debug for ProcessPolicy {
@@ -262,9 +261,7 @@ impl ProcessPolicy {
             step: 0,
             greeted: Arc::new(Mutex::new(false)),
             steering_rad: Vec::new(),
-            observations: Vec::new(),
-            previous_corners: Vec::new(),
-            current_corners: Vec::new(),
+            memory: ObservationMemory::default(),
         })
     }
 
@@ -319,7 +316,7 @@ impl ProcessPolicy {
             "agents": agents,
         });
         if let Some(o) = self.config.observation {
-            let rows: Vec<&[f32]> = self.observations.chunks(o.size().max(1)).collect();
+            let rows: Vec<&[f32]> = self.memory.observations().chunks(o.size().max(1)).collect();
             message["observations"] = json!(rows);
         }
         message
@@ -366,24 +363,7 @@ impl Policy for ProcessPolicy {
 
         // The observation, when asked for (with SigmaRL's memory of the previous corners).
         if let Some(o) = self.config.observation {
-            self.observations.resize(agents * o.size(), 0.0);
-            if self.previous_corners.len() != agents {
-                self.previous_corners.clear();
-            }
-            let remembered = (!self.previous_corners.is_empty()).then_some(self.previous_corners.as_slice());
-            let observed = ObservationInput {
-                previous_corners: input.previous_corners.or(remembered),
-                ..*input
-            };
-            o.observe_all(&observed, &mut self.observations)?;
-            self.current_corners.clear();
-            self.current_corners.extend(
-                input
-                    .agents
-                    .iter()
-                    .map(|a| footprint_corners(input.vehicle, a.x_m, a.y_m, a.yaw_rad)),
-            );
-            std::mem::swap(&mut self.previous_corners, &mut self.current_corners);
+            self.memory.observe(&o, input)?;
         }
 
         let mut channel = self
@@ -430,7 +410,7 @@ impl Policy for ProcessPolicy {
     }
 
     fn reset(&mut self) {
-        self.previous_corners.clear();
+        self.memory.forget();
         self.steering_rad.clear();
     }
 
@@ -442,9 +422,7 @@ impl Policy for ProcessPolicy {
             step: self.step,
             greeted: Arc::clone(&self.greeted),
             steering_rad: self.steering_rad.clone(),
-            observations: Vec::new(),
-            previous_corners: self.previous_corners.clone(),
-            current_corners: Vec::new(),
+            memory: self.memory.remembering(),
         })
     }
 }

@@ -1,0 +1,62 @@
+//! SigmaRL's observation over time: the observation of every agent, with each agent's footprint
+//! of the previous step remembered (SigmaRL's observation reads the previous corners), one rule
+//! for every policy that observes (network, process and Python policies).
+
+use cpmx_vehicle::{Footprint, footprint_corners};
+
+use crate::observation::{ObservationError, ObservationInput, SigmarlObservation};
+
+/// The observations of the last step and the footprints they remember. Allocates only when the
+/// agent count grows.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ObservationMemory {
+    observations: Vec<f32>,
+    previous_corners: Vec<Footprint>,
+    current_corners: Vec<Footprint>,
+}
+
+impl ObservationMemory {
+    /// Observes every agent with `design` (with the caller's previous corners if given, else
+    /// this memory's of the previous call) and remembers this step's corners.
+    pub(crate) fn observe(
+        &mut self,
+        design: &SigmarlObservation,
+        input: &ObservationInput<'_>,
+    ) -> Result<&[f32], ObservationError> {
+        let agents = input.agents.len();
+        self.observations.resize(agents * design.size(), 0.0);
+        if self.previous_corners.len() != agents {
+            self.previous_corners.clear();
+        }
+        let remembered = (!self.previous_corners.is_empty()).then_some(self.previous_corners.as_slice());
+        let observed = ObservationInput {
+            previous_corners: input.previous_corners.or(remembered),
+            ..*input
+        };
+        design.observe_all(&observed, &mut self.observations)?;
+        self.current_corners.resize(agents, Footprint::default());
+        for (slot, a) in self.current_corners.iter_mut().zip(input.agents) {
+            *slot = footprint_corners(input.vehicle, a.x_m, a.y_m, a.yaw_rad);
+        }
+        std::mem::swap(&mut self.previous_corners, &mut self.current_corners);
+        Ok(&self.observations)
+    }
+
+    /// The observations of the last call (`agents * size` values, agent-major).
+    pub(crate) fn observations(&self) -> &[f32] {
+        &self.observations
+    }
+
+    /// Forgets the previous step (a new episode).
+    pub(crate) fn forget(&mut self) {
+        self.previous_corners.clear();
+    }
+
+    /// A memory that remembers what this one does (for a policy's fork).
+    pub(crate) fn remembering(&self) -> ObservationMemory {
+        ObservationMemory {
+            previous_corners: self.previous_corners.clone(),
+            ..ObservationMemory::default()
+        }
+    }
+}
