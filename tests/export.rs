@@ -32,8 +32,13 @@ fn an_exported_actor_runs_in_onnxruntime_as_the_actor() {
         .arg("tanh")
         .output()
         .expect("python runs");
-    let largest: f64 = ok(&check).trim().parse().expect("a number");
-    assert!(largest < 1e-6, "onnxruntime differs from the actor by {largest}");
+    // In units of float32 rounding (see the script): a float32 evaluation of the same network
+    // is within a few, a wrong network thousands away.
+    let roundings: f64 = ok(&check).trim().parse().expect("a number");
+    assert!(
+        roundings < 32.0,
+        "onnxruntime differs from the actor by {roundings} float32 roundings"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 
