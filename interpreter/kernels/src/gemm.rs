@@ -3,10 +3,13 @@
 //! multiply-adds: 12 x 32 tiles with AVX-512 (24 of the 32 vector registers accumulate, enough
 //! to keep two 512-bit FMA units busy; A read in place through its strides: no packing of A;
 //! B in panels of 32 columns), 6 x 16 with AVX2 and FMA (A packed), and a portable kernel.
-//! B is always packed: read in place, a row-major B's rows lie a power of two apart and fall
-//! into a few L1 sets, so a panel does not stay in L1 between tiles (measured on an Intel core
-//! with two AVX-512 FMA units: 64-72 GFLOP/s in place with 12 x 16 tiles, 145-155 packed with
-//! 12 x 32, of a 175 GFLOP/s peak).
+//! B is packed whenever its panels are used by more than one tile: read in place, a row-major B's
+//! rows lie a power of two apart and fall into a few L1 sets, so a panel does not stay in L1
+//! between tiles (measured on an Intel core with two AVX-512 FMA units: 64-72 GFLOP/s in place
+//! with 12 x 16 tiles, 145-155 packed with 12 x 32, of a 175 GFLOP/s peak). A product of at most
+//! one tile of rows (an actor deciding for the agents of a run) uses each element of B once:
+//! packing would copy every weight to read it once more (in `cpmx run`, 20 % of a sim run's time
+//! went to packing), so a row-major B whose panels are all full is read in place there.
 //!
 //! Every element of C is one running sum over `k` in increasing order, one fused
 //! multiply-add per term, starting from C's previous value (or 0); a value stored between
@@ -175,11 +178,16 @@ pub fn gemm_with(
     );
     let width = kernel.panel_columns();
     let n_panels = n.div_ceil(width);
+    let tile = kernel.tile_rows();
+    // One tile of rows reads each element of B once: read a row-major B in place when every
+    // panel is full (the kernels load whole panel rows).
+    let in_place = m <= tile && b.cs == 1 && n.is_multiple_of(width);
     let mut packed_b = PACK_B.take();
-    packed_b.resize(n_panels * width * KC.min(k), 0.0);
+    if !in_place {
+        packed_b.resize(n_panels * width * KC.min(k), 0.0);
+    }
     // Row blocks: at least two per thread when there are enough rows.
     let threads = rayon::current_num_threads();
-    let tile = kernel.tile_rows();
     let blocks = m.div_ceil(MC_MAX).max((2 * threads).min(m.div_ceil(4 * tile)));
     let mc = m.div_ceil(blocks).div_ceil(tile) * tile;
     for pc in (0..k).step_by(KC) {
@@ -187,13 +195,25 @@ pub fn gemm_with(
         // Without `accumulate`, the first depth block starts every tile from zero instead of
         // loading C (the same sums as zeroing C first, without the pass over C).
         let load_c = accumulate || pc > 0;
-        let packed_b = &mut packed_b[..n_panels * width * kc];
-        if kernel == Kernel::Avx512 {
-            pack_b::<NR_WIDE>(&b, pc, kc, n, packed_b);
+        let panels = if in_place {
+            Panels {
+                data: &b.data[pc * b.rs..],
+                row_stride: b.rs,
+                panel_stride: width,
+            }
         } else {
-            pack_b::<NR>(&b, pc, kc, n, packed_b);
-        }
-        let packed_b = &*packed_b;
+            let packed_b = &mut packed_b[..n_panels * width * kc];
+            if kernel == Kernel::Avx512 {
+                pack_b::<NR_WIDE>(&b, pc, kc, n, packed_b);
+            } else {
+                pack_b::<NR>(&b, pc, kc, n, packed_b);
+            }
+            Panels {
+                data: &*packed_b,
+                row_stride: width,
+                panel_stride: width * kc,
+            }
+        };
         let c_rows = &mut c[..(m - 1) * ldc + n];
         let work = |(block, c_block): (usize, &mut [f32])| {
             let i0 = block * mc;
@@ -203,14 +223,14 @@ pub fn gemm_with(
                     data: &a.data[i0 * a.rs + pc * a.cs..],
                     ..a
                 };
-                block_product_wide(&a_block, packed_b, kc, rows, n, c_block, ldc, load_c);
+                block_product_wide(&a_block, &panels, kc, rows, n, c_block, ldc, load_c);
                 return;
             }
             PACK_A.with_borrow_mut(|packed_a| {
                 packed_a.resize(rows.div_ceil(MR) * MR * kc, 0.0);
                 pack_a(&a, i0, rows, pc, kc, packed_a);
                 let fma = kernel == Kernel::Avx2Fma;
-                block_product(packed_a, packed_b, kc, rows, n, c_block, ldc, fma, load_c);
+                block_product(packed_a, &panels, kc, rows, n, c_block, ldc, fma, load_c);
             });
         };
         if threads > 1 && blocks > 1 {
@@ -220,6 +240,22 @@ pub fn gemm_with(
         }
     }
     PACK_B.set(packed_b);
+}
+
+/// B's panels for one depth block, packed or in place: panel `jp`'s row `kk` (its `W` columns)
+/// starts at `data[jp * panel_stride + kk * row_stride]`.
+#[derive(Debug, Clone, Copy)]
+struct Panels<'a> {
+    data: &'a [f32],
+    row_stride: usize,
+    panel_stride: usize,
+}
+
+impl<'a> Panels<'a> {
+    /// Panel `jp` from its first row on.
+    fn panel(&self, jp: usize) -> &'a [f32] {
+        &self.data[jp * self.panel_stride..]
+    }
 }
 
 /// Whether the AVX2+FMA kernel runs on this CPU.
@@ -306,6 +342,18 @@ fn pack_a(a: &Mat<'_>, i0: usize, rows: usize, pc: usize, kc: usize, out: &mut [
             for (kk, col) in panel.as_chunks_mut::<MR>().0.iter_mut().enumerate() {
                 *col = std::array::from_fn(|r| rows[r][kk]);
             }
+        } else if a.cs == 1 {
+            // A row-major last panel (the agents of a run): the rows there, zeros below.
+            let rows: [&[f32]; MR] = std::array::from_fn(|r| {
+                if r < valid {
+                    &a.data[(r0 + r) * a.rs + pc..][..kc]
+                } else {
+                    &[]
+                }
+            });
+            for (kk, col) in panel.as_chunks_mut::<MR>().0.iter_mut().enumerate() {
+                *col = std::array::from_fn(|r| if r < valid { rows[r][kk] } else { 0.0 });
+            }
         } else {
             for r in 0..MR {
                 if r < valid {
@@ -328,7 +376,7 @@ fn pack_a(a: &Mat<'_>, i0: usize, rows: usize, pc: usize, kc: usize, out: &mut [
 #[allow(clippy::too_many_arguments)]
 fn block_product(
     packed_a: &[f32],
-    packed_b: &[f32],
+    panels: &Panels<'_>,
     kc: usize,
     rows: usize,
     n: usize,
@@ -338,7 +386,9 @@ fn block_product(
     load_c: bool,
 ) {
     let mut tile = [[0.0f32; NR]; MR];
-    for (jp, b_panel) in packed_b.chunks_exact(NR * kc).enumerate() {
+    let ldb = panels.row_stride;
+    for jp in 0..n.div_ceil(NR) {
+        let b_panel = panels.panel(jp);
         let j0 = jp * NR;
         let cols = NR.min(n - j0);
         for (ip, a_panel) in packed_a.chunks_exact(MR * kc).enumerate() {
@@ -346,14 +396,14 @@ fn block_product(
             let valid = MR.min(rows - i0);
             if valid == MR && cols == NR {
                 let c = &mut c_block[i0 * ldc + j0..(i0 + MR - 1) * ldc + j0 + NR];
-                micro_kernel(kc, a_panel, b_panel, c, ldc, fma, load_c);
+                micro_kernel(kc, a_panel, b_panel, ldb, c, ldc, fma, load_c);
             } else {
                 if load_c {
                     for (r, t) in tile.iter_mut().enumerate().take(valid) {
                         t[..cols].copy_from_slice(&c_block[(i0 + r) * ldc + j0..][..cols]);
                     }
                 }
-                micro_kernel(kc, a_panel, b_panel, tile.as_flattened_mut(), NR, fma, load_c);
+                micro_kernel(kc, a_panel, b_panel, ldb, tile.as_flattened_mut(), NR, fma, load_c);
                 for (r, t) in tile.iter().enumerate().take(valid) {
                     c_block[(i0 + r) * ldc + j0..][..cols].copy_from_slice(&t[..cols]);
                 }
@@ -362,21 +412,22 @@ fn block_product(
     }
 }
 
-/// `C_tile += A_panel B_panel` over `kc` terms (`C_tile = ...` when `load_c` is false); `c`
-/// holds the `MR x NR` tile with row stride `ldc` (`c[r * ldc + j]`).
+/// `C_tile += A_panel B_panel` over `kc` terms (`C_tile = ...` when `load_c` is false); B's
+/// row `kk` is `b[kk * ldb..][..NR]`; `c` holds the `MR x NR` tile with row stride `ldc`
+/// (`c[r * ldc + j]`).
 #[inline]
 #[allow(clippy::too_many_arguments)]
-fn micro_kernel(kc: usize, a: &[f32], b: &[f32], c: &mut [f32], ldc: usize, fma: bool, load_c: bool) {
-    assert!(a.len() >= kc * MR && b.len() >= kc * NR && c.len() > (MR - 1) * ldc + NR - 1);
+fn micro_kernel(kc: usize, a: &[f32], b: &[f32], ldb: usize, c: &mut [f32], ldc: usize, fma: bool, load_c: bool) {
+    assert!(a.len() >= kc * MR && b.len() >= (kc - 1) * ldb + NR && c.len() > (MR - 1) * ldc + NR - 1);
     #[cfg(target_arch = "x86_64")]
     if fma {
         // SAFETY: the CPU has AVX2 and FMA (checked by `has_fma`); the panels hold `kc` rows
         // and `c` the tile (asserted above).
-        unsafe { micro_kernel_avx2(kc, a.as_ptr(), b.as_ptr(), c.as_mut_ptr(), ldc, load_c) };
+        unsafe { micro_kernel_avx2(kc, a.as_ptr(), b.as_ptr(), ldb, c.as_mut_ptr(), ldc, load_c) };
         return;
     }
     let _ = fma;
-    micro_kernel_portable(kc, a, b, c, ldc, load_c);
+    micro_kernel_portable(kc, a, b, ldb, c, ldc, load_c);
 }
 
 /// All tiles of one row block with the AVX-512 kernel, reading A in place: `a` starts at the
@@ -386,7 +437,7 @@ fn micro_kernel(kc: usize, a: &[f32], b: &[f32], c: &mut [f32], ldc: usize, fma:
 #[allow(clippy::too_many_arguments)]
 fn block_product_wide(
     a: &Mat<'_>,
-    packed_b: &[f32],
+    panels: &Panels<'_>,
     kc: usize,
     rows: usize,
     n: usize,
@@ -396,7 +447,9 @@ fn block_product_wide(
 ) {
     assert!(a.data.len() > (rows - 1) * a.rs + (kc - 1) * a.cs, "A block");
     let mut tile = [[0.0f32; NR_WIDE]; MR_WIDE];
-    for (jp, b_panel) in packed_b.chunks_exact(NR_WIDE * kc).enumerate() {
+    let ldb = panels.row_stride;
+    for jp in 0..n.div_ceil(NR_WIDE) {
+        let b_panel = panels.panel(jp);
         let j0 = jp * NR_WIDE;
         let cols = NR_WIDE.min(n - j0);
         // One vector where the panel's second half is padding.
@@ -406,7 +459,7 @@ fn block_product_wide(
             let a_tile = &a.data[i0 * a.rs..];
             if cols == vectors * NR {
                 let c = &mut c_block[i0 * ldc + j0..(i0 + valid - 1) * ldc + j0 + cols];
-                wide_kernel(valid, vectors, kc, a_tile, a.rs, a.cs, b_panel, c, ldc, load_c);
+                wide_kernel(valid, vectors, kc, a_tile, a.rs, a.cs, b_panel, ldb, c, ldc, load_c);
             } else {
                 if load_c {
                     for (r, t) in tile.iter_mut().enumerate().take(valid) {
@@ -415,7 +468,7 @@ fn block_product_wide(
                 }
                 let t = &mut tile.as_flattened_mut()[..(valid - 1) * NR_WIDE + vectors * NR];
                 wide_kernel(
-                    valid, vectors, kc, a_tile, a.rs, a.cs, b_panel, t, NR_WIDE, load_c,
+                    valid, vectors, kc, a_tile, a.rs, a.cs, b_panel, ldb, t, NR_WIDE, load_c,
                 );
                 for (r, t) in tile.iter().enumerate().take(valid) {
                     c_block[(i0 + r) * ldc + j0..][..cols].copy_from_slice(&t[..cols]);
@@ -427,7 +480,7 @@ fn block_product_wide(
 
 /// The AVX-512 tile of `rows` (1 to [`MR_WIDE`]) rows and `vectors` (1 or 2) times 16
 /// columns: `C_tile (+)= A_tile B_panel` over `kc` terms, A element `(r, kk)` at
-/// `a[r * rs + kk * cs]`, B row `kk` at `b[kk * NR_WIDE..]`, C element `(r, j)` at
+/// `a[r * rs + kk * cs]`, B row `kk` at `b[kk * ldb..]`, C element `(r, j)` at
 /// `c[r * ldc + j]`.
 #[allow(clippy::too_many_arguments)]
 fn wide_kernel(
@@ -438,6 +491,7 @@ fn wide_kernel(
     rs: usize,
     cs: usize,
     b: &[f32],
+    ldb: usize,
     c: &mut [f32],
     ldc: usize,
     load_c: bool,
@@ -446,7 +500,7 @@ fn wide_kernel(
         (1..=MR_WIDE).contains(&rows)
             && (1..=2).contains(&vectors)
             && a.len() > (rows - 1) * rs + (kc - 1) * cs
-            && b.len() >= kc * NR_WIDE
+            && b.len() >= (kc - 1) * ldb + vectors * NR
             && c.len() >= (rows - 1) * ldc + vectors * NR
     );
     #[cfg(target_arch = "x86_64")]
@@ -458,8 +512,8 @@ fn wide_kernel(
                     // SAFETY: the kernel is only chosen when the CPU has AVX-512F
                     // (`Kernel::available`); the operands hold the tile (asserted above).
                     $(
-                        ($r, 1) => unsafe { micro_kernel_avx512::<$r, 1>(kc, a, rs, cs, b, c, ldc, load_c) },
-                        ($r, _) => unsafe { micro_kernel_avx512::<$r, 2>(kc, a, rs, cs, b, c, ldc, load_c) },
+                        ($r, 1) => unsafe { micro_kernel_avx512::<$r, 1>(kc, a, rs, cs, b, ldb, c, ldc, load_c) },
+                        ($r, _) => unsafe { micro_kernel_avx512::<$r, 2>(kc, a, rs, cs, b, ldb, c, ldc, load_c) },
                     )*
                     _ => unreachable!("1 to 12 rows"),
                 }
@@ -473,7 +527,7 @@ fn wide_kernel(
 
 /// # Safety
 /// The CPU must support AVX-512F; `a` must be valid at `r * rs + kk * cs` for `r < R`,
-/// `kk < kc`, `b` at `kk * NR_WIDE + j`, and `c` at `r * ldc + j`, `r < R`, `j < 16 V`.
+/// `kk < kc`, `b` at `kk * ldb + j`, and `c` at `r * ldc + j`, `r < R`, `j < 16 V`.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 #[allow(clippy::too_many_arguments)]
@@ -483,6 +537,7 @@ unsafe fn micro_kernel_avx512<const R: usize, const V: usize>(
     rs: usize,
     cs: usize,
     b: *const f32,
+    ldb: usize,
     c: *mut f32,
     ldc: usize,
     load_c: bool,
@@ -500,7 +555,7 @@ unsafe fn micro_kernel_avx512<const R: usize, const V: usize>(
     for kk in 0..kc {
         // SAFETY: `kk < kc`, `r < R`, `v < V`: within the operands (caller's guarantee).
         unsafe {
-            let b_k: [__m512; V] = std::array::from_fn(|v| _mm512_loadu_ps(b.add(kk * NR_WIDE + v * NR)));
+            let b_k: [__m512; V] = std::array::from_fn(|v| _mm512_loadu_ps(b.add(kk * ldb + v * NR)));
             let a_k = a.add(kk * cs);
             for (r, acc_r) in acc.iter_mut().enumerate() {
                 let a_rk = _mm512_set1_ps(*a_k.add(r * rs));
@@ -523,6 +578,7 @@ pub(crate) fn micro_kernel_portable(
     kc: usize,
     a: &[f32],
     b: &[f32],
+    ldb: usize,
     c: &mut [f32],
     ldc: usize,
     load_c: bool,
@@ -534,7 +590,7 @@ pub(crate) fn micro_kernel_portable(
         }
     }
     for kk in 0..kc {
-        let b_row = &b[kk * NR..kk * NR + NR];
+        let b_row = &b[kk * ldb..kk * ldb + NR];
         for (r, t) in tile.iter_mut().enumerate() {
             let a_rk = a[kk * MR + r];
             for (t_rc, &b_kc) in t.iter_mut().zip(b_row) {
@@ -548,11 +604,20 @@ pub(crate) fn micro_kernel_portable(
 }
 
 /// # Safety
-/// The CPU must support AVX2 and FMA; `a`, `b` must be valid for `kc * MR` and `kc * NR`
-/// values and `c` for the tile `c[r * ldc + j]`, `r < MR`, `j < NR`.
+/// The CPU must support AVX2 and FMA; `a` must be valid for `kc * MR` values, `b` at
+/// `kk * ldb + j` for `kk < kc`, `j < NR`, and `c` for the tile `c[r * ldc + j]`, `r < MR`,
+/// `j < NR`.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn micro_kernel_avx2(kc: usize, a: *const f32, b: *const f32, c: *mut f32, ldc: usize, load_c: bool) {
+unsafe fn micro_kernel_avx2(
+    kc: usize,
+    a: *const f32,
+    b: *const f32,
+    ldb: usize,
+    c: *mut f32,
+    ldc: usize,
+    load_c: bool,
+) {
     use std::arch::x86_64::*;
     let mut acc = [[_mm256_setzero_ps(); 2]; MR];
     for (r, acc_r) in acc.iter_mut().enumerate().filter(|_| load_c) {
@@ -565,8 +630,8 @@ unsafe fn micro_kernel_avx2(kc: usize, a: *const f32, b: *const f32, c: *mut f32
     for kk in 0..kc {
         // SAFETY: `kk < kc`, within the panels (caller's guarantee).
         unsafe {
-            let b0 = _mm256_loadu_ps(b.add(kk * NR));
-            let b1 = _mm256_loadu_ps(b.add(kk * NR + 8));
+            let b0 = _mm256_loadu_ps(b.add(kk * ldb));
+            let b1 = _mm256_loadu_ps(b.add(kk * ldb + 8));
             let a_k = a.add(kk * MR);
             for (r, acc_r) in acc.iter_mut().enumerate() {
                 let a_rk = _mm256_broadcast_ss(&*a_k.add(r));
@@ -645,19 +710,19 @@ mod tests {
             std::array::from_fn(|r| std::array::from_fn(|c| (r * NR + c) as f32 * 0.01));
         let bits = |t: &[[f32; NR]; MR]| t.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
         let mut portable = start;
-        micro_kernel_portable(kc, &a, &b, portable.as_flattened_mut(), NR, true);
+        micro_kernel_portable(kc, &a, &b, NR, portable.as_flattened_mut(), NR, true);
         let mut chosen = start;
-        micro_kernel(kc, &a, &b, chosen.as_flattened_mut(), NR, has_fma(), true);
+        micro_kernel(kc, &a, &b, NR, chosen.as_flattened_mut(), NR, has_fma(), true);
         assert_eq!(bits(&portable), bits(&chosen));
         // Without loading C, both start from zero: the same as a zeroed C.
         let mut zeroed = [[0.0f32; NR]; MR];
-        micro_kernel_portable(kc, &a, &b, zeroed.as_flattened_mut(), NR, true);
+        micro_kernel_portable(kc, &a, &b, NR, zeroed.as_flattened_mut(), NR, true);
         for kernel in [false, true] {
             let mut fresh = start;
             if kernel {
-                micro_kernel(kc, &a, &b, fresh.as_flattened_mut(), NR, has_fma(), false);
+                micro_kernel(kc, &a, &b, NR, fresh.as_flattened_mut(), NR, has_fma(), false);
             } else {
-                micro_kernel_portable(kc, &a, &b, fresh.as_flattened_mut(), NR, false);
+                micro_kernel_portable(kc, &a, &b, NR, fresh.as_flattened_mut(), NR, false);
             }
             assert_eq!(bits(&fresh), bits(&zeroed));
         }
@@ -675,6 +740,10 @@ mod tests {
             (25, 64, 33),
             (12, 16, 9),
             (29, 100, 260),
+            (3, 64, 300),
+            (6, 32, 256),
+            (1, 16, 9),
+            (12, 64, 40),
         ] {
             let a_rm = data(m * k, 7.0);
             let b_rm = data(k * n, 8.0);
@@ -695,6 +764,22 @@ mod tests {
                     assert_eq!(run(kernel), want, "{kernel:?} {m}x{n}x{k}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn a_few_rows_read_in_place_give_the_bits_of_the_packed_product() {
+        // Three rows (B read in place) against the same rows inside a product of 40 (packed).
+        let (n, k) = (64, 300);
+        let a = data(40 * k, 3.0);
+        let b = data(k * n, 4.0);
+        for kernel in Kernel::available() {
+            let mut many = vec![0.5f32; 40 * n];
+            gemm_with(kernel, 40, n, k, Mat::rows(&a, k), Mat::rows(&b, n), &mut many, n, true);
+            let mut few = vec![0.5f32; 3 * n];
+            gemm_with(kernel, 3, n, k, Mat::rows(&a, k), Mat::rows(&b, n), &mut few, n, true);
+            let bits = |c: &[f32]| c.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&few), bits(&many[..3 * n]), "{kernel:?}");
         }
     }
 
