@@ -394,16 +394,18 @@ fn block_product(
         for (ip, a_panel) in packed_a.chunks_exact(MR * kc).enumerate() {
             let i0 = ip * MR;
             let valid = MR.min(rows - i0);
-            if valid == MR && cols == NR {
-                let c = &mut c_block[i0 * ldc + j0..(i0 + MR - 1) * ldc + j0 + NR];
-                micro_kernel(kc, a_panel, b_panel, ldb, c, ldc, fma, load_c);
+            if cols == NR {
+                // Full-width tiles, a last one of fewer rows too (the agents of a run): only
+                // the rows that are there are multiplied.
+                let c = &mut c_block[i0 * ldc + j0..(i0 + valid - 1) * ldc + j0 + NR];
+                micro_kernel(valid, kc, a_panel, b_panel, ldb, c, ldc, fma, load_c);
             } else {
                 if load_c {
                     for (r, t) in tile.iter_mut().enumerate().take(valid) {
                         t[..cols].copy_from_slice(&c_block[(i0 + r) * ldc + j0..][..cols]);
                     }
                 }
-                micro_kernel(kc, a_panel, b_panel, ldb, tile.as_flattened_mut(), NR, fma, load_c);
+                micro_kernel(MR, kc, a_panel, b_panel, ldb, tile.as_flattened_mut(), NR, fma, load_c);
                 for (r, t) in tile.iter().enumerate().take(valid) {
                     c_block[(i0 + r) * ldc + j0..][..cols].copy_from_slice(&t[..cols]);
                 }
@@ -412,22 +414,47 @@ fn block_product(
     }
 }
 
-/// `C_tile += A_panel B_panel` over `kc` terms (`C_tile = ...` when `load_c` is false); B's
-/// row `kk` is `b[kk * ldb..][..NR]`; `c` holds the `MR x NR` tile with row stride `ldc`
-/// (`c[r * ldc + j]`).
+/// `C_tile += A_panel B_panel` over `kc` terms (`C_tile = ...` when `load_c` is false) for the
+/// first `rows` (1 to [`MR`]) rows of the A panel; B's row `kk` is `b[kk * ldb..][..NR]`; `c`
+/// holds the `rows x NR` tile with row stride `ldc` (`c[r * ldc + j]`).
 #[inline]
 #[allow(clippy::too_many_arguments)]
-fn micro_kernel(kc: usize, a: &[f32], b: &[f32], ldb: usize, c: &mut [f32], ldc: usize, fma: bool, load_c: bool) {
-    assert!(a.len() >= kc * MR && b.len() >= (kc - 1) * ldb + NR && c.len() > (MR - 1) * ldc + NR - 1);
+fn micro_kernel(
+    rows: usize,
+    kc: usize,
+    a: &[f32],
+    b: &[f32],
+    ldb: usize,
+    c: &mut [f32],
+    ldc: usize,
+    fma: bool,
+    load_c: bool,
+) {
+    assert!(
+        (1..=MR).contains(&rows)
+            && a.len() >= kc * MR
+            && b.len() >= (kc - 1) * ldb + NR
+            && c.len() > (rows - 1) * ldc + NR - 1
+    );
     #[cfg(target_arch = "x86_64")]
     if fma {
+        let (a, b, c) = (a.as_ptr(), b.as_ptr(), c.as_mut_ptr());
         // SAFETY: the CPU has AVX2 and FMA (checked by `has_fma`); the panels hold `kc` rows
-        // and `c` the tile (asserted above).
-        unsafe { micro_kernel_avx2(kc, a.as_ptr(), b.as_ptr(), ldb, c.as_mut_ptr(), ldc, load_c) };
+        // and `c` the tile's `rows` rows (asserted above).
+        unsafe {
+            match rows {
+                1 => micro_kernel_avx2::<1>(kc, a, b, ldb, c, ldc, load_c),
+                2 => micro_kernel_avx2::<2>(kc, a, b, ldb, c, ldc, load_c),
+                3 => micro_kernel_avx2::<3>(kc, a, b, ldb, c, ldc, load_c),
+                4 => micro_kernel_avx2::<4>(kc, a, b, ldb, c, ldc, load_c),
+                5 => micro_kernel_avx2::<5>(kc, a, b, ldb, c, ldc, load_c),
+                _ => micro_kernel_avx2::<MR>(kc, a, b, ldb, c, ldc, load_c),
+            }
+        }
         return;
     }
     let _ = fma;
-    micro_kernel_portable(kc, a, b, ldb, c, ldc, load_c);
+    micro_kernel_portable(rows, kc, a, b, ldb, c, ldc, load_c);
 }
 
 /// All tiles of one row block with the AVX-512 kernel, reading A in place: `a` starts at the
@@ -574,7 +601,9 @@ unsafe fn micro_kernel_avx512<const R: usize, const V: usize>(
 }
 
 /// The reference micro-kernel: the same fused operations in the same order as the AVX2 one.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn micro_kernel_portable(
+    rows: usize,
     kc: usize,
     a: &[f32],
     b: &[f32],
@@ -584,6 +613,7 @@ pub(crate) fn micro_kernel_portable(
     load_c: bool,
 ) {
     let mut tile = [[0.0f32; NR]; MR];
+    let tile = &mut tile[..rows];
     if load_c {
         for (r, t) in tile.iter_mut().enumerate() {
             t.copy_from_slice(&c[r * ldc..r * ldc + NR]);
@@ -604,12 +634,12 @@ pub(crate) fn micro_kernel_portable(
 }
 
 /// # Safety
-/// The CPU must support AVX2 and FMA; `a` must be valid for `kc * MR` values, `b` at
-/// `kk * ldb + j` for `kk < kc`, `j < NR`, and `c` for the tile `c[r * ldc + j]`, `r < MR`,
+/// The CPU must support AVX2 and FMA; `R <= MR`; `a` must be valid for `kc * MR` values, `b`
+/// at `kk * ldb + j` for `kk < kc`, `j < NR`, and `c` for the tile `c[r * ldc + j]`, `r < R`,
 /// `j < NR`.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn micro_kernel_avx2(
+unsafe fn micro_kernel_avx2<const R: usize>(
     kc: usize,
     a: *const f32,
     b: *const f32,
@@ -619,7 +649,7 @@ unsafe fn micro_kernel_avx2(
     load_c: bool,
 ) {
     use std::arch::x86_64::*;
-    let mut acc = [[_mm256_setzero_ps(); 2]; MR];
+    let mut acc = [[_mm256_setzero_ps(); 2]; R];
     for (r, acc_r) in acc.iter_mut().enumerate().filter(|_| load_c) {
         // SAFETY: within the tile (caller's guarantee).
         unsafe {
@@ -710,19 +740,19 @@ mod tests {
             std::array::from_fn(|r| std::array::from_fn(|c| (r * NR + c) as f32 * 0.01));
         let bits = |t: &[[f32; NR]; MR]| t.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
         let mut portable = start;
-        micro_kernel_portable(kc, &a, &b, NR, portable.as_flattened_mut(), NR, true);
+        micro_kernel_portable(MR, kc, &a, &b, NR, portable.as_flattened_mut(), NR, true);
         let mut chosen = start;
-        micro_kernel(kc, &a, &b, NR, chosen.as_flattened_mut(), NR, has_fma(), true);
+        micro_kernel(MR, kc, &a, &b, NR, chosen.as_flattened_mut(), NR, has_fma(), true);
         assert_eq!(bits(&portable), bits(&chosen));
         // Without loading C, both start from zero: the same as a zeroed C.
         let mut zeroed = [[0.0f32; NR]; MR];
-        micro_kernel_portable(kc, &a, &b, NR, zeroed.as_flattened_mut(), NR, true);
+        micro_kernel_portable(MR, kc, &a, &b, NR, zeroed.as_flattened_mut(), NR, true);
         for kernel in [false, true] {
             let mut fresh = start;
             if kernel {
-                micro_kernel(kc, &a, &b, NR, fresh.as_flattened_mut(), NR, has_fma(), false);
+                micro_kernel(MR, kc, &a, &b, NR, fresh.as_flattened_mut(), NR, has_fma(), false);
             } else {
-                micro_kernel_portable(kc, &a, &b, NR, fresh.as_flattened_mut(), NR, false);
+                micro_kernel_portable(MR, kc, &a, &b, NR, fresh.as_flattened_mut(), NR, false);
             }
             assert_eq!(bits(&fresh), bits(&zeroed));
         }

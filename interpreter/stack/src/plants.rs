@@ -3,6 +3,8 @@
 //! and `GreyBoxPlant` (the twin: the lab's identified model, MPC inputs = throttle and
 //! steering servo, as the µCar's own MPC).
 
+use std::cell::Cell;
+
 use cpmx_follower::{BicycleModel, InputLimits, Model, TrajectorySample, unwrap_near};
 use cpmx_sensing::Pose2;
 use cpmx_spec::model::GreyBoxModel;
@@ -234,6 +236,9 @@ pub const STOP_BRAKE_GAIN: f64 = 0.5;
 pub struct GreyBoxMpcModel {
     model: GreyBoxVehicle,
     battery_voltage_v: f64,
+    /// The last `|f|^p8` computed, by the bits of `|f|`: the prediction holds each move for two
+    /// steps, so every second power is the one before (the same call, the same bits).
+    last_power: Cell<(u64, f64)>,
 }
 
 impl GreyBoxMpcModel {
@@ -243,7 +248,19 @@ impl GreyBoxMpcModel {
         Ok(Self {
             model: GreyBoxVehicle::new(params)?,
             battery_voltage_v: params.battery_voltage_v,
+            last_power: Cell::new((f64::NAN.to_bits(), f64::NAN)),
         })
+    }
+
+    /// `|throttle|^p8`, the motor term's magnitude.
+    fn throttle_power(&self, throttle_abs: f64, exponent: f64) -> f64 {
+        let (bits, power) = self.last_power.get();
+        if bits == throttle_abs.to_bits() {
+            return power;
+        }
+        let power = throttle_abs.powf(exponent);
+        self.last_power.set((throttle_abs.to_bits(), power));
+        power
     }
 }
 
@@ -278,7 +295,7 @@ impl Model<4, 2> for GreyBoxMpcModel {
         let s = gain * v;
         let (sin, cos) = (yaw + p[2] * d + p[9]).sin_cos();
         let motor = p[5] + p[6] * self.battery_voltage_v;
-        let magnitude = f.abs().powf(p[7]);
+        let magnitude = self.throttle_power(f.abs(), p[7]);
         let sign = if f >= 0.0 { 1.0 } else { -1.0 };
         let next = [
             x + h * s * cos,
