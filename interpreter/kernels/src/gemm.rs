@@ -226,6 +226,16 @@ pub fn gemm_with(
                 block_product_wide(&a_block, &panels, kc, rows, n, c_block, ldc, load_c);
                 return;
             }
+            #[cfg(target_arch = "x86_64")]
+            if kernel == Kernel::Avx2Fma && in_place && rows <= FEW_ROWS && n.is_multiple_of(FEW_ROWS_COLUMNS)
+            {
+                let a_block = Mat {
+                    data: &a.data[i0 * a.rs + pc * a.cs..],
+                    ..a
+                };
+                few_rows_product(&a_block, &panels, kc, rows, n, c_block, ldc, load_c);
+                return;
+            }
             PACK_A.with_borrow_mut(|packed_a| {
                 packed_a.resize(rows.div_ceil(MR) * MR * kc, 0.0);
                 pack_a(&a, i0, rows, pc, kc, packed_a);
@@ -405,11 +415,121 @@ fn block_product(
                         t[..cols].copy_from_slice(&c_block[(i0 + r) * ldc + j0..][..cols]);
                     }
                 }
-                micro_kernel(MR, kc, a_panel, b_panel, ldb, tile.as_flattened_mut(), NR, fma, load_c);
+                micro_kernel(
+                    MR,
+                    kc,
+                    a_panel,
+                    b_panel,
+                    ldb,
+                    tile.as_flattened_mut(),
+                    NR,
+                    fma,
+                    load_c,
+                );
                 for (r, t) in tile.iter().enumerate().take(valid) {
                     c_block[(i0 + r) * ldc + j0..][..cols].copy_from_slice(&t[..cols]);
                 }
             }
+        }
+    }
+}
+
+/// Rows up to which [`few_rows_product`] multiplies with AVX2 (its tile of 3 x 32 keeps 12
+/// accumulators in flight, where a 3-row slice of the 6 x 16 tile keeps 6: too few to hide
+/// the fused multiply-add's latency).
+#[cfg(target_arch = "x86_64")]
+const FEW_ROWS: usize = 3;
+/// Columns of [`few_rows_product`]'s tile (four 256-bit vectors).
+#[cfg(target_arch = "x86_64")]
+const FEW_ROWS_COLUMNS: usize = 32;
+
+/// At most [`FEW_ROWS`] rows with the AVX2 kernel, A and B read in place (the agents of a run
+/// through an actor's layer): tiles of `rows` x 32, `a` starting at the block's first row and
+/// depth, B's panels in place. The sums are the other kernels' (one fused multiply-add per
+/// term in increasing `k`), so are the bits.
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
+fn few_rows_product(
+    a: &Mat<'_>,
+    panels: &Panels<'_>,
+    kc: usize,
+    rows: usize,
+    n: usize,
+    c_block: &mut [f32],
+    ldc: usize,
+    load_c: bool,
+) {
+    let ldb = panels.row_stride;
+    assert!(
+        (1..=FEW_ROWS).contains(&rows)
+            && n.is_multiple_of(FEW_ROWS_COLUMNS)
+            && a.data.len() > (rows - 1) * a.rs + (kc - 1) * a.cs
+            && panels.data.len() >= (kc - 1) * ldb + n
+            && c_block.len() >= (rows - 1) * ldc + n
+    );
+    for j0 in (0..n).step_by(FEW_ROWS_COLUMNS) {
+        let (a_ptr, b, c) = (
+            a.data.as_ptr(),
+            panels.data[j0..].as_ptr(),
+            c_block[j0..].as_mut_ptr(),
+        );
+        // SAFETY: chosen only with AVX2 and FMA (`Kernel::Avx2Fma`); A holds `rows` rows of
+        // `kc` terms, B `kc` rows of the 32 columns from `j0`, C the tile (asserted above).
+        unsafe {
+            match rows {
+                1 => few_rows_kernel_avx2::<1>(kc, a_ptr, a.rs, a.cs, b, ldb, c, ldc, load_c),
+                2 => few_rows_kernel_avx2::<2>(kc, a_ptr, a.rs, a.cs, b, ldb, c, ldc, load_c),
+                _ => few_rows_kernel_avx2::<3>(kc, a_ptr, a.rs, a.cs, b, ldb, c, ldc, load_c),
+            }
+        }
+    }
+}
+
+/// # Safety
+/// The CPU must support AVX2 and FMA; `a` must be valid at `r * rs + kk * cs` for `r < R`,
+/// `kk < kc`, `b` at `kk * ldb + j` for `j < 32`, and `c` at `r * ldc + j`, `j < 32`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn few_rows_kernel_avx2<const R: usize>(
+    kc: usize,
+    a: *const f32,
+    rs: usize,
+    cs: usize,
+    b: *const f32,
+    ldb: usize,
+    c: *mut f32,
+    ldc: usize,
+    load_c: bool,
+) {
+    use std::arch::x86_64::*;
+    const V: usize = FEW_ROWS_COLUMNS / 8;
+    let mut acc = [[_mm256_setzero_ps(); V]; R];
+    if load_c {
+        for (r, acc_r) in acc.iter_mut().enumerate() {
+            for (v, acc_rv) in acc_r.iter_mut().enumerate() {
+                // SAFETY: within the tile (caller's guarantee).
+                *acc_rv = unsafe { _mm256_loadu_ps(c.add(r * ldc + v * 8)) };
+            }
+        }
+    }
+    for kk in 0..kc {
+        // SAFETY: `kk < kc`, `r < R`, `v < V`: within the operands (caller's guarantee).
+        unsafe {
+            let b_k: [__m256; V] = std::array::from_fn(|v| _mm256_loadu_ps(b.add(kk * ldb + v * 8)));
+            let a_k = a.add(kk * cs);
+            for (r, acc_r) in acc.iter_mut().enumerate() {
+                let a_rk = _mm256_broadcast_ss(&*a_k.add(r * rs));
+                for (acc_rv, &b_kv) in acc_r.iter_mut().zip(&b_k) {
+                    *acc_rv = _mm256_fmadd_ps(a_rk, b_kv, *acc_rv);
+                }
+            }
+        }
+    }
+    for (r, acc_r) in acc.iter().enumerate() {
+        for (v, acc_rv) in acc_r.iter().enumerate() {
+            // SAFETY: within the tile (caller's guarantee).
+            unsafe { _mm256_storeu_ps(c.add(r * ldc + v * 8), *acc_rv) };
         }
     }
 }
@@ -486,7 +606,9 @@ fn block_product_wide(
             let a_tile = &a.data[i0 * a.rs..];
             if cols == vectors * NR {
                 let c = &mut c_block[i0 * ldc + j0..(i0 + valid - 1) * ldc + j0 + cols];
-                wide_kernel(valid, vectors, kc, a_tile, a.rs, a.cs, b_panel, ldb, c, ldc, load_c);
+                wide_kernel(
+                    valid, vectors, kc, a_tile, a.rs, a.cs, b_panel, ldb, c, ldc, load_c,
+                );
             } else {
                 if load_c {
                     for (r, t) in tile.iter_mut().enumerate().take(valid) {
@@ -771,6 +893,8 @@ mod tests {
             (12, 16, 9),
             (29, 100, 260),
             (3, 64, 300),
+            (2, 96, 7),
+            (1, 32, 260),
             (6, 32, 256),
             (1, 16, 9),
             (12, 64, 40),
@@ -805,9 +929,29 @@ mod tests {
         let b = data(k * n, 4.0);
         for kernel in Kernel::available() {
             let mut many = vec![0.5f32; 40 * n];
-            gemm_with(kernel, 40, n, k, Mat::rows(&a, k), Mat::rows(&b, n), &mut many, n, true);
+            gemm_with(
+                kernel,
+                40,
+                n,
+                k,
+                Mat::rows(&a, k),
+                Mat::rows(&b, n),
+                &mut many,
+                n,
+                true,
+            );
             let mut few = vec![0.5f32; 3 * n];
-            gemm_with(kernel, 3, n, k, Mat::rows(&a, k), Mat::rows(&b, n), &mut few, n, true);
+            gemm_with(
+                kernel,
+                3,
+                n,
+                k,
+                Mat::rows(&a, k),
+                Mat::rows(&b, n),
+                &mut few,
+                n,
+                true,
+            );
             let bits = |c: &[f32]| c.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&few), bits(&many[..3 * n]), "{kernel:?}");
         }

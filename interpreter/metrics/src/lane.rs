@@ -49,7 +49,10 @@ impl Blocked {
     fn blocks(&self) -> impl Iterator<Item = (&[Point], &[f64; 4])> {
         self.boxes.iter().enumerate().map(|(b, bounds)| {
             let start = b * BLOCK_SEGMENTS;
-            (&self.points[start..self.points.len().min(start + BLOCK_SEGMENTS + 1)], bounds)
+            (
+                &self.points[start..self.points.len().min(start + BLOCK_SEGMENTS + 1)],
+                bounds,
+            )
         })
     }
 }

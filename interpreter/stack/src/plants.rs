@@ -253,6 +253,7 @@ impl GreyBoxMpcModel {
     }
 
     /// `|throttle|^p8`, the motor term's magnitude.
+    #[inline]
     fn throttle_power(&self, throttle_abs: f64, exponent: f64) -> f64 {
         let (bits, power) = self.last_power.get();
         if bits == throttle_abs.to_bits() {
@@ -277,6 +278,8 @@ impl Model<4, 2> for GreyBoxMpcModel {
 
     /// The Euler step's exact Jacobians (inputs inside [-1, 1], where the lab's solver keeps
     /// them; the motor term's slope `p8·|f|^(p8−1)` vanishes at f = 0 as CasADi's does).
+    /// Inlined into the gradient solver (called 120 times a decision).
+    #[inline]
     fn step_jacobians(
         &self,
         state: &[f64; 4],
@@ -340,6 +343,7 @@ impl Model<4, 2> for GreyBoxMpcModel {
         (next, a, b)
     }
 
+    #[inline]
     fn position_jacobian(&self, _: &[f64; 4]) -> nalgebra::SMatrix<f64, 2, 4> {
         nalgebra::SMatrix::<f64, 2, 4>::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0)
     }
@@ -350,6 +354,7 @@ impl Model<4, 2> for GreyBoxMpcModel {
         }
     }
 
+    #[inline]
     fn position_m(&self, state: &[f64; 4]) -> [f64; 2] {
         [state[0], state[1]]
     }
