@@ -67,7 +67,8 @@ impl Polyline {
         for (segment, pair) in self.points.windows(2).enumerate() {
             // The first segment always starts the search, as when every segment is measured
             // (it stays the answer when every distance is NaN).
-            if segment > 0 && !(squared(pair) <= bound) {
+            let candidate = squared(pair) <= bound; // false for NaN
+            if segment > 0 && !candidate {
                 continue;
             }
             let (distance_m, t) = point_segment_distance(p, pair[0], pair[1]);
