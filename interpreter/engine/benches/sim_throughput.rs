@@ -48,10 +48,11 @@ fn check(name: &str, dir: &Path, text: String) -> CheckedSpec {
         dir: dir.to_owned(),
         text,
     };
-    let data = reference();
+    // As `cpmx run --data ../shared/reference`: the spec's folder (its trained actors) first.
+    let data = [reference()];
     cpmx_spec::check(
         &source,
-        &DataPath::new(&data, &[], None),
+        &DataPath::new(dir, &data, None),
         &cpmx_engine::BuildChecks,
     )
     .unwrap_or_else(|d| panic!("{}", cpmx_spec::render(&d, false)))

@@ -2,6 +2,7 @@
 //! and plots computed from the stored runs. `cpmx run` writes it; `cpmx report` reads folders
 //! back and writes the same summaries, byte for byte.
 
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
 use cpmx_report::{Format, RunRecord, Summary, per_run_csv, render, summarize};
@@ -245,8 +246,9 @@ pub fn write_summaries_from(
             write_atomic(&out.join(name), render(&summary, format).as_bytes())?;
         }
     }
+    // Each run's recording and figure on its own (rayon: in parallel on the command's pool).
     let recordings: Vec<Option<Recording>> = records
-        .iter()
+        .par_iter()
         .map(|record| {
             sources.iter().find_map(|dir| {
                 let file = std::fs::File::open(run_dir(dir, &record.plan).join("trajectory.csv")).ok()?;
@@ -341,17 +343,19 @@ fn write_plots(
             plot.svg.as_bytes(),
         )?;
     }
-    for (record, recording) in records.iter().zip(recordings) {
-        let Some(recording) = recording else {
-            continue;
-        };
-        let svg = cpmx_report::trajectory_svg(&scoring.map, recording, &record.metrics, &scoring.vehicle);
-        write_atomic(
-            &plots.join(format!("{}.svg", record.plan.key.replace('/', "_"))),
-            svg.as_bytes(),
-        )?;
-    }
-    Ok(())
+    records
+        .par_iter()
+        .zip(recordings)
+        .try_for_each(|(record, recording)| {
+            let Some(recording) = recording else {
+                return Ok(());
+            };
+            let svg = cpmx_report::trajectory_svg(&scoring.map, recording, &record.metrics, &scoring.vehicle);
+            write_atomic(
+                &plots.join(format!("{}.svg", record.plan.key.replace('/', "_"))),
+                svg.as_bytes(),
+            )
+        })
 }
 
 /// The runs listed in a folder's `matrix.csv`.

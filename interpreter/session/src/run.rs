@@ -305,7 +305,12 @@ pub fn run_matrix(
     // Summarise every finished run the folder holds for this spec (other shards and earlier
     // `--only` selections included), so the folder's summary is what `cpmx report` gives.
     let held = folder::read_records(&out, &all_plans, &context);
-    let summary = folder::write_summaries(&out, &experiment.scoring(), &held.records).map_err(io)?;
+    // On the runs' number of threads too (the figures of the runs are drawn in parallel).
+    let summary = match rayon::ThreadPoolBuilder::new().num_threads(jobs.max(1)).build() {
+        Ok(pool) => pool.install(|| folder::write_summaries(&out, &experiment.scoring(), &held.records)),
+        Err(_) => folder::write_summaries(&out, &experiment.scoring(), &held.records),
+    }
+    .map_err(io)?;
     Ok(MatrixRun {
         out,
         matrix_runs: all_plans.len(),
