@@ -142,10 +142,14 @@ class CpmxEnv(EnvBase):
 
     def _output(self, observations: np.ndarray, flags: np.ndarray) -> TensorDictBase:
         e = self.batch_size[0]
-        return TensorDict(
+        # `_new_unsafe`, as TorchRL's own gym-like environments build theirs: the tensors are
+        # made here with the specs' shapes, so the per-entry checks would only cost time.
+        return TensorDict._new_unsafe(
             {
-                "agents": TensorDict(
-                    {"observation": self._tensor(observations)}, batch_size=(e, self.n_agents)
+                "agents": TensorDict._new_unsafe(
+                    {"observation": self._tensor(observations)},
+                    batch_size=(e, self.n_agents),
+                    device=self.device,
                 ),
                 "done": self._tensor(flags),
                 "terminated": self._tensor(flags),
@@ -168,14 +172,15 @@ class CpmxEnv(EnvBase):
             if done.any()
             else observations
         )
-        return TensorDict(
+        return TensorDict._new_unsafe(
             {
-                "agents": TensorDict(
+                "agents": TensorDict._new_unsafe(
                     {
                         "observation": self._tensor(shown),
                         "reward": self._tensor(reward[..., None]),
                     },
                     batch_size=(e, self.n_agents),
+                    device=self.device,
                 ),
                 "done": self._tensor(done[:, None]),
                 "terminated": self._tensor(term[:, None]),
@@ -184,6 +189,30 @@ class CpmxEnv(EnvBase):
             batch_size=self.batch_size,
             device=self.device,
         )
+
+    def maybe_reset(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """Hand out the next episodes' first observations where an episode ended.
+
+        ``step_and_maybe_reset`` (and TorchRL's collectors) call this on the step's ``"next"``
+        moved to the root. The environment placed the next episodes in the step that ended the
+        last ones, so this writes their first observations and clears the flags, without the
+        round trip through ``reset`` and its merge (which random actions trigger every step).
+        The result is the one ``reset`` with ``"_reset"`` gives.
+        """
+        done = tensordict.get("done").reshape(-1)
+        if not bool(done.any()):
+            return tensordict
+        placed = torch.from_numpy(self._placed).to(self.device)
+        observation = tensordict.get(("agents", "observation"))
+        fresh = self._tensor(self._observations)
+        tensordict.set(
+            ("agents", "observation"), torch.where(placed[:, None, None], fresh, observation)
+        )
+        cleared = torch.zeros_like(tensordict.get("done"))
+        for key in ("done", "terminated", "truncated"):
+            tensordict.set(key, cleared.clone())
+        self._placed[:] = False
+        return tensordict
 
     def _set_seed(self, seed: int | None) -> None:
         # The next full reset restarts every environment's streams from `seed`.

@@ -41,3 +41,27 @@ def test_seeding_repeats_rollouts(at25, reference):
 
     assert torch.equal(rollout(3), rollout(3))
     assert not torch.equal(rollout(3), rollout(4))
+
+
+def test_the_shortcut_reset_gives_what_torchrls_reset_gives(at25, reference):
+    # Two environments, the same seed and actions: one resets ended episodes through
+    # `maybe_reset` (the placed observations), the other through TorchRL's `reset` with
+    # `"_reset"` (EnvBase's `maybe_reset`, which calls `_reset` with the mask).
+    from torchrl.envs import EnvBase
+
+    fast, generic = (CpmxEnv(at25, num_envs=8, seed=2, data=reference) for _ in range(2))
+    td_fast, td_generic = fast.reset(), generic.reset()
+    torch.manual_seed(0)
+    resets = 0
+    for _ in range(200):
+        action = fast.full_action_spec.rand()
+        td_fast.update(action)
+        td_generic.update(action.clone())
+        td_fast = fast._step_mdp(fast.step(td_fast))
+        td_generic = generic._step_mdp(generic.step(td_generic))
+        resets += int(td_fast.get("done").any())
+        td_fast = fast.maybe_reset(td_fast)
+        td_generic = EnvBase.maybe_reset(generic, td_generic)
+        for key in [("agents", "observation"), "done", "terminated", "truncated"]:
+            assert torch.equal(td_fast.get(key), td_generic.get(key)), key
+    assert resets >= 8
