@@ -9,7 +9,9 @@
 //! with 12 x 16 tiles, 145-155 packed with 12 x 32, of a 175 GFLOP/s peak). A product of at most
 //! one tile of rows (an actor deciding for the agents of a run) uses each element of B once:
 //! packing would copy every weight to read it once more (in `cpmx run`, 20 % of a sim run's time
-//! went to packing), so a row-major B whose panels are all full is read in place there.
+//! went to packing), so a row-major B whose panels are all full is read in place there, with
+//! AVX2 in tiles of up to 3 x 32 (`few_rows_product`: 12 accumulators in flight) and otherwise
+//! in the usual kernels' last tile of 1 to 6 (12) rows.
 //!
 //! Every element of C is one running sum over `k` in increasing order, one fused
 //! multiply-add per term, starting from C's previous value (or 0); a value stored between
