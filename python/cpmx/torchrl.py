@@ -82,6 +82,7 @@ class CpmxEnv(EnvBase):
         # Where the environment already placed the next episode (its first observations),
         # for the reset TorchRL asks for after a step that ended an episode.
         self._placed = np.zeros(num_envs, dtype=bool)
+        self._on_cpu = self.device == torch.device("cpu")
         self._make_specs()
 
     def _make_specs(self) -> None:
@@ -121,7 +122,8 @@ class CpmxEnv(EnvBase):
         )
 
     def _tensor(self, array: np.ndarray) -> torch.Tensor:
-        return torch.from_numpy(np.ascontiguousarray(array)).to(self.device)
+        tensor = torch.from_numpy(np.ascontiguousarray(array))
+        return tensor if self._on_cpu else tensor.to(self.device)
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs: object) -> TensorDictBase:
         e = self.batch_size[0]
@@ -199,18 +201,17 @@ class CpmxEnv(EnvBase):
         round trip through ``reset`` and its merge (which random actions trigger every step).
         The result is the one ``reset`` with ``"_reset"`` gives.
         """
-        done = tensordict.get("done").reshape(-1)
-        if not bool(done.any()):
+        if not self._placed.any():
             return tensordict
-        placed = torch.from_numpy(self._placed).to(self.device)
-        observation = tensordict.get(("agents", "observation"))
+        placed = self._tensor(self._placed)
+        agents = tensordict.get("agents")
         fresh = self._tensor(self._observations)
-        tensordict.set(
-            ("agents", "observation"), torch.where(placed[:, None, None], fresh, observation)
+        agents.set(
+            "observation", torch.where(placed[:, None, None], fresh, agents.get("observation"))
         )
-        cleared = torch.zeros_like(tensordict.get("done"))
+        flags = tensordict.get("done")
         for key in ("done", "terminated", "truncated"):
-            tensordict.set(key, cleared.clone())
+            tensordict.set(key, torch.zeros_like(flags))
         self._placed[:] = False
         return tensordict
 
