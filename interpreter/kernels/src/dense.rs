@@ -5,7 +5,7 @@
 use rayon::prelude::*;
 
 use crate::Activation;
-use crate::gemm::{Mat, gemm};
+use crate::gemm::{Mat, PackedB, gemm, gemm_packed};
 
 /// Elements per task of a parallel activation pass (a multiple of the 16 SIMD lanes). Each
 /// element is computed alone, so the split never changes a bit.
@@ -31,12 +31,7 @@ pub fn dense_layer(
     activation: Activation,
     y: &mut [f32],
 ) {
-    assert_eq!(x.len(), rows * inputs, "input size");
-    assert_eq!(y.len(), rows * outputs, "output size");
-    assert_eq!(bias.len(), outputs, "bias size");
-    for row in y.chunks_exact_mut(outputs) {
-        row.copy_from_slice(bias);
-    }
+    start_from_bias(x, rows, inputs, outputs, bias, y);
     gemm(
         rows,
         outputs,
@@ -47,6 +42,37 @@ pub fn dense_layer(
         outputs,
         true,
     );
+    activate(activation, y);
+}
+
+/// [`dense_layer`] with W^T packed once ([`PackedB`], `inputs x outputs`): an actor's layers,
+/// which every decision reads with a few rows. The same bits.
+pub fn dense_layer_packed(
+    x: &[f32],
+    rows: usize,
+    weight_t: &PackedB,
+    bias: &[f32],
+    activation: Activation,
+    y: &mut [f32],
+) {
+    let (inputs, outputs) = (weight_t.rows(), weight_t.cols());
+    start_from_bias(x, rows, inputs, outputs, bias, y);
+    gemm_packed(rows, Mat::rows(x, inputs), weight_t, y, outputs, true);
+    activate(activation, y);
+}
+
+/// Checks the sizes and writes the bias into every row of `y`.
+fn start_from_bias(x: &[f32], rows: usize, inputs: usize, outputs: usize, bias: &[f32], y: &mut [f32]) {
+    assert_eq!(x.len(), rows * inputs, "input size");
+    assert_eq!(y.len(), rows * outputs, "output size");
+    assert_eq!(bias.len(), outputs, "bias size");
+    for row in y.chunks_exact_mut(outputs) {
+        row.copy_from_slice(bias);
+    }
+}
+
+/// The activation over `y`, on rayon's current pool when it has several threads and `y` is long.
+fn activate(activation: Activation, y: &mut [f32]) {
     if activation == Activation::Identity {
         return;
     }

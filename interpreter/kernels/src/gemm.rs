@@ -162,6 +162,22 @@ pub fn gemm_with(
     ldc: usize,
     accumulate: bool,
 ) {
+    product(kernel, m, n, k, a, BSource::View(b), c, ldc, accumulate);
+}
+
+/// The product of [`gemm_with`] and [`gemm_packed`].
+#[allow(clippy::too_many_arguments)]
+fn product(
+    kernel: Kernel,
+    m: usize,
+    n: usize,
+    k: usize,
+    a: Mat<'_>,
+    b: BSource<'_>,
+    c: &mut [f32],
+    ldc: usize,
+    accumulate: bool,
+) {
     if m == 0 || n == 0 {
         return;
     }
@@ -174,8 +190,12 @@ pub fn gemm_with(
         }
         return;
     }
+    let b_fits = match b {
+        BSource::View(b) => b.data.len() > (k - 1) * b.rs + (n - 1) * b.cs,
+        BSource::Packed(p) => p.k == k && p.n == n,
+    };
     assert!(
-        a.data.len() > (m - 1) * a.rs + (k - 1) * a.cs && b.data.len() > (k - 1) * b.rs + (n - 1) * b.cs,
+        a.data.len() > (m - 1) * a.rs + (k - 1) * a.cs && b_fits,
         "A or B too small"
     );
     let width = kernel.panel_columns();
@@ -183,9 +203,9 @@ pub fn gemm_with(
     let tile = kernel.tile_rows();
     // One tile of rows reads each element of B once: read a row-major B in place when every
     // panel is full (the kernels load whole panel rows).
-    let in_place = m <= tile && b.cs == 1 && n.is_multiple_of(width);
+    let in_place = matches!(b, BSource::View(b) if m <= tile && b.cs == 1 && n.is_multiple_of(width));
     let mut packed_b = PACK_B.take();
-    if !in_place {
+    if matches!(b, BSource::View(_)) && !in_place {
         packed_b.resize(n_panels * width * KC.min(k), 0.0);
     }
     // Row blocks: at least two per thread when there are enough rows.
@@ -197,25 +217,36 @@ pub fn gemm_with(
         // Without `accumulate`, the first depth block starts every tile from zero instead of
         // loading C (the same sums as zeroing C first, without the pass over C).
         let load_c = accumulate || pc > 0;
-        let panels = if in_place {
-            Panels {
+        let panels = match b {
+            BSource::Packed(p) => Panels {
+                data: &p.data[pc * NR_WIDE..],
+                row_stride: NR_WIDE,
+                panel_stride: NR_WIDE * k,
+                halves: NR_WIDE / width,
+            },
+            BSource::View(b) if in_place => Panels {
                 data: &b.data[pc * b.rs..],
                 row_stride: b.rs,
                 panel_stride: width,
-            }
-        } else {
-            let packed_b = &mut packed_b[..n_panels * width * kc];
-            if kernel == Kernel::Avx512 {
-                pack_b::<NR_WIDE>(&b, pc, kc, n, packed_b);
-            } else {
-                pack_b::<NR>(&b, pc, kc, n, packed_b);
-            }
-            Panels {
-                data: &*packed_b,
-                row_stride: width,
-                panel_stride: width * kc,
+                halves: 1,
+            },
+            BSource::View(b) => {
+                let packed_b = &mut packed_b[..n_panels * width * kc];
+                if kernel == Kernel::Avx512 {
+                    pack_b::<NR_WIDE>(&b, pc, kc, n, packed_b);
+                } else {
+                    pack_b::<NR>(&b, pc, kc, n, packed_b);
+                }
+                Panels {
+                    data: &*packed_b,
+                    row_stride: width,
+                    panel_stride: width * kc,
+                    halves: 1,
+                }
             }
         };
+        // Panels whose 32 columns are all B's, as the few-rows kernel reads them.
+        let whole_panels = (in_place || matches!(b, BSource::Packed(_))) && n.is_multiple_of(NR_WIDE);
         let c_rows = &mut c[..(m - 1) * ldc + n];
         let work = |(block, c_block): (usize, &mut [f32])| {
             let i0 = block * mc;
@@ -229,8 +260,7 @@ pub fn gemm_with(
                 return;
             }
             #[cfg(target_arch = "x86_64")]
-            if kernel == Kernel::Avx2Fma && in_place && rows <= FEW_ROWS && n.is_multiple_of(FEW_ROWS_COLUMNS)
-            {
+            if kernel == Kernel::Avx2Fma && whole_panels && rows <= FEW_ROWS {
                 let a_block = Mat {
                     data: &a.data[i0 * a.rs + pc * a.cs..],
                     ..a
@@ -255,19 +285,92 @@ pub fn gemm_with(
 }
 
 /// B's panels for one depth block, packed or in place: panel `jp`'s row `kk` (its `W` columns)
-/// starts at `data[jp * panel_stride + kk * row_stride]`.
+/// starts at `data[jp * panel_stride + kk * row_stride]`. A [`PackedB`]'s 32-column panels
+/// serve the 16-column kernels as two halves each (`halves`: 2).
 #[derive(Debug, Clone, Copy)]
 struct Panels<'a> {
     data: &'a [f32],
     row_stride: usize,
     panel_stride: usize,
+    halves: usize,
 }
 
 impl<'a> Panels<'a> {
     /// Panel `jp` from its first row on.
     fn panel(&self, jp: usize) -> &'a [f32] {
-        &self.data[jp * self.panel_stride..]
+        &self.data[(jp / self.halves) * self.panel_stride + (jp % self.halves) * NR..]
     }
+}
+
+/// B packed once, for products that read it many times with few rows each (an actor's weights,
+/// one pass per decision): panels of [`NR_WIDE`] columns over the whole depth, `k`-major,
+/// zero-padded, so that a pass reads the weights in the order it uses them. The product
+/// ([`gemm_packed`]) gives [`gemm`]'s bits.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PackedB {
+    data: Vec<f32>,
+    k: usize,
+    n: usize,
+}
+
+impl PackedB {
+    /// `b` (`k x n`) in panels.
+    pub fn new(b: Mat<'_>, k: usize, n: usize) -> Self {
+        let mut data = vec![0.0; n.div_ceil(NR_WIDE) * NR_WIDE * k];
+        if k > 0 {
+            for (p, panel) in data.chunks_exact_mut(NR_WIDE * k).enumerate() {
+                pack_b_panel::<NR_WIDE>(&b, 0, k, n, p * NR_WIDE, panel);
+            }
+        }
+        Self { data, k, n }
+    }
+
+    /// Rows of B (the depth of the product).
+    pub fn rows(&self) -> usize {
+        self.k
+    }
+
+    /// Columns of B.
+    pub fn cols(&self) -> usize {
+        self.n
+    }
+}
+
+/// [`gemm`] with B packed beforehand: `C = A B + (accumulate ? C : 0)`, A `m x k`.
+pub fn gemm_packed(m: usize, a: Mat<'_>, b: &PackedB, c: &mut [f32], ldc: usize, accumulate: bool) {
+    product(
+        Kernel::detect(),
+        m,
+        b.n,
+        b.k,
+        a,
+        BSource::Packed(b),
+        c,
+        ldc,
+        accumulate,
+    );
+}
+
+/// [`gemm_packed`] with the given kernel (which the CPU must support).
+pub fn gemm_packed_with(
+    kernel: Kernel,
+    m: usize,
+    a: Mat<'_>,
+    b: &PackedB,
+    c: &mut [f32],
+    ldc: usize,
+    accumulate: bool,
+) {
+    product(kernel, m, b.n, b.k, a, BSource::Packed(b), c, ldc, accumulate);
+}
+
+/// Where a product's B comes from.
+#[derive(Clone, Copy)]
+enum BSource<'a> {
+    /// A view, packed per depth block when its panels are reused (see the module).
+    View(Mat<'a>),
+    /// Packed beforehand.
+    Packed(&'a PackedB),
 }
 
 /// Whether the AVX2+FMA kernel runs on this CPU.
@@ -445,9 +548,9 @@ const FEW_ROWS: usize = 3;
 #[cfg(target_arch = "x86_64")]
 const FEW_ROWS_COLUMNS: usize = 32;
 
-/// At most [`FEW_ROWS`] rows with the AVX2 kernel, A and B read in place (the agents of a run
-/// through an actor's layer): tiles of `rows` x 32, `a` starting at the block's first row and
-/// depth, B's panels in place. The sums are the other kernels' (one fused multiply-add per
+/// At most [`FEW_ROWS`] rows with the AVX2 kernel, A read in place (the agents of a run through
+/// an actor's layer): tiles of `rows` x 32, `a` starting at the block's first row and depth,
+/// B's 32-column panels in place or packed beforehand ([`PackedB`]). The sums are the other kernels' (one fused multiply-add per
 /// term in increasing `k`), so are the bits.
 #[cfg(target_arch = "x86_64")]
 #[allow(clippy::too_many_arguments)]
@@ -466,15 +569,13 @@ fn few_rows_product(
         (1..=FEW_ROWS).contains(&rows)
             && n.is_multiple_of(FEW_ROWS_COLUMNS)
             && a.data.len() > (rows - 1) * a.rs + (kc - 1) * a.cs
-            && panels.data.len() >= (kc - 1) * ldb + n
             && c_block.len() >= (rows - 1) * ldc + n
     );
     for j0 in (0..n).step_by(FEW_ROWS_COLUMNS) {
-        let (a_ptr, b, c) = (
-            a.data.as_ptr(),
-            panels.data[j0..].as_ptr(),
-            c_block[j0..].as_mut_ptr(),
-        );
+        // The 32 columns from `j0` (panels are counted in 16 columns).
+        let b_panel = panels.panel(j0 / NR);
+        assert!(b_panel.len() >= (kc - 1) * ldb + FEW_ROWS_COLUMNS);
+        let (a_ptr, b, c) = (a.data.as_ptr(), b_panel.as_ptr(), c_block[j0..].as_mut_ptr());
         // SAFETY: chosen only with AVX2 and FMA (`Kernel::Avx2Fma`); A holds `rows` rows of
         // `kc` terms, B `kc` rows of the 32 columns from `j0`, C the tile (asserted above).
         unsafe {
@@ -956,6 +1057,44 @@ mod tests {
             );
             let bits = |c: &[f32]| c.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&few), bits(&many[..3 * n]), "{kernel:?}");
+        }
+    }
+
+    #[test]
+    fn b_packed_beforehand_gives_the_bits_of_b_viewed() {
+        for &(m, n, k) in &[
+            (1, 32, 9),
+            (3, 256, 256),
+            (3, 4, 256),
+            (5, 48, 300),
+            (13, 64, 33),
+            (40, 100, 260),
+        ] {
+            let a = data(m * k, 9.0);
+            let b = data(k * n, 10.0);
+            let packed = PackedB::new(Mat::rows(&b, n), k, n);
+            for kernel in Kernel::available() {
+                let run = |packed_b: bool| {
+                    let mut c: Vec<f32> = (0..m * (n + 1)).map(|i| i as f32 * 1e-3).collect();
+                    if packed_b {
+                        gemm_packed_with(kernel, m, Mat::rows(&a, k), &packed, &mut c, n + 1, true);
+                    } else {
+                        gemm_with(
+                            kernel,
+                            m,
+                            n,
+                            k,
+                            Mat::rows(&a, k),
+                            Mat::rows(&b, n),
+                            &mut c,
+                            n + 1,
+                            true,
+                        );
+                    }
+                    c.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+                };
+                assert_eq!(run(true), run(false), "{kernel:?} {m}x{n}x{k}");
+            }
         }
     }
 

@@ -15,5 +15,5 @@ pub mod dense;
 pub mod gemm;
 
 pub use activation::{Activation, tanh, tanh_portable};
-pub use dense::dense_layer;
-pub use gemm::{Mat, gemm};
+pub use dense::{dense_layer, dense_layer_packed};
+pub use gemm::{Mat, PackedB, gemm, gemm_packed};

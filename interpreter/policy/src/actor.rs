@@ -5,15 +5,16 @@
 //!
 //! This module owns loading, shape checks and the batched forward pass to the raw outputs;
 //! turning raw outputs into actions is `action`'s job. The layers run on `cpmx-kernels`'
-//! [`dense_layer`], as the trainer's networks do: an actor cpmx trained gives here the bits it
-//! gave while training.
+//! dense layer (`dense_layer_packed`: the weights packed once at load), whose products are the
+//! trainer's (`dense_layer`) to the bit: an actor cpmx trained gives here the bits it gave while
+//! training.
 
 use std::path::{Path, PathBuf};
 
 use safetensors::{Dtype, SafeTensors};
 
 pub use cpmx_kernels::Activation;
-use cpmx_kernels::{Mat, dense_layer};
+use cpmx_kernels::{Mat, PackedB, dense_layer_packed};
 
 /// The layer sizes and tensor names of an MLP actor.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -168,14 +169,12 @@ pub enum ActorError {
     },
 }
 
-/// One layer, its weight stored transposed (`[inputs][outputs]`, row-major), the layout the
-/// product streams in place.
+/// One layer, its weight transposed (W^T, `inputs x outputs`) and packed once into the panels
+/// the product reads (`PackedB`): a decision reads every weight once, in the order it uses them.
 #[derive(Debug, Clone, PartialEq)]
 struct Dense {
-    inputs: usize,
     outputs: usize,
-    /// `weight_t[k * outputs + j] = W[j][k]`.
-    weight_t: Vec<f32>,
+    weight_t: PackedB,
     bias: Vec<f32>,
     activation: Activation,
 }
@@ -190,9 +189,8 @@ impl Dense {
             }
         }
         Dense {
-            inputs,
             outputs,
-            weight_t,
+            weight_t: PackedB::new(Mat::rows(&weight_t, outputs), inputs, outputs),
             bias: bias[..outputs].to_vec(),
             activation,
         }
@@ -200,16 +198,7 @@ impl Dense {
 
     /// `y = activation(x W^T + b)` for `rows` rows.
     fn apply(&self, x: &[f32], rows: usize, y: &mut [f32]) {
-        dense_layer(
-            x,
-            rows,
-            self.inputs,
-            self.outputs,
-            Mat::rows(&self.weight_t, self.outputs),
-            &self.bias,
-            self.activation,
-            y,
-        );
+        dense_layer_packed(x, rows, &self.weight_t, &self.bias, self.activation, y);
     }
 }
 
