@@ -351,19 +351,6 @@ pub fn gemm_packed(m: usize, a: Mat<'_>, b: &PackedB, c: &mut [f32], ldc: usize,
     );
 }
 
-/// [`gemm_packed`] with the given kernel (which the CPU must support).
-pub fn gemm_packed_with(
-    kernel: Kernel,
-    m: usize,
-    a: Mat<'_>,
-    b: &PackedB,
-    c: &mut [f32],
-    ldc: usize,
-    accumulate: bool,
-) {
-    product(kernel, m, b.n, b.k, a, BSource::Packed(b), c, ldc, accumulate);
-}
-
 /// Where a product's B comes from.
 #[derive(Clone, Copy)]
 enum BSource<'a> {
@@ -1077,7 +1064,17 @@ mod tests {
                 let run = |packed_b: bool| {
                     let mut c: Vec<f32> = (0..m * (n + 1)).map(|i| i as f32 * 1e-3).collect();
                     if packed_b {
-                        gemm_packed_with(kernel, m, Mat::rows(&a, k), &packed, &mut c, n + 1, true);
+                        product(
+                            kernel,
+                            m,
+                            n,
+                            k,
+                            Mat::rows(&a, k),
+                            BSource::Packed(&packed),
+                            &mut c,
+                            n + 1,
+                            true,
+                        );
                     } else {
                         gemm_with(
                             kernel,

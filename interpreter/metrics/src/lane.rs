@@ -57,6 +57,17 @@ impl Blocked {
     }
 }
 
+/// The footprint's closed outline (its first corner repeated at the end).
+fn outline(footprint_m: &Footprint) -> [Point; 5] {
+    [
+        footprint_m[0],
+        footprint_m[1],
+        footprint_m[2],
+        footprint_m[3],
+        footprint_m[0],
+    ]
+}
+
 fn bounding_box(points: &[Point]) -> [f64; 4] {
     points.iter().fold(
         [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY],
@@ -82,13 +93,7 @@ impl Lane {
     /// Whether the footprint violates the lane: its closed outline properly crosses a
     /// boundary, or one of its corners is not inside the lane polygon.
     pub fn is_violated_by(&self, footprint_m: &Footprint) -> bool {
-        let outline = [
-            footprint_m[0],
-            footprint_m[1],
-            footprint_m[2],
-            footprint_m[3],
-            footprint_m[0],
-        ];
+        let outline = outline(footprint_m);
         let [x_min, x_max, y_min, y_max] = bounding_box(&outline);
         // A box that misses the outline's (false for NaN, which then takes the full test).
         let misses = |b: &[f64; 4]| b[1] < x_min || b[0] > x_max || b[3] < y_min || b[2] > y_max;
@@ -217,13 +222,7 @@ mod tests {
     /// The full tests, without blocks.
     fn violated_without_blocks(left: &[Point], right: &[Point], footprint_m: &Footprint) -> bool {
         let polygon: Vec<Point> = left.iter().chain(right.iter().rev()).copied().collect();
-        let outline = [
-            footprint_m[0],
-            footprint_m[1],
-            footprint_m[2],
-            footprint_m[3],
-            footprint_m[0],
-        ];
+        let outline = outline(footprint_m);
         interx_intersects(&outline, left)
             || interx_intersects(&outline, right)
             || !footprint_m.iter().all(|&p| contains_point(&polygon, p))
