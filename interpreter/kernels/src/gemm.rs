@@ -606,12 +606,15 @@ unsafe fn few_rows_kernel_avx2<const R: usize>(
     for kk in 0..kc {
         // SAFETY: `kk < kc`, `r < R`, `v < V`: within the operands (caller's guarantee).
         unsafe {
-            let b_k: [__m256; V] = std::array::from_fn(|v| _mm256_loadu_ps(b.add(kk * ldb + v * 8)));
+            // A's R values broadcast once, then B's vectors one at a time: 3 x 4 accumulators,
+            // 3 broadcasts and one vector of B fill AVX2's 16 registers exactly (holding all
+            // four vectors of B's row needs 17, and the accumulators spill to the stack).
             let a_k = a.add(kk * cs);
-            for (r, acc_r) in acc.iter_mut().enumerate() {
-                let a_rk = _mm256_broadcast_ss(&*a_k.add(r * rs));
-                for (acc_rv, &b_kv) in acc_r.iter_mut().zip(&b_k) {
-                    *acc_rv = _mm256_fmadd_ps(a_rk, b_kv, *acc_rv);
+            let a_r: [__m256; R] = std::array::from_fn(|r| _mm256_broadcast_ss(&*a_k.add(r * rs)));
+            for v in 0..V {
+                let b_kv = _mm256_loadu_ps(b.add(kk * ldb + v * 8));
+                for r in 0..R {
+                    acc[r][v] = _mm256_fmadd_ps(a_r[r], b_kv, acc[r][v]);
                 }
             }
         }
