@@ -10,6 +10,8 @@
 //! ```
 
 mod check;
+mod check_fidelities;
+mod check_files;
 mod check_lab;
 mod check_training;
 mod diagnostic;
@@ -245,7 +247,7 @@ pub fn check_scoped(
     let before_interpreter = ctx.into_problems();
     let mut ctx = CheckContext::new(&doc);
     if scope == CheckScope::Run {
-        check::check_capabilities(&spec, interpreter, &mut ctx);
+        check_fidelities::check_capabilities(&spec, interpreter, &mut ctx);
         // The interpreter's checks run on what is sound (a file not found is left out of
         // `resources`), so one pass reports a wrong `ref_path` beside a missing `planner`.
         interpreter.check(&spec, &resources, &mut ctx);

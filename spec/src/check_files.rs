@@ -1,0 +1,194 @@
+//! The files a spec names, found on the data path: the map, weights, recorded run folders, and
+//! pinned files whose content must match; a located problem with the folders tried for each
+//! one missing.
+
+use std::path::PathBuf;
+
+use crate::check::{CheckContext, Resources};
+use crate::diagnostic::{ByteSpan, Problem};
+use crate::model::{InitialConfiguration, MapSpec, Spec};
+use crate::paths::{DataPath, NotFound};
+
+/// A problem for a file that is on none of the data path's folders.
+fn missing_file(what: &str, file: &str, tried: &[PathBuf], span: ByteSpan) -> Problem {
+    let places: Vec<String> = tried.iter().map(|p| format!("  {}", p.display())).collect();
+    Problem::error(
+        "cpmx::check::missing-file",
+        format!("{what} `{file}` was not found"),
+        span,
+        "not found",
+    )
+    .with_help(format!(
+        "looked in:\n{}\nput it next to the spec, or name its folder with `--data DIR` or `CPMX_DATA`",
+        places.join("\n")
+    ))
+}
+
+/// A problem for a pinned file: missing, or present only with other content.
+fn missing_pinned(
+    what: &str,
+    file: &str,
+    sha256: Option<&str>,
+    missing: &NotFound,
+    span: ByteSpan,
+) -> Problem {
+    let Some(expected) = sha256.filter(|_| !missing.other_content.is_empty()) else {
+        let mut problem = missing_file(what, file, &missing.tried, span);
+        if let Some(expected) = sha256 {
+            problem.message = format!("{what} `{file}` (sha256 {}…) was not found", &expected[..12]);
+        }
+        return problem;
+    };
+    let others: Vec<String> = missing
+        .other_content
+        .iter()
+        .map(|(path, found)| format!("  {} has sha256 {found}", path.display()))
+        .collect();
+    Problem::error(
+        "cpmx::check::file-content",
+        format!("no {what} `{file}` with sha256 {expected}"),
+        span,
+        "pinned to other content",
+    )
+    .with_help(format!(
+        "found only other versions:\n{}\nname the folder of the pinned version with `--data DIR`, or remove \
+         `sha256` to take any",
+        others.join("\n")
+    ))
+}
+
+/// Which files a check must find.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CheckScope {
+    /// Everything a run needs: map, weights, recorded run folders.
+    Run,
+    /// What measuring recorded runs needs (`cpmx report`, `cpmx evaluate`): the map only.
+    Measure,
+}
+
+pub(crate) fn find_files(
+    spec: &Spec,
+    data: &DataPath,
+    scope: CheckScope,
+    ctx: &mut CheckContext<'_>,
+) -> Resources {
+    let mut resources = Resources {
+        spec_dir: data
+            .folders
+            .first()
+            .cloned()
+            .unwrap_or_else(|| PathBuf::from(".")),
+        ..Resources::default()
+    };
+    if let MapSpec::File(map) = &spec.map {
+        match data.find_pinned(&map.file, map.sha256.as_deref()) {
+            Ok(path) => resources.map_file = Some(path),
+            Err(missing) => {
+                let span = ctx.span("/map/file");
+                ctx.push(missing_pinned(
+                    "map file",
+                    &map.file,
+                    map.sha256.as_deref(),
+                    &missing,
+                    span,
+                ));
+            }
+        }
+    }
+    for (i, policy) in spec.policies.iter().enumerate() {
+        let found = policy
+            .mlp
+            .as_ref()
+            .and_then(|mlp| match (&mlp.weights, &mlp.trained) {
+                (Some(weights), _) => match data.find_pinned(weights, mlp.sha256.as_deref()) {
+                    Ok(path) => Some(path),
+                    Err(_) if scope == CheckScope::Measure => None,
+                    Err(missing) => {
+                        let span = ctx.span(&format!("/policies/{i}/mlp/weights"));
+                        ctx.push(missing_pinned(
+                            "weight file",
+                            weights,
+                            mlp.sha256.as_deref(),
+                            &missing,
+                            span,
+                        ));
+                        None
+                    }
+                },
+                (None, Some(_)) if scope == CheckScope::Measure => None,
+                (None, Some(trained)) => crate::check_training::find_trained(spec, i, trained, data, ctx),
+                (None, None) => None,
+            })
+            .or_else(|| {
+                let onnx = policy.onnx.as_ref()?;
+                match data.find_pinned(&onnx.file, onnx.sha256.as_deref()) {
+                    Ok(path) => Some(path),
+                    Err(_) if scope == CheckScope::Measure => None,
+                    Err(missing) => {
+                        let span = ctx.span(&format!("/policies/{i}/onnx/file"));
+                        ctx.push(missing_pinned(
+                            "ONNX file",
+                            &onnx.file,
+                            onnx.sha256.as_deref(),
+                            &missing,
+                            span,
+                        ));
+                        None
+                    }
+                }
+            });
+        resources.weights.push(found);
+    }
+    if scope == CheckScope::Measure {
+        resources.from_runs = vec![None; spec.initial_configurations.len()];
+        return resources;
+    }
+    for (i, c) in spec.initial_configurations.iter().enumerate() {
+        let found = match c {
+            InitialConfiguration::FromRuns(f) => match data.find(&f.from_runs.dir) {
+                Ok(path) if path.join("matrix.csv").is_file() => {
+                    if crate::matrix::recorded_runs(&path, &f.from_runs.fidelity).is_empty() {
+                        let span = ctx.span(&format!("/initial_configurations/{i}/from_runs/fidelity"));
+                        ctx.push(
+                            Problem::error(
+                                "cpmx::check::from-runs",
+                                format!(
+                                    "`{}` holds no runs of fidelity `{}`",
+                                    path.display(),
+                                    f.from_runs.fidelity
+                                ),
+                                span,
+                                "no matching runs",
+                            )
+                            .with_help(
+                                "name the fidelity the recorded runs used (see the folder's matrix.csv)",
+                            ),
+                        );
+                    }
+                    Some(path)
+                }
+                Ok(path) => {
+                    let span = ctx.span(&format!("/initial_configurations/{i}/from_runs/dir"));
+                    ctx.push(
+                        Problem::error(
+                            "cpmx::check::from-runs",
+                            format!("`{}` is not a run folder of cpmx", path.display()),
+                            span,
+                            "no matrix.csv here",
+                        )
+                        .with_help("name a folder written by `cpmx run`"),
+                    );
+                    None
+                }
+                Err(tried) => {
+                    let span = ctx.span(&format!("/initial_configurations/{i}/from_runs/dir"));
+                    ctx.push(missing_file("run folder", &f.from_runs.dir, &tried, span));
+                    None
+                }
+            },
+            _ => None,
+        };
+        resources.from_runs.push(found);
+    }
+    resources
+}
