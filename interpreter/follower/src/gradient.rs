@@ -14,8 +14,6 @@
 //! as CasADi's symbolic gradient is. This module owns the iteration and the gradient; the
 //! reference window, the rejection rules and the history are `mpc.rs`'s.
 
-use nalgebra::SVector;
-
 use crate::model::Model;
 use crate::mpc::{CONTROL_MOVES, MOVE_OF_STEP, MpcConfig, PREDICTION_STEPS};
 
@@ -111,39 +109,40 @@ pub fn objective_and_gradient<M: Model<NX, NU>, const NX: usize, const NU: usize
     previous_input: &[f64; NU],
     moves: &[[f64; NU]; CONTROL_MOVES],
 ) -> (f64, [[f64; NU]; CONTROL_MOVES], [[f64; 2]; PREDICTION_STEPS]) {
-    // Forward: states, Jacobians, position errors.
+    // Forward: states, Jacobians, position errors. (`A` and `B` in arrays of their own: a
+    // step's pair is 192 bytes, which the compiler moved with a `memcpy` call per step.)
     let mut x = *x0;
-    let mut jacobians = [(
-        nalgebra::SMatrix::<f64, NX, NX>::zeros(),
-        nalgebra::SMatrix::<f64, NX, NU>::zeros(),
-    ); PREDICTION_STEPS];
-    let mut position_grad = [SVector::<f64, NX>::zeros(); PREDICTION_STEPS];
+    let mut state_jacobians = [nalgebra::SMatrix::<f64, NX, NX>::zeros(); PREDICTION_STEPS];
+    let mut input_jacobians = [nalgebra::SMatrix::<f64, NX, NU>::zeros(); PREDICTION_STEPS];
+    let mut position_grad = [[0.0; NX]; PREDICTION_STEPS];
     let mut predicted_m = [[0.0; 2]; PREDICTION_STEPS];
     let mut objective = 0.0;
     for k in 0..PREDICTION_STEPS {
         let (next, a, b) = model.step_jacobians(&x, &moves[MOVE_OF_STEP[k]], config.mpc_step_s);
-        jacobians[k] = (a, b);
+        state_jacobians[k] = a;
+        input_jacobians[k] = b;
         x = next;
         let p = model.position_m(&x);
         let w2 = config.position_weights[k] * config.position_weights[k];
         let e = [p[0] - reference_m[k][0], p[1] - reference_m[k][1]];
         objective += w2 * (e[0] * e[0] + e[1] * e[1]);
         let c = model.position_jacobian(&x);
-        position_grad[k] = c.transpose() * SVector::<f64, 2>::new(2.0 * w2 * e[0], 2.0 * w2 * e[1]);
+        position_grad[k] = transposed_times(&c, &[2.0 * w2 * e[0], 2.0 * w2 * e[1]]);
         predicted_m[k] = p;
     }
 
     // Backward: λₖ = ∂J/∂xₖ₊₁ through the later steps.
     let mut gradient = [[0.0; NU]; CONTROL_MOVES];
-    let mut lambda = SVector::<f64, NX>::zeros();
+    let mut lambda = [0.0; NX];
     for k in (0..PREDICTION_STEPS).rev() {
-        lambda += position_grad[k];
-        let (a, b) = &jacobians[k];
-        let g = b.transpose() * lambda;
+        for (l, g) in lambda.iter_mut().zip(&position_grad[k]) {
+            *l += g;
+        }
+        let g = transposed_times(&input_jacobians[k], &lambda);
         for i in 0..NU {
             gradient[MOVE_OF_STEP[k]][i] += g[i];
         }
-        lambda = a.transpose() * lambda;
+        lambda = transposed_times(&state_jacobians[k], &lambda);
     }
 
     // Move penalties.
@@ -160,6 +159,23 @@ pub fn objective_and_gradient<M: Model<NX, NU>, const NX: usize, const NU: usize
         before = *m;
     }
     (objective, gradient, predicted_m)
+}
+
+/// `mᵀ v` with nalgebra's bits for `m.transpose() * v` (its `gemv`: element `i` is
+/// `Σⱼ m[(j, i)]·v[j]` summed in increasing `j` from the first product), without the transposed
+/// copy and the matrix types around it.
+#[inline]
+fn transposed_times<const R: usize, const C: usize>(
+    m: &nalgebra::SMatrix<f64, R, C>,
+    v: &[f64; R],
+) -> [f64; C] {
+    std::array::from_fn(|i| {
+        let mut sum = m[(0, i)] * v[0];
+        for j in 1..R {
+            sum += m[(j, i)] * v[j];
+        }
+        sum
+    })
 }
 
 #[cfg(test)]
@@ -179,6 +195,61 @@ mod tests {
             [0.5 * t, 0.2 * t * t]
         });
         (model, config, x0, reference)
+    }
+
+    /// `transposed_times` gives the bits of nalgebra's `m.transpose() * v`, zeros of both signs
+    /// and infinities included.
+    #[test]
+    fn transposed_times_has_nalgebras_bits() {
+        let special = [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            1e-300,
+            1e300,
+            f64::INFINITY,
+            f64::NAN,
+            0.1,
+            -3.7,
+        ];
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            if seed % 3 == 0 {
+                special[(seed >> 8) as usize % special.len()]
+            } else {
+                f64::from_bits(seed >> 2) * 1e-300
+            }
+        };
+        for _ in 0..20_000 {
+            let a = nalgebra::SMatrix::<f64, 4, 4>::from_fn(|_, _| next());
+            let b = nalgebra::SMatrix::<f64, 4, 2>::from_fn(|_, _| next());
+            let c = nalgebra::SMatrix::<f64, 2, 5>::from_fn(|_, _| next());
+            let v4 = [next(), next(), next(), next()];
+            let v2 = [next(), next()];
+            // Bits, with every NaN one NaN (which NaN an addition of two returns is the
+            // operands' order, which the compiler may swap).
+            let bits = |x: &[f64]| {
+                x.iter()
+                    .map(|v| {
+                        if v.is_nan() {
+                            f64::NAN.to_bits()
+                        } else {
+                            v.to_bits()
+                        }
+                    })
+                    .collect::<Vec<_>>()
+            };
+            let expected_a = a.transpose() * nalgebra::SVector::<f64, 4>::from(v4);
+            let expected_b = b.transpose() * nalgebra::SVector::<f64, 4>::from(v4);
+            let expected_c = c.transpose() * nalgebra::SVector::<f64, 2>::from(v2);
+            assert_eq!(bits(&transposed_times(&a, &v4)), bits(expected_a.as_slice()));
+            assert_eq!(bits(&transposed_times(&b, &v4)), bits(expected_b.as_slice()));
+            assert_eq!(bits(&transposed_times(&c, &v2)), bits(expected_c.as_slice()));
+        }
     }
 
     #[test]
