@@ -218,7 +218,7 @@ mod tests {
             seed ^= seed << 13;
             seed ^= seed >> 7;
             seed ^= seed << 17;
-            if seed % 3 == 0 {
+            if seed.is_multiple_of(3) {
                 special[(seed >> 8) as usize % special.len()]
             } else {
                 f64::from_bits(seed >> 2) * 1e-300
