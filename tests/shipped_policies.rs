@@ -94,8 +94,8 @@ fn check_curve(dir: &Path, planned: u64, run: &serde_json::Value, what: &str) {
 fn the_shipped_actors_were_trained_by_the_experiments_training_sections() {
     assert_eq!(check_shipped("experiments/transfer.yaml"), 3);
     assert_eq!(check_shipped("experiments/at25.yaml"), 3);
-    // The intersection-trained seeds shipped so far (seed 1; seeds 2 and 3 are in training).
-    assert!(check_shipped("experiments/domain-shift.yaml") >= 2);
+    assert_eq!(check_shipped("experiments/domain-shift.yaml"), 3);
+    assert_eq!(check_shipped("experiments/communication.yaml"), 1);
 }
 
 /// `training.lookahead` enters a fingerprint only where it changes what trains: a planning
