@@ -52,7 +52,8 @@ fn px(value: f64) -> String {
 fn push_px(out: &mut String, value: f64) {
     let tenths = value * 10.0;
     let fraction = tenths - tenths.floor();
-    if !(tenths.abs() < 1e12) || (fraction - 0.5).abs() < 1e-6 {
+    let certain = tenths.is_finite() && tenths.abs() < 1e12 && (fraction - 0.5).abs() >= 1e-6;
+    if !certain {
         let text = format!("{value:.1}");
         out.push_str(if text == "-0.0" { "0.0" } else { &text });
         return;
