@@ -84,10 +84,11 @@ fn weights_and_curves(out: &Path) -> Vec<(PathBuf, Vec<u8>)> {
                 (path, bytes)
             }
         })
-        // run.json names the build, spec.yaml is the input (its `--out` differs).
+        // run.json names the build, spec.yaml is the input (its `--out` differs), `.lock` is the
+        // folder's lock (empty).
         .filter(|(path, _)| {
             let name = path.to_string_lossy();
-            !name.ends_with(".json") && !name.ends_with("spec.yaml")
+            !name.ends_with(".json") && !name.ends_with("spec.yaml") && !name.ends_with(".lock")
         })
         .collect()
 }
@@ -310,6 +311,58 @@ fn a_killed_run_resumes_to_the_weights_of_an_uninterrupted_one() {
         &weights_and_curves(&whole.join("out/7")),
         &weights_and_curves(&killed.join("out/7")),
     );
+}
+
+/// A second `cpmx train` on a seed folder that another one is writing (a `--resume` typed while
+/// the first still finishes its iteration) is refused: two writers would mix their iterations
+/// in the learning curve.
+#[test]
+fn a_seed_folder_being_trained_is_refused_to_a_second_trainer() {
+    let dir = scratch("train-busy");
+    let spec = small_spec(&dir, 400);
+    let mut first = Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .arg("train")
+        .arg(&spec)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .arg("--data")
+        .arg(reference())
+        .args(["--only", "seed=7", "--jobs", "1"])
+        .env_remove("CPMX_DATA")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Once the first has checkpointed an iteration, it holds the folder.
+    let run_json = dir.join("out/7/run.json");
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while std::fs::read_to_string(&run_json)
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|v| v["iterations_done"].as_u64())
+        .unwrap_or(0)
+        < 1
+    {
+        assert!(Instant::now() < deadline, "the first trainer did not start");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let second = train(&dir, &spec, &["--only", "seed=7", "--resume"]);
+    let still_running = first.try_wait().unwrap().is_none();
+    first.kill().unwrap();
+    first.wait().unwrap();
+    if !still_running {
+        eprintln!("note: the first trainer finished before the second started");
+        return;
+    }
+    assert_eq!(second.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&second.stderr);
+    assert!(stderr.contains("being trained by another"), "{stderr}");
+    // Once the first is gone its lock is too: the folder is refused only for what it holds (a
+    // run to continue with `--resume`).
+    let after = train(&dir, &spec, &["--only", "seed=7"]);
+    assert_eq!(after.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&after.stderr);
+    assert!(stderr.contains("already holds seed 7"), "{stderr}");
 }
 
 #[test]

@@ -320,6 +320,12 @@ fn report_open_error(e: &RunError) -> Failure {
             );
             Failure::Usage
         }
+        RunError::Busy { .. } => {
+            eprintln!(
+                "error: {e}\nhelp: let it finish, or stop it (Ctrl-C finishes the iteration under way) and continue with `--resume`; nothing was changed here"
+            );
+            Failure::Usage
+        }
         RunError::Changed { .. } | RunError::Unknown { .. } => {
             eprintln!(
                 "error: {e}\nhelp: train the changed spec into another folder with `--out DIR`; nothing was changed here"

@@ -65,6 +65,38 @@ pub enum RunError {
     /// A file could not be read or written.
     #[error("`{}`: {source}", path.display())]
     Io { path: PathBuf, source: std::io::Error },
+    /// Another process is training the seed in this folder (it holds the folder's lock).
+    #[error(
+        "`{}` is being trained by another `cpmx train` (it holds `{LOCK_FILE}` there): two writers would mix their iterations",
+        dir.display()
+    )]
+    Busy { dir: PathBuf },
+}
+
+/// The file whose lock a seed's run holds while it writes the folder (an advisory lock, released
+/// when the process ends, however it ends).
+pub const LOCK_FILE: &str = ".lock";
+
+/// Takes the lock of seed folder `dir` (creating the folder), or says who holds it.
+fn lock_folder(dir: &Path) -> Result<fs::File, RunError> {
+    let io = |source| RunError::Io {
+        path: dir.to_path_buf(),
+        source,
+    };
+    fs::create_dir_all(dir).map_err(io)?;
+    let file = fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(dir.join(LOCK_FILE))
+        .map_err(io)?;
+    match file.try_lock() {
+        Ok(()) => Ok(file),
+        Err(fs::TryLockError::WouldBlock) => Err(RunError::Busy {
+            dir: dir.to_path_buf(),
+        }),
+        Err(fs::TryLockError::Error(source)) => Err(io(source)),
+    }
 }
 
 /// Where a run stands when its folder is opened.
@@ -104,6 +136,8 @@ pub struct SeedRun {
     info: RunInfo,
     /// Rows of the curve so far (header first), kept to rewrite the SVG.
     curve_text: String,
+    /// The folder's lock, held for as long as the run is open.
+    _lock: fs::File,
 }
 
 impl SeedRun {
@@ -120,6 +154,8 @@ impl SeedRun {
         let checkpoint_path = dir.join("checkpoint.safetensors");
         let planned = setup.hyperparameters.n_iters;
         let env = TrainingEnv::new(setup.env.clone(), &setup.paths, seed)?;
+        // Before the folder is read: what it holds is then this process's alone.
+        let lock = lock_folder(&dir)?;
         let previous: Option<RunInfo> = fs::read(dir.join("run.json"))
             .ok()
             .and_then(|bytes| serde_json::from_slice(&bytes).ok());
@@ -177,14 +213,11 @@ impl SeedRun {
                 dir,
                 info,
                 curve_text,
+                _lock: lock,
             };
             write_atomic(&run.dir.join("learning_curve.csv"), run.curve_text.as_bytes())?;
             return Ok((run, Start::Resumed { done }));
         }
-        fs::create_dir_all(&dir).map_err(|source| RunError::Io {
-            path: dir.clone(),
-            source,
-        })?;
         let trainer = Trainer::new(env, setup.hyperparameters.clone(), seed)?;
         let mut info = new_info(setup, seed);
         info.made_by.push(made_by.to_owned());
@@ -199,6 +232,7 @@ impl SeedRun {
                     &setup.randomised_parameters()
                 )
             ),
+            _lock: lock,
         };
         // run.json first: a checkpoint is never without it.
         run.write_info()?;
