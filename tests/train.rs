@@ -67,6 +67,38 @@ fn train(dir: &Path, spec: &Path, args: &[&str]) -> std::process::Output {
         .expect("cpmx runs")
 }
 
+/// `cpmx train SPEC --out DIR/out --only seed=SEED --jobs 1` started in the background, once
+/// it has checkpointed `iterations` of the seed (or two minutes passed): the trainer, still
+/// running unless it finished.
+fn training_in_background(dir: &Path, spec: &Path, seed: u64, iterations: u64) -> std::process::Child {
+    let child = Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .arg("train")
+        .arg(spec)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .arg("--data")
+        .arg(reference())
+        .args(["--only", &format!("seed={seed}"), "--jobs", "1"])
+        .env_remove("CPMX_DATA")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let run_json = dir.join("out").join(seed.to_string()).join("run.json");
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while Instant::now() < deadline
+        && std::fs::read_to_string(&run_json)
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .and_then(|v| v["iterations_done"].as_u64())
+            .unwrap_or(0)
+            < iterations
+    {
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    child
+}
+
 /// The files of a training folder without the wall-time columns of the learning curve and
 /// the files that name the inputs and the build.
 fn weights_and_curves(out: &Path) -> Vec<(PathBuf, Vec<u8>)> {
@@ -262,33 +294,8 @@ fn a_killed_run_resumes_to_the_weights_of_an_uninterrupted_one() {
     ));
 
     let spec = small_spec(&killed, iterations);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_cpmx"))
-        .arg("train")
-        .arg(&spec)
-        .arg("--out")
-        .arg(killed.join("out"))
-        .arg("--data")
-        .arg(reference())
-        .args(["--only", "seed=7", "--jobs", "1"])
-        .env_remove("CPMX_DATA")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
     // SIGKILL once a few iterations are checkpointed, wherever the run is then.
-    let run_json = killed.join("out/7/run.json");
-    let deadline = Instant::now() + Duration::from_secs(120);
-    loop {
-        let done = std::fs::read_to_string(&run_json)
-            .ok()
-            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-            .and_then(|v| v["iterations_done"].as_u64())
-            .unwrap_or(0);
-        if done >= 3 || Instant::now() > deadline {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
+    let mut child = training_in_background(&killed, &spec, 7, 3);
     child.kill().unwrap();
     let status = child.wait().unwrap();
     // Without --resume the folder is refused as it is.
@@ -319,41 +326,36 @@ fn a_killed_run_resumes_to_the_weights_of_an_uninterrupted_one() {
 #[test]
 fn a_seed_folder_being_trained_is_refused_to_a_second_trainer() {
     let dir = scratch("train-busy");
-    let spec = small_spec(&dir, 400);
-    let mut first = Command::new(env!("CARGO_BIN_EXE_cpmx"))
+    // More iterations than the test lasts: the first is still training when the second comes.
+    let spec = small_spec(&dir, 100_000);
+    // Once the first has checkpointed an iteration, it holds the folder.
+    let mut first = training_in_background(&dir, &spec, 7, 1);
+    assert!(first.try_wait().unwrap().is_none(), "the first trainer stopped");
+    let mut second = Command::new(env!("CARGO_BIN_EXE_cpmx"))
         .arg("train")
         .arg(&spec)
         .arg("--out")
         .arg(dir.join("out"))
         .arg("--data")
         .arg(reference())
-        .args(["--only", "seed=7", "--jobs", "1"])
+        .args(["--only", "seed=7", "--resume"])
         .env_remove("CPMX_DATA")
         .stdout(Stdio::null())
-        .stderr(Stdio::null())
+        .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    // Once the first has checkpointed an iteration, it holds the folder.
-    let run_json = dir.join("out/7/run.json");
-    let deadline = Instant::now() + Duration::from_secs(120);
-    while std::fs::read_to_string(&run_json)
-        .ok()
-        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-        .and_then(|v| v["iterations_done"].as_u64())
-        .unwrap_or(0)
-        < 1
-    {
-        assert!(Instant::now() < deadline, "the first trainer did not start");
-        std::thread::sleep(Duration::from_millis(5));
+    // A refusal comes before any training; a second writer would still be training.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while second.try_wait().unwrap().is_none() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(10));
     }
-    let second = train(&dir, &spec, &["--only", "seed=7", "--resume"]);
-    let still_running = first.try_wait().unwrap().is_none();
-    first.kill().unwrap();
+    let refused = second.try_wait().unwrap().is_some();
+    for child in [&mut first, &mut second] {
+        let _ = child.kill();
+    }
     first.wait().unwrap();
-    if !still_running {
-        eprintln!("note: the first trainer finished before the second started");
-        return;
-    }
+    let second = second.wait_with_output().unwrap();
+    assert!(refused, "a second trainer on the seed was not refused");
     assert_eq!(second.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&second.stderr);
     assert!(stderr.contains("being trained by another"), "{stderr}");

@@ -75,7 +75,7 @@ pub enum RunError {
 
 /// The file whose lock a seed's run holds while it writes the folder (an advisory lock, released
 /// when the process ends, however it ends).
-pub const LOCK_FILE: &str = ".lock";
+const LOCK_FILE: &str = ".lock";
 
 /// Takes the lock of seed folder `dir` (creating the folder), or says who holds it.
 fn lock_folder(dir: &Path) -> Result<fs::File, RunError> {
