@@ -11,6 +11,7 @@ use cpmx_spec::{CheckedSpec, RunPlan};
 use cpmx_recording::Recording;
 
 use crate::experiment::Scoring;
+use crate::pipeline::pipelined;
 use crate::runner::inputs_hash;
 use crate::store::{read_stored, run_dir, write_atomic};
 
@@ -181,27 +182,53 @@ pub fn write_header(
     plans: &[RunPlan],
     provenance: &Provenance,
 ) -> std::io::Result<()> {
-    write_atomic(
-        &out.join("spec.resolved.yaml"),
-        resolved_spec_text(checked)?.as_bytes(),
-    )?;
-    let provenance = serde_json::to_vec_pretty(provenance).map_err(std::io::Error::other)?;
-    write_atomic(&out.join("provenance.json"), &provenance)?;
-    let mut matrix = String::from("key,fidelity,policy,initial_configuration,repetition,seed\n");
-    for p in plans {
-        matrix.push_str(&format!(
-            "{},{},{},{},{},{}\n",
-            p.key, p.fidelity, p.policy, p.initial_configuration, p.repetition, p.seed
-        ));
-    }
-    write_atomic(&out.join("matrix.csv"), matrix.as_bytes())?;
-    keep_learning_curves(out, checked)
+    write_files(|write| {
+        write(
+            out.join("spec.resolved.yaml"),
+            resolved_spec_text(checked)?.into_bytes(),
+        );
+        let provenance = serde_json::to_vec_pretty(provenance).map_err(std::io::Error::other)?;
+        write(out.join("provenance.json"), provenance);
+        let mut matrix = String::from("key,fidelity,policy,initial_configuration,repetition,seed\n");
+        for p in plans {
+            matrix.push_str(&format!(
+                "{},{},{},{},{},{}\n",
+                p.key, p.fidelity, p.policy, p.initial_configuration, p.repetition, p.seed
+            ));
+        }
+        write(out.join("matrix.csv"), matrix.into_bytes());
+        keep_learning_curves(out, checked, write);
+        Ok(())
+    })
+}
+
+/// The writer of [`write_files`]: a file's path and its bytes.
+type Write<'a> = &'a (dyn Fn(PathBuf, Vec<u8>) + Sync);
+
+/// Writes each file `make` hands its writer atomically ([`write_atomic`]) on writer threads of
+/// their own while `make` goes on, so that the files' waits for the disk overlap; returns when
+/// every file is written, with the first error of `make` or of a write.
+fn write_files<R>(make: impl FnOnce(Write<'_>) -> std::io::Result<R>) -> std::io::Result<R> {
+    const WRITERS: usize = 4;
+    let (made, written) = pipelined(
+        WRITERS,
+        |(path, bytes): (PathBuf, Vec<u8>)| write_atomic(&path, &bytes),
+        |sender| {
+            make(&|path, bytes| {
+                // Fails only when the writers are gone (one panicked: that reaches the caller).
+                let _ = sender.send((path, bytes));
+            })
+        },
+    );
+    let made = made?;
+    written.into_iter().collect::<std::io::Result<()>>()?;
+    Ok(made)
 }
 
 /// Copies the learning curve of every policy trained by `cpmx train` (the
 /// `learning_curve.csv` beside its actor) to `training/<policy>/learning_curve.csv`, so that the
 /// folder and its report show how its policies were trained wherever the folder moves.
-fn keep_learning_curves(out: &Path, checked: &CheckedSpec) -> std::io::Result<()> {
+fn keep_learning_curves(out: &Path, checked: &CheckedSpec, write: Write<'_>) {
     for (policy, weights) in checked.spec.policies.iter().zip(&checked.resources.weights) {
         let trained = policy.mlp.as_ref().is_some_and(|m| m.trained.is_some());
         let curve = weights
@@ -211,13 +238,12 @@ fn keep_learning_curves(out: &Path, checked: &CheckedSpec) -> std::io::Result<()
         if let (true, Some(curve)) = (trained, curve)
             && let Ok(text) = std::fs::read(&curve)
         {
-            write_atomic(
-                &out.join("training").join(&policy.name).join("learning_curve.csv"),
-                &text,
-            )?;
+            write(
+                out.join("training").join(&policy.name).join("learning_curve.csv"),
+                text,
+            );
         }
     }
-    Ok(())
 }
 
 /// Writes `per_run.csv`, the summaries, the plots and `report.html` of `records` (in matrix
@@ -240,43 +266,46 @@ pub fn write_summaries_from(
         &scoring.spec.report,
         &cpmx_report::Origins::of_spec(&scoring.spec),
     );
-    write_atomic(&out.join("per_run.csv"), per_run_csv(records).as_bytes())?;
-    for format in Format::ALL {
-        if let Some(name) = format.file_name() {
-            write_atomic(&out.join(name), render(&summary, format).as_bytes())?;
+    write_files(|write| {
+        write(out.join("per_run.csv"), per_run_csv(records).into_bytes());
+        for format in Format::ALL {
+            if let Some(name) = format.file_name() {
+                write(out.join(name), render(&summary, format).into_bytes());
+            }
         }
-    }
-    // Each run's recording and figure on its own (rayon: in parallel on the command's pool).
-    let recordings: Vec<Option<Recording>> = records
-        .par_iter()
-        .map(|record| {
-            sources.iter().find_map(|dir| {
-                let file = std::fs::File::open(run_dir(dir, &record.plan).join("trajectory.csv")).ok()?;
-                Recording::read_csv(file).ok()
+        // Each run's recording and figure on its own (rayon: in parallel on the command's pool).
+        let recordings: Vec<Option<Recording>> = records
+            .par_iter()
+            .map(|record| {
+                sources.iter().find_map(|dir| {
+                    let file = std::fs::File::open(run_dir(dir, &record.plan).join("trajectory.csv")).ok()?;
+                    Recording::read_csv(file).ok()
+                })
             })
-        })
-        .collect();
-    write_plots(out, scoring, records, &recordings, &summary)?;
-    let page = cpmx_report_html::Page {
-        summary: &summary,
-        description: scoring.spec.description.as_deref(),
-        map: &scoring.map,
-        vehicle: &scoring.vehicle,
-        runs: records
-            .iter()
-            .zip(&recordings)
-            .filter_map(|(record, recording)| {
-                recording
-                    .as_ref()
-                    .map(|recording| cpmx_report_html::PageRun { record, recording })
-            })
-            .collect(),
-        learning_curves: learning_curves(out),
-    };
-    write_atomic(
-        &out.join("report.html"),
-        cpmx_report_html::report_html(&page).as_bytes(),
-    )?;
+            .collect();
+        write_plots(out, scoring, records, &recordings, &summary, write);
+        let page = cpmx_report_html::Page {
+            summary: &summary,
+            description: scoring.spec.description.as_deref(),
+            map: &scoring.map,
+            vehicle: &scoring.vehicle,
+            runs: records
+                .iter()
+                .zip(&recordings)
+                .filter_map(|(record, recording)| {
+                    recording
+                        .as_ref()
+                        .map(|recording| cpmx_report_html::PageRun { record, recording })
+                })
+                .collect(),
+            learning_curves: learning_curves(out),
+        };
+        write(
+            out.join("report.html"),
+            cpmx_report_html::report_html(&page).into_bytes(),
+        );
+        Ok(())
+    })?;
     Ok(summary)
 }
 
@@ -328,34 +357,35 @@ fn write_plots(
     records: &[RunRecord],
     recordings: &[Option<Recording>],
     summary: &Summary,
-) -> std::io::Result<()> {
+    write: Write<'_>,
+) {
     let plots = out.join("plots");
     for metric in cpmx_report::Metric::ALL {
         let svg = cpmx_report::distribution_svg(summary, metric);
-        write_atomic(
-            &plots.join(format!("distribution-{}.svg", metric.id())),
-            svg.as_bytes(),
-        )?;
+        write(
+            plots.join(format!("distribution-{}.svg", metric.id())),
+            svg.into_bytes(),
+        );
     }
     for plot in cpmx_report::sensitivity_svgs(summary) {
-        write_atomic(
-            &plots.join(format!("{}.svg", plot.name.replace('/', "_"))),
-            plot.svg.as_bytes(),
-        )?;
+        write(
+            plots.join(format!("{}.svg", plot.name.replace('/', "_"))),
+            plot.svg.into_bytes(),
+        );
     }
     records
         .par_iter()
         .zip(recordings)
-        .try_for_each(|(record, recording)| {
-            let Some(recording) = recording else {
-                return Ok(());
-            };
-            let svg = cpmx_report::trajectory_svg(&scoring.map, recording, &record.metrics, &scoring.vehicle);
-            write_atomic(
-                &plots.join(format!("{}.svg", record.plan.key.replace('/', "_"))),
-                svg.as_bytes(),
-            )
-        })
+        .for_each(|(record, recording)| {
+            if let Some(recording) = recording {
+                let svg =
+                    cpmx_report::trajectory_svg(&scoring.map, recording, &record.metrics, &scoring.vehicle);
+                write(
+                    plots.join(format!("{}.svg", record.plan.key.replace('/', "_"))),
+                    svg.into_bytes(),
+                );
+            }
+        });
 }
 
 /// The runs listed in a folder's `matrix.csv`.

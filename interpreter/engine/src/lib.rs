@@ -9,6 +9,7 @@ mod experiment;
 pub mod folder;
 pub mod lab;
 mod onnx;
+mod pipeline;
 mod randomise;
 mod runner;
 mod sim;

@@ -5,6 +5,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::SendError;
 use std::sync::{Arc, Mutex};
 
 use cpmx_metrics::{PathGeometry, RunMetrics, evaluate};
@@ -16,6 +17,7 @@ use sha2::{Digest, Sha256};
 
 use crate::engine::{Operator, RunError, RunInputs, engine_for};
 use crate::experiment::Experiment;
+use crate::pipeline::pipelined;
 use crate::store::{
     EARLIER_RECORDING, Failure, StoredRun, finished_run, run_dir, store_failure, store_run, write_atomic,
 };
@@ -63,6 +65,12 @@ pub enum RunOutcome {
 
 /// Runs `plans` (already filtered by `--only`) and stores each into `out`; `on_done` is called
 /// as runs finish (for a progress bar).
+///
+/// A finished run is stored by writer threads beside the `jobs` threads that compute (see
+/// [`pipelined`]): its files are formatted, written and `fsync`ed while the next run
+/// computes. A run counts as done (`on_done`, its outcome) when its `metrics.json` is in
+/// place; the writers have stored every finished run when this returns, Ctrl-C included (the
+/// runs under way finish and are stored).
 pub fn execute(
     experiment: &Experiment,
     plans: &[RunPlan],
@@ -77,33 +85,88 @@ pub fn execute(
         .filter(|(i, _)| options.shard.contains(*i))
         .map(|(_, p)| p)
         .collect();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(options.jobs.max(1))
-        .build()?;
+    let jobs = options.jobs.max(1);
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(jobs).build()?;
     // Fidelities whose lab did not answer: their later runs fail at once instead of waiting
     // for the same timeout again.
     let silent: Mutex<BTreeSet<String>> = Mutex::new(BTreeSet::new());
-    let outcomes = pool.install(|| {
-        selected
-            .par_iter()
-            .map(|plan| {
-                let stopped = options.stop.as_ref().is_some_and(|s| s.load(Ordering::SeqCst));
-                let outcome = if stopped {
-                    RunOutcome::NotRun
-                } else if silent.lock().is_ok_and(|s| s.contains(&plan.fidelity)) {
-                    RunOutcome::Failed(format!(
-                        "not started: the lab of fidelity `{}` did not answer an earlier run",
-                        plan.fidelity
-                    ))
-                } else {
-                    execute_one(experiment, plan, out, options, context_hash, &silent)
-                };
-                on_done(plan, &outcome);
-                ((*plan).clone(), outcome)
-            })
-            .collect()
+    let store = |run: ToStore<'_>| {
+        let outcome = match store_run(out, run.plan, &run.recording, &run.stored) {
+            Ok(()) => RunOutcome::Finished(run.stored),
+            Err(e) => RunOutcome::Failed(format!("cannot store the run: {e}")),
+        };
+        on_done(run.plan, &outcome);
+        (run.index, outcome)
+    };
+    let (mut outcomes, stored): (Vec<Option<RunOutcome>>, _) = pipelined(jobs + 1, &store, |to_writer| {
+        pool.install(|| {
+            selected
+                .par_iter()
+                .enumerate()
+                .map(|(index, plan)| {
+                    let stopped = options.stop.as_ref().is_some_and(|s| s.load(Ordering::SeqCst));
+                    let outcome = if stopped {
+                        RunOutcome::NotRun
+                    } else if silent.lock().is_ok_and(|s| s.contains(&plan.fidelity)) {
+                        RunOutcome::Failed(format!(
+                            "not started: the lab of fidelity `{}` did not answer an earlier run",
+                            plan.fidelity
+                        ))
+                    } else {
+                        match execute_one(experiment, plan, out, options, context_hash, &silent) {
+                            Computed::Outcome(outcome) => outcome,
+                            Computed::Finished { recording, stored } => {
+                                let run = ToStore {
+                                    index,
+                                    plan,
+                                    recording,
+                                    stored,
+                                };
+                                // Sending fails only when the writers are gone (one panicked).
+                                match to_writer.send(run) {
+                                    Ok(()) => return None,
+                                    Err(SendError(run)) => return Some(store(run).1),
+                                }
+                            }
+                        }
+                    };
+                    on_done(plan, &outcome);
+                    Some(outcome)
+                })
+                .collect()
+        })
     });
-    Ok(outcomes)
+    for (index, outcome) in stored {
+        outcomes[index] = Some(outcome);
+    }
+    Ok(selected
+        .into_iter()
+        .zip(outcomes.iter_mut())
+        .map(|(plan, outcome)| {
+            // Every run sent to the writers came back from them.
+            let outcome = outcome.take().unwrap_or(RunOutcome::NotRun);
+            (plan.clone(), outcome)
+        })
+        .collect())
+}
+
+/// A finished run on its way to the writer: its place in the selection, its recording and
+/// what its `metrics.json` will hold.
+struct ToStore<'a> {
+    index: usize,
+    plan: &'a RunPlan,
+    recording: Box<Recording>,
+    stored: Box<StoredRun>,
+}
+
+/// What computing a run gave: an outcome already settled (resumed, failed and stored as such)
+/// or a finished run still to store.
+enum Computed {
+    Outcome(RunOutcome),
+    Finished {
+        recording: Box<Recording>,
+        stored: Box<StoredRun>,
+    },
 }
 
 /// The hash of a run's inputs.
@@ -125,12 +188,12 @@ fn execute_one(
     options: &RunOptions,
     context_hash: &str,
     silent: &Mutex<BTreeSet<String>>,
-) -> RunOutcome {
+) -> Computed {
     let hash = inputs_hash(context_hash, plan);
     if options.resume
         && let Some(stored) = finished_run(out, plan, &hash)
     {
-        return RunOutcome::Resumed(Box::new(stored));
+        return Computed::Outcome(RunOutcome::Resumed(Box::new(stored)));
     }
     let (fidelity, drawn_parameters) = drawn_fidelity(experiment, plan);
     let context = EngineContext {
@@ -151,7 +214,7 @@ fn execute_one(
             Err(e) => RunOutcome::Failed(format!("{reason}; cannot store failed.json: {e}")),
         }
     };
-    match run_engine(experiment, plan, fidelity.as_ref(), context).and_then(|recording| {
+    let outcome = match run_engine(experiment, plan, fidelity.as_ref(), context).and_then(|recording| {
         let metrics = measure(experiment, &plan.fidelity, &recording)?;
         Ok((recording, metrics))
     }) {
@@ -165,10 +228,10 @@ fn execute_one(
                 planning_latency_ms: milliseconds(&recording.latency_s),
                 metrics,
             };
-            match store_run(out, plan, &recording, &stored) {
-                Ok(()) => RunOutcome::Finished(Box::new(stored)),
-                Err(e) => RunOutcome::Failed(format!("cannot store the run: {e}")),
-            }
+            return Computed::Finished {
+                recording: Box::new(recording),
+                stored: Box::new(stored),
+            };
         }
         Err(RunFailure::Partial { reason, recording }) => match store_partial(out, plan, &recording) {
             Ok(()) => failed(
@@ -185,7 +248,8 @@ fn execute_one(
             }
             failed(reason, &earlier_recording(out, plan), &[])
         }
-    }
+    };
+    Computed::Outcome(outcome)
 }
 
 /// Seconds as milliseconds, to the microsecond.
