@@ -16,6 +16,7 @@ use cpmx_spec::{CheckedSpec, Spec};
 use cpmx_vehicle::VehicleParams;
 use cpmx_world::Map;
 
+use crate::memo::Memo;
 use crate::starts::{InitialState, initial_states};
 
 /// Why an experiment could not be prepared.
@@ -278,10 +279,19 @@ pub fn load_map_spec(map: &MapSpec, map_file: Option<&Path>) -> Result<Map, Prep
                 Some(cpmx_spec::model::MapFormat::Commonroad) => cpmx_world::MapFormat::CommonRoad,
                 Some(cpmx_spec::model::MapFormat::Lanelet2) => cpmx_world::MapFormat::Lanelet2Osm,
             };
-            let mut map = Map::load_with_format(path, format).map_err(|source| PrepareError::MapFile {
+            let map_error = |source| PrepareError::MapFile {
                 path: path.to_owned(),
                 source,
+            };
+            let text = std::fs::read_to_string(path).map_err(|source| {
+                map_error(cpmx_world::MapError::Io {
+                    path: path.to_owned(),
+                    source,
+                })
             })?;
+            let mut map = MAPS
+                .get_or_parse((format, text), |(format, text)| Map::from_str(text, *format))
+                .map_err(map_error)?;
             if let Some(region) = &file.region {
                 map = map.with_region(region)?;
             }
@@ -296,6 +306,12 @@ pub fn load_map_spec(map: &MapSpec, map_file: Option<&Path>) -> Result<Map, Prep
         }
     }
 }
+
+/// The maps parsed in this process, by format and text.
+static MAPS: Memo<(cpmx_world::MapFormat, String), Map> = Memo::new();
+
+/// The actors parsed in this process, by activation and file bytes.
+static ACTORS: Memo<(Activation, Vec<u8>), MlpActor> = Memo::new();
 
 /// The spec's vehicle in the interpreter's units.
 pub fn vehicle_params(v: &VehicleSpec) -> VehicleParams {
@@ -361,7 +377,13 @@ pub fn load_network(
     weights: &Path,
 ) -> Result<(MlpActor, OutputHead), cpmx_policy::ActorError> {
     let (activation, output) = network_options(mlp);
-    let actor = MlpActor::load_any(weights, activation)?;
+    let bytes = std::fs::read(weights).map_err(|source| cpmx_policy::ActorError::Io {
+        path: weights.to_owned(),
+        source,
+    })?;
+    let actor = ACTORS.get_or_parse((activation, bytes), |(activation, bytes)| {
+        MlpActor::from_bytes_any(bytes, *activation)
+    })?;
     actor.check_fits(Some(observation.size()), output)?;
     Ok((actor, output))
 }

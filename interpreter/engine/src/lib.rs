@@ -8,6 +8,7 @@ mod engine;
 mod experiment;
 pub mod folder;
 pub mod lab;
+mod memo;
 mod onnx;
 mod pipeline;
 mod randomise;
