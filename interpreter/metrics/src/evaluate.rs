@@ -7,7 +7,7 @@
 
 use cpmx_recording::{AgentSample, Recording};
 use cpmx_vehicle::{VehicleParams, footprint_corners};
-use cpmx_world::{Point, Polyline, ReferencePath, polyline::dist};
+use cpmx_world::{Point, Polyline, ReferencePath, SegmentBoxes, polyline::dist};
 
 use crate::MetricsError;
 use crate::collision::{PlacedBox, signed_distance_m};
@@ -128,7 +128,7 @@ pub fn evaluate(
             .find(|p| p.id == id)
             .ok_or(MetricsError::UnknownRefPath { agent, id })?;
         let map = |line: &[Point]| -> Vec<Point> { line.iter().map(|&p| rotate(p)).collect() };
-        centre_lines.push(Polyline::new(map(path.center_line)));
+        centre_lines.push(SegmentBoxes::new(Polyline::new(map(path.center_line))));
         lanes.push(Lane::new(map(path.left_boundary), map(path.right_boundary)));
         open_paths.push(!path.is_loop);
     }
@@ -181,7 +181,7 @@ pub fn evaluate(
         let (mut cd_sum_m, mut speed_sum_mps) = (0.0, 0.0);
         // With `end_at_path_end`, the samples up to (and with) the one that reached the end.
         let counted = if config.end_at_path_end && open_paths[agent] {
-            let line = &centre_lines[agent];
+            let line = centre_lines[agent].polyline();
             states
                 .iter()
                 .position(|row| line.remaining_m([row[agent].x_m, row[agent].y_m]) <= END_REACHED_M)

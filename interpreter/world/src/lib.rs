@@ -9,8 +9,8 @@
 //! `lanelet2` library reads them and its routing graph connects them); `paths` builds
 //! reference paths with SigmaRL's recipe; `cpm_lab` holds SigmaRL's hard-coded tables of the
 //! CPM Lab map; `generic` numbers paths of other maps; `builtin` writes this project's maps;
-//! `map` ties them into [`Map`]; `nearest` and `geometry` answer the simulator's and the
-//! validator's queries.
+//! `map` ties them into [`Map`]; `nearest`, `segment_boxes` and `geometry` answer the
+//! simulator's, the metrics' and the validator's queries.
 
 pub mod builtin;
 pub mod commonroad;
@@ -25,6 +25,7 @@ mod numerics;
 pub mod osm;
 mod paths;
 pub mod polyline;
+mod segment_boxes;
 mod xml;
 
 pub use error::{LineIndex, MapError, PathError, SourceLocation};
@@ -35,6 +36,7 @@ pub use nearest::{PathIndex, SegmentGrid};
 pub use numerics::Numerics;
 pub use paths::{CentreRule, PathBuilder, SharedRule};
 pub use polyline::{Point, Polyline, SegmentDistance};
+pub use segment_boxes::SegmentBoxes;
 
 /// A reference path: the lane an agent follows, with its own-lane and shared (road) boundaries.
 #[derive(Debug, Clone, PartialEq)]

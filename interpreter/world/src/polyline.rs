@@ -56,11 +56,7 @@ impl Polyline {
     /// differ by a few ulp), so only those are measured with it: the answer of measuring every
     /// segment, at a fraction of the cost.
     pub fn nearest_segment(&self, p: Point) -> Option<SegmentDistance> {
-        let squared = |pair: &[Point]| {
-            let q = projection(p, pair[0], pair[1]).0;
-            let (dx, dy) = (p[0] - q[0], p[1] - q[1]);
-            dx * dx + dy * dy
-        };
+        let squared = |pair: &[Point]| squared_distance(p, pair[0], pair[1]);
         let smallest = self.points.windows(2).map(squared).fold(f64::INFINITY, f64::min);
         let bound = smallest * (1.0 + 1e-9) + f64::MIN_POSITIVE;
         let mut best: Option<SegmentDistance> = None;
@@ -106,6 +102,15 @@ impl Polyline {
             .sum();
         dist(a, b) * (1.0 - nearest.t) + rest
     }
+}
+
+/// The squared distance from `p` to the segment `a`–`b`, as [`Polyline::nearest_segment`]
+/// ranks segments before it measures the closest with `hypot`.
+#[inline]
+pub(crate) fn squared_distance(p: Point, a: Point, b: Point) -> f64 {
+    let q = projection(p, a, b).0;
+    let (dx, dy) = (p[0] - q[0], p[1] - q[1]);
+    dx * dx + dy * dy
 }
 
 /// Distance from `p` to the segment `a`–`b` and the projection parameter clamped to [0, 1].
