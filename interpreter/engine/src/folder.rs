@@ -373,13 +373,14 @@ fn write_plots(
             plot.svg.into_bytes(),
         );
     }
+    // One drawing of the road per frame, shared by the runs' figures.
+    let drawing = cpmx_report::MapDrawing::new(&scoring.map);
     records
         .par_iter()
         .zip(recordings)
         .for_each(|(record, recording)| {
             if let Some(recording) = recording {
-                let svg =
-                    cpmx_report::trajectory_svg(&scoring.map, recording, &record.metrics, &scoring.vehicle);
+                let svg = drawing.trajectory_svg(recording, &record.metrics, &scoring.vehicle);
                 write(
                     plots.join(format!("{}.svg", record.plan.key.replace('/', "_"))),
                     svg.into_bytes(),

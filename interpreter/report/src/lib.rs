@@ -29,8 +29,8 @@ pub use aggregate::{
 pub use compare::{Comparison, FidelityComparison, PairedMetric, Signs};
 pub use metric::{Metric, Units};
 pub use svg::{
-    AGENT_COLOURS, COLLISION_INK, SensitivityPlot, VIOLATION_INK, distribution_svg, sensitivity_svgs,
-    trajectory_svg,
+    AGENT_COLOURS, COLLISION_INK, MapDrawing, SensitivityPlot, VIOLATION_INK, distribution_svg,
+    sensitivity_svgs, trajectory_svg,
 };
 pub use table::{Format, per_run_csv, render};
 pub use transfer::{Origin, Transfer, TransferCell};

@@ -17,7 +17,7 @@ mod trajectory;
 
 pub use distribution::distribution_svg;
 pub use sensitivity::{SensitivityPlot, sensitivity_svgs};
-pub use trajectory::trajectory_svg;
+pub use trajectory::{MapDrawing, trajectory_svg};
 
 /// Agent and group colours: Okabe–Ito's without black (as `cpmx-env`'s `render.rs` draws
 /// agents), distinguishable with every common colour-vision deficiency; cycled. `report.html`'s

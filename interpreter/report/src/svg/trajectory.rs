@@ -6,6 +6,7 @@
 //! them. A legend above the map says so. y points up.
 
 use std::fmt::Write;
+use std::sync::{Arc, Mutex};
 
 use cpmx_metrics::RunMetrics;
 use cpmx_metrics::resample::resample;
@@ -22,41 +23,111 @@ const MAX_HEIGHT_PX: f64 = 800.0;
 /// Blank border around the drawing [px] (the scale bar sits in the bottom one).
 const MARGIN_PX: f64 = 30.0;
 
-/// The SVG of one run on its map.
-///
-/// The recording is put on the metrics' time grid first (`metrics.config.sample_period_s`,
-/// its `rotate180`, and `metrics.num_samples` samples), so that the sample indices of
-/// `metrics` (pair events, violation samples) point at the drawn states. Indices outside
-/// the recording are skipped.
+/// The SVG of one run on its map (see [`MapDrawing`] to draw many runs on one map).
 pub fn trajectory_svg(
     map: &Map,
     recording: &Recording,
     metrics: &RunMetrics,
     vehicle: &VehicleParams,
 ) -> String {
-    // Put the states in the metrics' frame and time grid.
-    let states = metric_states(recording, metrics);
-    let mut frame = Frame::new(map, &states);
-    let lines = legend_lines(recording.agent_count(), frame.width_px - 2.0 * MARGIN_PX);
-    frame.lower_by(LEGEND_LINE_PX * (lines.len() - 1) as f64);
-    let mut out = open(frame.width_px, frame.height_px);
-    let _ = writeln!(
-        out,
-        "<title>{} agents over {} samples; black cross and outlines: collision events; grey band and ring: \
-         lane violations</title>",
-        recording.agent_count(),
-        states.len()
-    );
+    MapDrawing::new(map).trajectory_svg(recording, metrics, vehicle)
+}
 
-    // The road, then each agent's reference path.
-    out.push_str("<g class=\"lanelets\" fill=\"none\" stroke=\"#c8c8c8\" stroke-width=\"1\">\n");
-    for lanelet in map.lanelets() {
-        for boundary in [&lanelet.left_boundary, &lanelet.right_boundary] {
-            let _ = writeln!(out, "<path d=\"{}\"/>", frame.path(&boundary.points));
+/// A map that runs are drawn on: the road of each frame is drawn once and reused by every run
+/// drawn in the same frame (the runs of a folder mostly share one; threads share it too).
+pub struct MapDrawing<'a> {
+    map: &'a Map,
+    /// The road layer per frame, by the frame's numbers' bits.
+    roads: Mutex<Vec<([u64; 6], Arc<str>)>>,
+}
+
+/// Frames whose road is kept.
+const ROADS_KEPT: usize = 8;
+
+impl<'a> MapDrawing<'a> {
+    /// Draws on `map`.
+    pub fn new(map: &'a Map) -> Self {
+        Self {
+            map,
+            roads: Mutex::new(Vec::new()),
         }
     }
-    out.push_str("</g>\n");
 
+    /// The lanelets' boundaries in `frame`, drawn once per frame.
+    fn road(&self, frame: &Frame) -> Arc<str> {
+        let key = frame.key();
+        let mut roads = self
+            .roads
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some((_, road)) = roads.iter().find(|(k, _)| *k == key) {
+            return road.clone();
+        }
+        let mut road =
+            String::from("<g class=\"lanelets\" fill=\"none\" stroke=\"#c8c8c8\" stroke-width=\"1\">\n");
+        for lanelet in self.map.lanelets() {
+            for boundary in [&lanelet.left_boundary, &lanelet.right_boundary] {
+                let _ = writeln!(road, "<path d=\"{}\"/>", frame.path(&boundary.points));
+            }
+        }
+        road.push_str("</g>\n");
+        let road: Arc<str> = road.into();
+        if roads.len() == ROADS_KEPT {
+            roads.remove(0);
+        }
+        roads.push((key, road.clone()));
+        road
+    }
+
+    /// The SVG of one run on the map.
+    ///
+    /// The recording is put on the metrics' time grid first (`metrics.config.sample_period_s`,
+    /// its `rotate180`, and `metrics.num_samples` samples), so that the sample indices of
+    /// `metrics` (pair events, violation samples) point at the drawn states. Indices outside
+    /// the recording are skipped.
+    pub fn trajectory_svg(
+        &self,
+        recording: &Recording,
+        metrics: &RunMetrics,
+        vehicle: &VehicleParams,
+    ) -> String {
+        let map = self.map;
+        // Put the states in the metrics' frame and time grid.
+        let states = metric_states(recording, metrics);
+        let mut frame = Frame::new(map, &states);
+        let lines = legend_lines(recording.agent_count(), frame.width_px - 2.0 * MARGIN_PX);
+        frame.lower_by(LEGEND_LINE_PX * (lines.len() - 1) as f64);
+        let mut out = open(frame.width_px, frame.height_px);
+        let _ = writeln!(
+            out,
+            "<title>{} agents over {} samples; black cross and outlines: collision events; grey band and ring: \
+             lane violations</title>",
+            recording.agent_count(),
+            states.len()
+        );
+
+        // The road, then each agent's reference path.
+        out.push_str(&self.road(&frame));
+        draw_run(
+            &mut out, map, &frame, &states, recording, metrics, vehicle, &lines,
+        );
+        out
+    }
+}
+
+/// Everything of a run's figure after the road: violations, reference paths, trajectories,
+/// starts, collisions, legend and scale bar.
+#[allow(clippy::too_many_arguments)]
+fn draw_run(
+    out: &mut String,
+    map: &Map,
+    frame: &Frame,
+    states: &[Vec<AgentSample>],
+    recording: &Recording,
+    metrics: &RunMetrics,
+    vehicle: &VehicleParams,
+    lines: &[Vec<Entry>],
+) {
     // Lane violations under everything an agent draws: a band along each episode.
     let episodes = violation_episodes(metrics);
     for &(agent, first, last) in &episodes {
@@ -115,7 +186,7 @@ pub fn trajectory_svg(
     for event in &metrics.pair_events {
         let mut centres = Vec::new();
         for agent in event.agents {
-            centres.extend(outline(&mut out, &frame, &states, vehicle, (event.sample, agent)));
+            centres.extend(outline(out, frame, states, vehicle, (event.sample, agent)));
         }
         if let [(x0, y0), (x1, y1)] = centres[..] {
             let (x, y) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
@@ -148,10 +219,9 @@ pub fn trajectory_svg(
             );
         }
     }
-    legend(&mut out, &lines);
-    scale_bar(&mut out, &frame);
+    legend(out, lines);
+    scale_bar(out, frame);
     out.push_str("</svg>\n");
-    out
 }
 
 /// A bar of a round length (1, 2 or 5 × 10^k m, about a fifth of the drawing) with its label,
@@ -395,5 +465,18 @@ impl Frame {
 
     fn path(&self, points: &[Point]) -> String {
         path_data(points.iter().map(|&[x, y]| self.to_px(x, y)))
+    }
+
+    /// The numbers that place map coordinates in the drawing, as bits: equal keys draw the
+    /// same map the same way.
+    fn key(&self) -> [u64; 6] {
+        [
+            self.bounds.min_x_m.to_bits(),
+            self.bounds.max_x_m.to_bits(),
+            self.bounds.min_y_m.to_bits(),
+            self.bounds.max_y_m.to_bits(),
+            self.top_px.to_bits(),
+            self.scale_px_per_m.to_bits(),
+        ]
     }
 }
