@@ -103,20 +103,23 @@ impl Recording {
         let headers = reader.headers()?.clone();
         let col = |name: &'static str| headers.iter().position(|h| h == name);
         let required = ["t", "agent", "x", "y", "yaw", "vx", "vy", "ref_path"];
-        let mut idx = std::collections::HashMap::new();
-        for name in required {
-            match col(name) {
-                Some(i) => {
-                    idx.insert(name, i);
-                }
-                None => {
-                    return Err(RecordingError::MissingColumn {
-                        line: 1,
-                        column: name,
-                    });
-                }
-            }
+        let mut columns = [0; 8];
+        for (column, name) in columns.iter_mut().zip(required) {
+            *column = col(name).ok_or(RecordingError::MissingColumn {
+                line: 1,
+                column: name,
+            })?;
         }
+        let [
+            t_col,
+            agent_col,
+            x_col,
+            y_col,
+            yaw_col,
+            vx_col,
+            vy_col,
+            ref_path_col,
+        ] = columns;
         let steering_col = col("steering");
 
         let mut recording = Recording::default();
@@ -124,30 +127,30 @@ impl Recording {
         for record in reader.records() {
             let record = record?;
             let line = record.position().map_or(0, |p| p.line());
-            let field = |name: &'static str| -> Result<&str, RecordingError> {
+            let field = |index: usize, name: &'static str| -> Result<&str, RecordingError> {
                 record
-                    .get(idx[name])
+                    .get(index)
                     .ok_or(RecordingError::MissingColumn { line, column: name })
             };
-            let number = |name: &'static str| -> Result<f64, RecordingError> {
-                let value = field(name)?;
+            let number = |index: usize, name: &'static str| -> Result<f64, RecordingError> {
+                let value = field(index, name)?;
                 value.parse::<f64>().map_err(|_| RecordingError::BadNumber {
                     line,
                     column: name,
                     value: value.to_string(),
                 })
             };
-            let integer = |name: &'static str| -> Result<usize, RecordingError> {
-                let value = field(name)?;
+            let integer = |index: usize, name: &'static str| -> Result<usize, RecordingError> {
+                let value = field(index, name)?;
                 value.parse::<usize>().map_err(|_| RecordingError::BadNumber {
                     line,
                     column: name,
                     value: value.to_string(),
                 })
             };
-            let t_s = number("t")?;
-            let agent = integer("agent")?;
-            let ref_path = integer("ref_path")?;
+            let t_s = number(t_col, "t")?;
+            let agent = integer(agent_col, "agent")?;
+            let ref_path = integer(ref_path_col, "ref_path")?;
             let steering_rad = match steering_col.and_then(|i| record.get(i)) {
                 Some(v) if !v.is_empty() => v.parse::<f64>().map_err(|_| RecordingError::BadNumber {
                     line,
@@ -157,10 +160,10 @@ impl Recording {
                 _ => f64::NAN,
             };
             let sample = AgentSample {
-                x_m: number("x")?,
-                y_m: number("y")?,
-                yaw_rad: number("yaw")?,
-                velocity_mps: [number("vx")?, number("vy")?],
+                x_m: number(x_col, "x")?,
+                y_m: number(y_col, "y")?,
+                yaw_rad: number(yaw_col, "yaw")?,
+                velocity_mps: [number(vx_col, "vx")?, number(vy_col, "vy")?],
                 steering_rad,
             };
 

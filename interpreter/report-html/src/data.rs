@@ -11,12 +11,25 @@ use std::collections::BTreeMap;
 use cpmx_metrics::resample::resample;
 use cpmx_recording::AgentSample;
 use cpmx_world::Point;
+use serde::Serialize;
 use serde_json::{Value, json};
 
 use crate::{Page, PageRun};
 
-/// The data of the page (what the insta snapshots hold).
-pub fn page_data(page: &Page<'_>) -> Value {
+/// The data of the page (what the insta snapshots hold), written in this order.
+#[derive(Serialize)]
+pub struct PageData<'a> {
+    experiment: &'a str,
+    map: Value,
+    vehicle: Value,
+    runs: Vec<RunData<'a>>,
+    pairs: Vec<Value>,
+    figure3: Vec<Value>,
+    learning_curves: Vec<Value>,
+}
+
+/// The data of the page.
+pub fn page_data<'a>(page: &Page<'a>) -> PageData<'a> {
     let bounds = page.map.bounds();
     let diagonal_m = (bounds.max_x_m - bounds.min_x_m).hypot(bounds.max_y_m - bounds.min_y_m);
     // A tolerance invisible at any size the page draws the map (≤ 1/2000 of it, ≥ 1 mm).
@@ -37,77 +50,117 @@ pub fn page_data(page: &Page<'_>) -> Value {
             }
         }
     }
-    let runs: Vec<Value> = page.runs.iter().map(run_data).collect();
-    json!({
-        "experiment": page.summary.experiment,
-        "map": {
+    PageData {
+        experiment: &page.summary.experiment,
+        map: json!({
             "bounds": [round(bounds.min_x_m), round(bounds.min_y_m), round(bounds.max_x_m), round(bounds.max_y_m)],
             "lanelets": lanelets,
             "paths": paths,
-        },
-        "vehicle": {"length_m": page.vehicle.length_m, "width_m": page.vehicle.width_m},
-        "runs": runs,
-        "pairs": pairs(&page.runs),
-        "figure3": figure3(&page.runs, page.summary),
-        "learning_curves": page.learning_curves.iter().map(|c| json!({
-            "name": c.name,
-            "iteration": c.iterations,
-            "episode_reward_mean": c.episode_reward_mean,
-        })).collect::<Vec<_>>(),
-    })
+        }),
+        vehicle: json!({"length_m": page.vehicle.length_m, "width_m": page.vehicle.width_m}),
+        runs: page.runs.iter().map(run_data).collect(),
+        pairs: pairs(&page.runs),
+        figure3: figure3(&page.runs, page.summary),
+        learning_curves: page
+            .learning_curves
+            .iter()
+            .map(|c| {
+                json!({
+                    "name": c.name,
+                    "iteration": c.iterations,
+                    "episode_reward_mean": c.episode_reward_mean,
+                })
+            })
+            .collect(),
+    }
 }
 
 /// One run: its place in the matrix, metrics, and each agent's states on the metrics' grid.
-fn run_data(run: &PageRun<'_>) -> Value {
+/// Written field by field in this order (the page's script reads it by name).
+#[derive(Serialize)]
+struct RunData<'a> {
+    key: &'a str,
+    fidelity: &'a str,
+    policy: &'a str,
+    configuration: &'a str,
+    repetition: u32,
+    pair: String,
+    metrics: RunMetricsData,
+    dt: f64,
+    ref_paths: &'a [usize],
+    agents: Vec<AgentData>,
+    /// Per collision event: sample, first agent, second agent.
+    collisions: Vec<[usize; 3]>,
+    /// Per lane-violation sample: agent, sample.
+    violations: Vec<[usize; 2]>,
+}
+
+/// A run's metrics as the page shows them (rounded; null when not finite).
+#[derive(Serialize)]
+struct RunMetricsData {
+    cra_a: Option<f64>,
+    cra_l: Option<f64>,
+    cd_m: Option<f64>,
+    as_mps: Option<f64>,
+}
+
+/// One agent's states on the metrics' grid (null where the agent has no sample).
+#[derive(Serialize)]
+struct AgentData {
+    x: Vec<Option<f64>>,
+    y: Vec<Option<f64>>,
+    yaw: Vec<Option<f64>>,
+    v: Vec<Option<f64>>,
+}
+
+fn run_data<'a>(run: &PageRun<'a>) -> RunData<'a> {
     let (plan, metrics) = (&run.record.plan, &run.record.metrics);
     let period_s = metrics.config.sample_period_s;
     let grid = resample(run.recording, period_s);
     let rows: Vec<&Vec<AgentSample>> = grid.samples.iter().take(metrics.num_samples).collect();
-    let agents: Vec<Value> = (0..run.recording.agent_count())
+    let agents = (0..run.recording.agent_count())
         .map(|agent| {
-            let column = |f: &dyn Fn(&AgentSample) -> f64, digits: i32| -> Vec<Value> {
+            let column = |f: &dyn Fn(&AgentSample) -> f64, digits: i32| -> Vec<Option<f64>> {
                 rows.iter()
-                    .map(|row| row.get(agent).map_or(Value::Null, |s| number(f(s), digits)))
+                    .map(|row| row.get(agent).and_then(|s| rounded(f(s), digits)))
                     .collect()
             };
-            json!({
-                "x": column(&|s| s.x_m, 3),
-                "y": column(&|s| s.y_m, 3),
-                "yaw": column(&|s| s.yaw_rad, 3),
-                "v": column(&|s| s.velocity_mps[0].hypot(s.velocity_mps[1]), 2),
-            })
+            AgentData {
+                x: column(&|s| s.x_m, 3),
+                y: column(&|s| s.y_m, 3),
+                yaw: column(&|s| s.yaw_rad, 3),
+                v: column(&|s| s.velocity_mps[0].hypot(s.velocity_mps[1]), 2),
+            }
         })
         .collect();
-    let collisions: Vec<Value> = metrics
-        .pair_events
-        .iter()
-        .map(|e| json!([e.sample, e.agents[0], e.agents[1]]))
-        .collect();
-    let violations: Vec<Value> = metrics
-        .agents
-        .iter()
-        .enumerate()
-        .flat_map(|(agent, a)| a.violation_samples.iter().map(move |&k| json!([agent, k])))
-        .collect();
-    json!({
-        "key": plan.key,
-        "fidelity": plan.fidelity,
-        "policy": plan.policy,
-        "configuration": plan.initial_configuration,
-        "repetition": plan.repetition,
-        "pair": plan.pair_key(),
-        "metrics": {
-            "cra_a": number(metrics.cra_a, 4),
-            "cra_l": number(metrics.cra_l, 4),
-            "cd_m": number(metrics.cd_m, 5),
-            "as_mps": number(metrics.as_mps, 4),
+    RunData {
+        key: &plan.key,
+        fidelity: &plan.fidelity,
+        policy: &plan.policy,
+        configuration: &plan.initial_configuration,
+        repetition: plan.repetition,
+        pair: plan.pair_key(),
+        metrics: RunMetricsData {
+            cra_a: rounded(metrics.cra_a, 4),
+            cra_l: rounded(metrics.cra_l, 4),
+            cd_m: rounded(metrics.cd_m, 5),
+            as_mps: rounded(metrics.as_mps, 4),
         },
-        "dt": period_s,
-        "ref_paths": run.recording.ref_paths,
-        "agents": agents,
-        "collisions": collisions,
-        "violations": violations,
-    })
+        dt: period_s,
+        ref_paths: &run.recording.ref_paths,
+        agents,
+        collisions: metrics
+            .pair_events
+            .iter()
+            .map(|e| [e.sample, e.agents[0], e.agents[1]])
+            .collect(),
+        violations: metrics
+            .agents
+            .iter()
+            .enumerate()
+            .flat_map(|(agent, a)| a.violation_samples.iter().map(move |&k| [agent, k]))
+            .collect(),
+    }
 }
 
 /// The runs that replay together: one list of run indices per pair key (policy, initial
@@ -275,11 +328,16 @@ fn round(value: f64) -> f64 {
 
 /// A finite value with `digits` decimals; `null` otherwise.
 fn number(value: f64, digits: i32) -> Value {
+    rounded(value, digits).map_or(Value::Null, |v| json!(v))
+}
+
+/// `value` rounded to `digits` decimals; `None` when it is not finite.
+fn rounded(value: f64, digits: i32) -> Option<f64> {
     if !value.is_finite() {
-        return Value::Null;
+        return None;
     }
     let scale = 10f64.powi(digits);
-    json!((value * scale).round() / scale)
+    Some((value * scale).round() / scale)
 }
 
 #[cfg(test)]

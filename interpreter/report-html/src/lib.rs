@@ -25,7 +25,7 @@ use cpmx_report::{RunRecord, Summary};
 use cpmx_vehicle::VehicleParams;
 use cpmx_world::Map;
 
-pub use data::page_data;
+pub use data::{PageData, page_data};
 
 /// One run of the page: its record (plan, metrics) and its recording.
 #[derive(Debug, Clone, Copy)]
@@ -131,7 +131,10 @@ pub fn report_html(page: &Page<'_>) -> String {
     }
 
     // The data and the script.
-    let json = page_data(page).to_string().replace("</", "<\\/");
+    // Strings, numbers and arrays under string keys: serialising them cannot fail.
+    let json = serde_json::to_string(&page_data(page))
+        .expect("the page's data serialises")
+        .replace("</", "<\\/");
     let _ = write!(
         out,
         "<script id=\"cpmx-data\" type=\"application/json\">{json}</script>\n<script>\n{SCRIPT}</script>\n</body>\n</html>\n"

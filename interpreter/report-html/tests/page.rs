@@ -108,7 +108,7 @@ fn page_data_of_a_small_folder() {
         ],
         learning_curves: vec![],
     };
-    let data = page_data(&page);
+    let data = serde_json::to_value(page_data(&page)).unwrap();
     // The runs of one pair replay together; Figure 3 picks a run per fidelity.
     assert_eq!(data["pairs"][0]["runs"], serde_json::json!([0, 1]));
     assert_eq!(data["figure3"][0]["representatives"].as_array().unwrap().len(), 2);
