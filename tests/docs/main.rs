@@ -29,22 +29,18 @@
 #[path = "../support/mod.rs"]
 mod support;
 
+mod fragments;
 mod markdown;
+mod scratch;
 mod shell;
 
 use std::path::{Path, PathBuf};
 use std::process::Stdio;
-use std::time::{Duration, Instant};
 
+use fragments::{DEFAULT_BASE, base_spec, fragment_of, merge};
 use markdown::{Block, Page};
-use serde_json::Value;
+use scratch::Scratch;
 use support::root;
-
-/// The longest a documented command may take before the test gives up on it.
-const COMMAND_BUDGET: Duration = Duration::from_secs(600);
-
-/// The spec a fragment is merged into unless a `base:` marker names another.
-const DEFAULT_BASE: &str = "examples/first.yaml";
 
 /// Programs a command of the documentation may run without a `not run` marker.
 const RUNNABLE: [&str; 12] = [
@@ -520,57 +516,6 @@ fn workspace_packages() -> Vec<(String, PathBuf)> {
         .collect()
 }
 
-/// The spec a fragment is merged into: a spec of the repository (`examples/first.yaml`, or the
-/// `base:` marker's file), or, when the marker names a block of the same page (`<!-- name: N
-/// -->` above it), that block merged into `examples/first.yaml`.
-fn base_spec(page: &Page, scratch: &Scratch, base: &str) -> Result<Value, String> {
-    let read = |file: &str| -> Result<Value, String> {
-        let text = std::fs::read_to_string(scratch.repo.join(file)).map_err(|e| format!("{file}: {e}"))?;
-        serde_saphyr::from_str::<Value>(&text).map_err(|e| format!("{file} is not YAML: {e}"))
-    };
-    if base.ends_with(".yaml") {
-        return read(base);
-    }
-    let blocks = page.blocks();
-    let named = blocks
-        .iter()
-        .find(|b| b.marker("name") == Some(base))
-        .ok_or_else(|| format!("no block `<!-- name: {base} -->` in {}", page.name))?;
-    let mut spec = read(DEFAULT_BASE)?;
-    merge(&mut spec, fragment_of(named)?);
-    Ok(spec)
-}
-
-/// A fragment's YAML, placed at its `at:` marker's dotted path (`fidelities.lab.faults`) when it
-/// has one.
-fn fragment_of(block: &Block) -> Result<Value, String> {
-    let mut value =
-        serde_saphyr::from_str::<Value>(&block.body).map_err(|e| format!("the fragment is not YAML: {e}"))?;
-    if let Some(path) = block.marker("at") {
-        for key in path.rsplit('.') {
-            value = Value::Object([(key.to_owned(), value)].into_iter().collect());
-        }
-    }
-    Ok(value)
-}
-
-/// `fragment` laid over `base`: mappings merged key by key, anything else replaced.
-fn merge(base: &mut Value, fragment: Value) {
-    match (base, fragment) {
-        (Value::Object(base), Value::Object(fragment)) => {
-            for (key, value) in fragment {
-                match base.get_mut(&key) {
-                    Some(existing) if existing.is_object() && value.is_object() => merge(existing, value),
-                    _ => {
-                        base.insert(key, value);
-                    }
-                }
-            }
-        }
-        (base, fragment) => *base = fragment,
-    }
-}
-
 /// Fails with every failure; without the reference data, says first that it is missing.
 fn report(failures: &[String], needs_reference: bool) {
     if failures.is_empty() {
@@ -586,115 +531,6 @@ fn report(failures: &[String], needs_reference: bool) {
         format!("{} problems in the docs:", failures.len())
     };
     panic!("{heading}\n{}", failures.join("\n\n"));
-}
-
-/// A page's scratch copy of the repository's specs: `<tmp>/cpmx-docs-<page>-<pid>/cpmx/` with
-/// `experiments/` and `examples/` copied, `../shared/reference` beside it, `cpmx` on the PATH.
-struct Scratch {
-    repo: PathBuf,
-    reference: PathBuf,
-    bin: PathBuf,
-}
-
-/// What a command did.
-struct Ran {
-    code: Option<i32>,
-    /// Its standard output and error in the order it wrote them, as a terminal shows them.
-    output: String,
-}
-
-impl Ran {
-    fn both(&self) -> String {
-        self.output.clone()
-    }
-}
-
-impl Scratch {
-    /// A scratch copy for one test (`what`) of one page.
-    fn new(page: &Page, what: &str) -> Scratch {
-        let top = support::scratch(&format!("docs-{what}-{}", page.stem()));
-        let repo = top.join("cpmx");
-        for dir in ["experiments", "examples"] {
-            copy_dir(&root().join(dir), &repo.join(dir));
-        }
-        std::os::unix::fs::symlink(root().join("cpmx.schema.json"), repo.join("cpmx.schema.json")).unwrap();
-        std::fs::create_dir_all(top.join("shared")).unwrap();
-        let reference = top.join("shared/reference");
-        std::os::unix::fs::symlink(cpmx_testdata::reference_dir(), &reference).unwrap();
-        let bin = top.join("bin");
-        std::fs::create_dir_all(&bin).unwrap();
-        std::os::unix::fs::symlink(env!("CARGO_BIN_EXE_cpmx"), bin.join("cpmx")).unwrap();
-        Scratch { repo, reference, bin }
-    }
-
-    fn write(&self, file: &str, text: &str) {
-        let path = self.repo.join(file);
-        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-        std::fs::write(path, text).unwrap();
-    }
-
-    /// Runs `command` with bash in the scratch repository; `parse_only` stops cpmx after its
-    /// argument parser.
-    fn bash(&self, command: &str, parse_only: bool) -> Ran {
-        let path = format!(
-            "{}:{}",
-            self.bin.display(),
-            std::env::var("PATH").unwrap_or_default()
-        );
-        let out = self.repo.join("../output");
-        let file = std::fs::File::create(&out).unwrap();
-        let mut child = std::process::Command::new("bash")
-            .args(["-c", command])
-            .current_dir(&self.repo)
-            .env("PATH", path)
-            .env("NO_COLOR", "1")
-            .env_remove("CPMX_DATA")
-            .env("CPMX_PARSE_ONLY", if parse_only { "1" } else { "0" })
-            .stdin(Stdio::null())
-            .stdout(file.try_clone().unwrap())
-            .stderr(file)
-            .spawn()
-            .expect("bash runs");
-        let deadline = Instant::now() + COMMAND_BUDGET;
-        let status = loop {
-            if let Some(status) = child.try_wait().unwrap() {
-                break Some(status);
-            }
-            if Instant::now() > deadline {
-                let _ = child.kill();
-                let _ = child.wait();
-                break None;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        };
-        Ran {
-            code: status.and_then(|s| s.code()),
-            output: std::fs::read_to_string(out).unwrap_or_default(),
-        }
-    }
-}
-
-impl Drop for Scratch {
-    /// The scratch copy goes with its page (a failure's output is in the test's message).
-    fn drop(&mut self) {
-        if let Some(top) = self.repo.parent() {
-            let _ = std::fs::remove_dir_all(top);
-        }
-    }
-}
-
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let path = entry.path();
-        let target = to.join(entry.file_name());
-        if path.is_dir() {
-            copy_dir(&path, &target);
-        } else {
-            std::fs::copy(&path, &target).unwrap();
-        }
-    }
 }
 
 #[test]

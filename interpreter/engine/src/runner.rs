@@ -98,7 +98,7 @@ pub fn execute(
         on_done(run.plan, &outcome);
         (run.index, outcome)
     };
-    let (mut outcomes, stored): (Vec<Option<RunOutcome>>, _) = pipelined(jobs + 1, &store, |to_writer| {
+    let (mut outcomes, stored): (Vec<Option<RunOutcome>>, _) = pipelined(jobs + 1, store, |to_writer| {
         pool.install(|| {
             selected
                 .par_iter()
