@@ -1,0 +1,108 @@
+//! Training in the lab's control architecture (`control: trajectory`) and in a twin
+//! randomised per episode, from one spec.
+
+use std::process::Command;
+
+use crate::support::{ok, reference, scratch};
+use crate::{assert_same_files, column, train, weights_and_curves};
+
+/// The small scenario in the lab's control architecture: a `control: trajectory` fidelity
+/// (`sim-mpc`) and a twin whose actuation delay and positioning noise are drawn per episode.
+const STACKED: &str = "cpmx: 1
+name: stacked
+map: {file: maps/cpm.xml}
+timing: {dt: 0.1, steps: 30}
+agents: 2
+policies:
+  - {name: from-sim-mpc, mlp: {trained: {seed: 3, fidelity: sim-mpc, dir: OUT}}}
+  - {name: from-twin, mlp: {trained: {seed: 3, fidelity: twin-random, dir: OUT}}}
+initial_configurations:
+  - name: crossing
+    agents:
+      - {ref_path: 6, arc_length: 0.3}
+      - {ref_path: 2, arc_length: 0.3}
+repetitions: 1
+seed: 1
+fidelities:
+  sim: {control: direct, dynamics: kinematic}
+  sim-mpc: {control: trajectory, dynamics: kinematic}
+  twin-random:
+    control: trajectory
+    dynamics: stdlib:mu-car-greybox
+    sensing: {extends: stdlib:cpm-ips, noise_position_m: {uniform: [0, 0.004]}}
+    actuation: {delay_ms: {uniform: [40, 120]}}
+planner: {control_horizon: 4, prediction_horizon: 12}
+training:
+  fidelity: [sim-mpc, twin-random]
+  scenario: {extends: stdlib:sigmarl-intersection, envs: 4, agents: 2, episode_steps: 32}
+  reward: stdlib:sigmarl-at25-reward
+  algorithm:
+    extends: stdlib:mappo-sigmarl
+    mappo: {frames_per_iteration: 128, minibatch: 64, epochs: 2}
+  network: {hidden: [32, 32], activation: tanh}
+  observation: stdlib:sigmarl
+  iterations: 3
+  seeds: [3]
+";
+
+/// Training through the planner and the MPC follower, and in a twin randomised per episode,
+/// from one spec that lists both fidelities: 3 iterations each give the same actors and curves
+/// with one thread and two, the curve of the randomised twin says what was drawn, and both
+/// actors run in every fidelity.
+#[test]
+fn training_in_the_labs_control_architecture_is_deterministic_and_its_actors_run_everywhere() {
+    let mut trained = Vec::new();
+    for jobs in ["1", "2"] {
+        let dir = scratch(&format!("train-stacked-{jobs}"));
+        let out = dir.join("out");
+        let spec = dir.join("stacked.yaml");
+        std::fs::write(&spec, STACKED.replace("OUT", out.to_str().unwrap())).unwrap();
+        let table = ok(&train(&dir, &spec, &["--jobs", jobs]));
+        assert!(table.contains("| twin-random seed 3 | 3 |"), "{table}");
+        trained.push((dir, weights_and_curves(&out)));
+    }
+    assert_same_files(&trained[0].1, &trained[1].1);
+    let (dir, _) = &trained[0];
+    let out = dir.join("out");
+    let curve = std::fs::read_to_string(out.join("twin-random/3/learning_curve.csv")).unwrap();
+    assert!(
+        curve.contains(",draws,drawn_sensing.noise_position_m,drawn_actuation.delay_ms,"),
+        "{curve}"
+    );
+    let delays = column(&out.join("twin-random"), 3, "drawn_actuation.delay_ms");
+    let draws = column(&out.join("twin-random"), 3, "draws");
+    assert!(
+        draws.iter().sum::<f64>() > 0.0,
+        "episodes ended and were drawn anew"
+    );
+    assert!(
+        delays
+            .iter()
+            .zip(&draws)
+            .all(|(d, &n)| n == 0.0 || (40.0..120.0).contains(d)),
+        "{delays:?}"
+    );
+    // Both actors in every fidelity.
+    let run_out = dir.join("run");
+    ok(&Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .args([
+            "run",
+            dir.join("stacked.yaml").to_str().unwrap(),
+            "--out",
+            run_out.to_str().unwrap(),
+        ])
+        .arg("--data")
+        .arg(reference())
+        .env_remove("CPMX_DATA")
+        .output()
+        .unwrap());
+    let per_run = std::fs::read_to_string(run_out.join("per_run.csv")).unwrap();
+    for fidelity in ["sim", "sim-mpc", "twin-random"] {
+        for policy in ["from-sim-mpc", "from-twin"] {
+            assert!(
+                per_run.contains(&format!("{fidelity}/{policy}/crossing/rep1")),
+                "{fidelity}/{policy}: {per_run}"
+            );
+        }
+    }
+}
