@@ -173,10 +173,14 @@ pub fn summarize(experiment: &str, runs: &[RunRecord], report: &ReportSpec, orig
         units,
         groups,
         pooled: pooled_axes(runs, &report.group_by),
-        comparison: report
-            .compare
-            .as_ref()
-            .map(|c| compare(runs, &c.reference, &report.bootstrap)),
+        comparison: report.compare.as_ref().map(|c| {
+            compare(
+                runs,
+                &c.reference,
+                &report.bootstrap,
+                report.group_by.contains(&GroupKey::Policy),
+            )
+        }),
         transfer: transfer(
             runs,
             &origins.policies,

@@ -28,11 +28,14 @@ pub struct Comparison {
     pub fidelities: Vec<FidelityComparison>,
 }
 
-/// One fidelity against the reference.
+/// One fidelity against the reference (one policy's runs, or every policy's when pooled).
 #[derive(Debug, Clone, PartialEq)]
 pub struct FidelityComparison {
     /// The compared ("test") fidelity.
     pub fidelity: String,
+    /// The policy whose runs are paired, or `None` when the pairs pool the policies (a
+    /// `group_by` without `policy`, as at25 pools its training seeds).
+    pub policy: Option<String>,
     /// One entry per metric, in [`Metric::ALL`] order.
     pub metrics: Vec<PairedMetric>,
 }
@@ -89,17 +92,53 @@ fn is_reference(fidelity: &str, reference: &str) -> bool {
 }
 
 /// Compares every fidelity of `runs` other than `reference` with it (points of a sweep with
-/// the reference at the same point, see [`reference_of`]).
+/// the reference at the same point, see [`reference_of`]): per policy when `by_policy` (as a
+/// summary grouped by policy reads), else pooling the policies' pairs.
 ///
 /// Each bootstrap interval uses `ChaCha8Rng::seed_from_u64(bootstrap.seed)` afresh, so any
 /// interval can be recomputed from the printed seed alone.
-pub fn compare(runs: &[RunRecord], reference: &str, bootstrap: &Bootstrap) -> Comparison {
+pub fn compare(runs: &[RunRecord], reference: &str, bootstrap: &Bootstrap, by_policy: bool) -> Comparison {
     let names: BTreeSet<&str> = runs.iter().map(|r| r.plan.fidelity.as_str()).collect();
     let mut fidelities: Vec<&str> = Vec::new();
+    let mut policies: Vec<&str> = Vec::new();
     for run in runs {
         let fidelity = run.plan.fidelity.as_str();
         if !is_reference(fidelity, reference) && !fidelities.contains(&fidelity) {
             fidelities.push(fidelity);
+        }
+        if !policies.contains(&run.plan.policy.as_str()) {
+            policies.push(&run.plan.policy);
+        }
+    }
+    let groups: Vec<Option<&str>> = if by_policy {
+        policies.into_iter().map(Some).collect()
+    } else {
+        vec![None]
+    };
+    let mut compared = Vec::new();
+    for fidelity in fidelities {
+        let reference = reference_of(fidelity, reference, &names);
+        for &policy in &groups {
+            let of_policy: Vec<RunRecord>;
+            let pooled = match policy {
+                Some(policy) => {
+                    of_policy = runs.iter().filter(|r| r.plan.policy == policy).cloned().collect();
+                    // A policy without runs in this fidelity has nothing to compare.
+                    if !of_policy.iter().any(|r| r.plan.fidelity == fidelity) {
+                        continue;
+                    }
+                    &of_policy[..]
+                }
+                None => runs,
+            };
+            compared.push(FidelityComparison {
+                fidelity: fidelity.to_owned(),
+                policy: policy.map(str::to_owned),
+                metrics: Metric::ALL
+                    .iter()
+                    .map(|&metric| paired_metric(pooled, fidelity, &reference, metric, bootstrap))
+                    .collect(),
+            });
         }
     }
     Comparison {
@@ -108,19 +147,7 @@ pub fn compare(runs: &[RunRecord], reference: &str, bootstrap: &Bootstrap) -> Co
             .iter()
             .filter(|r| is_reference(&r.plan.fidelity, reference))
             .count(),
-        fidelities: fidelities
-            .into_iter()
-            .map(|fidelity| {
-                let reference = reference_of(fidelity, reference, &names);
-                FidelityComparison {
-                    fidelity: fidelity.to_owned(),
-                    metrics: Metric::ALL
-                        .iter()
-                        .map(|&metric| paired_metric(runs, fidelity, &reference, metric, bootstrap))
-                        .collect(),
-                }
-            })
-            .collect(),
+        fidelities: compared,
     }
 }
 
@@ -248,7 +275,7 @@ mod tests {
             record("lab", "p", "i", 1, [2.0, 42.0, 0.06, 0.65]),
             record("lab", "p", "i", 3, [9.0, 42.0, 0.06, 0.65]),
         ];
-        let c = compare(&runs, "sim", &settings());
+        let c = compare(&runs, "sim", &settings(), false);
         assert_eq!(c.reference_runs, 2);
         let cra_a = &c.fidelities[0].metrics[0];
         assert_eq!((cra_a.pairs, cra_a.unmatched), (2, 1));
@@ -272,7 +299,7 @@ mod tests {
                 runs.push(record("twin", "p", init, rep, [0.0, 40.0, 0.1, 0.70]));
             }
         }
-        let c = compare(&runs, "sim", &settings());
+        let c = compare(&runs, "sim", &settings(), false);
         let mpc = &c.fidelities[0].metrics[2];
         assert_eq!(c.fidelities[0].fidelity, "sim-mpc");
         assert_eq!((mpc.pairs, mpc.copies, mpc.reference_units), (3, 6, 3));
@@ -284,9 +311,49 @@ mod tests {
     #[test]
     fn a_missing_reference_gives_zero_pairs() {
         let runs = vec![record("lab", "p", "i", 1, [1.0, 1.0, 1.0, 1.0])];
-        let c = compare(&runs, "sim", &settings());
+        let c = compare(&runs, "sim", &settings(), false);
         let m = &c.fidelities[0].metrics[0];
         assert_eq!((m.pairs, m.unmatched, c.reference_runs), (0, 1, 0));
         assert!(m.mean_difference.is_nan() && m.wilcoxon_p.is_nan() && m.ci95_bootstrap.low.is_nan());
+    }
+
+    #[test]
+    fn by_policy_each_policy_is_compared_alone() {
+        // A careful policy barely changes in the twin, a careless one collides there: pooled,
+        // the two hide each other; by policy, each has its own row.
+        let mut runs = Vec::new();
+        for init in ["i1", "i2"] {
+            runs.push(record("sim", "careful", init, 1, [0.0, 40.0, 0.05, 0.70]));
+            runs.push(record("sim", "careless", init, 1, [0.0, 40.0, 0.05, 0.90]));
+            runs.push(record("twin", "careful", init, 1, [0.0, 40.0, 0.05, 0.69]));
+            runs.push(record("twin", "careless", init, 1, [4.0, 40.0, 0.05, 0.90]));
+        }
+        let pooled = compare(&runs, "sim", &settings(), false);
+        assert_eq!(pooled.fidelities.len(), 1);
+        assert_eq!(pooled.fidelities[0].policy, None);
+        assert_eq!(pooled.fidelities[0].metrics[0].pairs, 4);
+        assert_eq!(pooled.fidelities[0].metrics[0].mean_difference, 2.0);
+
+        let by_policy = compare(&runs, "sim", &settings(), true);
+        let rows: Vec<(&str, Option<&str>, usize, f64)> = by_policy
+            .fidelities
+            .iter()
+            .map(|f| {
+                (
+                    f.fidelity.as_str(),
+                    f.policy.as_deref(),
+                    f.metrics[0].pairs,
+                    f.metrics[0].mean_difference,
+                )
+            })
+            .collect();
+        assert_eq!(
+            rows,
+            [
+                ("twin", Some("careful"), 2, 0.0),
+                ("twin", Some("careless"), 2, 4.0)
+            ]
+        );
+        assert_eq!(by_policy.reference_runs, 4);
     }
 }

@@ -117,7 +117,7 @@ pub fn transfer(
         }
         comparisons.push((
             evaluated.clone(),
-            compare(&subset, &trained_in[0], &report.bootstrap),
+            compare(&subset, &trained_in[0], &report.bootstrap, false),
         ));
     }
     Some(Transfer {

@@ -52,6 +52,32 @@ fn markdown_grouped_by_fidelity_and_policy_with_default_statistics() {
     ));
 }
 
+/// Grouped by policy (the default), the paired comparison has a row per fidelity, policy and
+/// metric: two policies' pairs are never pooled unless `group_by` pools them.
+#[test]
+fn the_comparison_is_per_policy_when_the_summary_groups_by_policy() {
+    let summary = summarize(
+        "synthetic",
+        &common::runs(),
+        &common::report(&[GroupKey::Fidelity, GroupKey::Policy]),
+        &Origins::default(),
+    );
+    let markdown = render(&summary, Format::Markdown);
+    let comparison = &markdown[markdown.find("## Paired comparison").unwrap()..];
+    insta::assert_snapshot!(comparison);
+    let json: serde_json::Value = serde_json::from_str(&render(&summary, Format::Json)).unwrap();
+    let compared: Vec<(&str, &str)> = json["comparison"]["fidelities"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| (f["fidelity"].as_str().unwrap(), f["policy"].as_str().unwrap()))
+        .collect();
+    assert_eq!(
+        compared,
+        [("twin", "seed1"), ("twin", "seed2"), ("lab", "seed1"), ("lab", "seed2")]
+    );
+}
+
 #[test]
 fn rendering_is_byte_stable() {
     for format in Format::ALL {

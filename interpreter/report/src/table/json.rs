@@ -104,7 +104,10 @@ fn comparison(c: &Comparison) -> Value {
                 .iter()
                 .map(|m| (m.metric.id().to_owned(), paired(m)))
                 .collect();
-            json!({"fidelity": f.fidelity, "metrics": metrics})
+            match &f.policy {
+                Some(policy) => json!({"fidelity": f.fidelity, "policy": policy, "metrics": metrics}),
+                None => json!({"fidelity": f.fidelity, "metrics": metrics}),
+            }
         })
         .collect();
     json!({

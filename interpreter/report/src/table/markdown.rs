@@ -229,38 +229,50 @@ fn comparison_table(out: &mut String, summary: &Summary, comparison: &Comparison
     let _ = writeln!(out, "\n## Paired comparison with `{}`\n", comparison.reference);
     let _ = writeln!(
         out,
-        "Differences fidelity − {} over runs with the same policy, initial configuration and repetition; \
+        "Differences fidelity − {} over runs with the same policy, initial configuration and repetition{}; \
          a pair whose two recordings repeat an earlier pair's (both fidelities deterministic) counts once. \
          CI: paired percentile bootstrap, {} resamples, seed {}. p: two-sided Wilcoxon signed-rank test. \
          +/−/0: differences above, below and at zero. \
          P(better): probability that a run of the fidelity is better than one of the reference \
          (by the metric's arrow; 0.5: no difference).\n",
-        comparison.reference, summary.bootstrap.resamples, summary.bootstrap.seed
+        comparison.reference,
+        if comparison.fidelities.iter().any(|f| f.policy.is_some()) {
+            ", per policy"
+        } else {
+            ""
+        },
+        summary.bootstrap.resamples,
+        summary.bootstrap.seed
     );
     if comparison.reference_runs == 0 {
         let _ = writeln!(out, "The reference fidelity has no runs.\n");
     }
-    row(
-        out,
-        &[
-            "fidelity",
-            "metric",
-            "pairs",
-            "difference",
-            "95 % CI",
-            "p",
-            "+/−/0",
-            "P(better)",
-        ]
-        .map(String::from),
-    );
-    row(
-        out,
-        &[":--", ":--", "--:", "--:", "--:", "--:", "--:", "--:"].map(String::from),
-    );
+    // A policy column when the pairs are compared per policy (as the summary groups them).
+    let by_policy = comparison.fidelities.iter().any(|f| f.policy.is_some());
+    let mut header = vec!["fidelity"];
+    let mut align = vec![":--"];
+    if by_policy {
+        header.push("policy");
+        align.push(":--");
+    }
+    header.extend([
+        "metric",
+        "pairs",
+        "difference",
+        "95 % CI",
+        "p",
+        "+/−/0",
+        "P(better)",
+    ]);
+    align.extend([":--", "--:", "--:", "--:", "--:", "--:", "--:"]);
+    row(out, &header);
+    row(out, &align);
     for fidelity in &comparison.fidelities {
         for m in &fidelity.metrics {
             let mut cells = vec![escape(&fidelity.fidelity)];
+            if by_policy {
+                cells.push(escape(fidelity.policy.as_deref().unwrap_or("")));
+            }
             cells.extend(paired_cells(summary, m));
             cells.push(fixed(m.probability_of_improvement, 2));
             row(out, &cells);

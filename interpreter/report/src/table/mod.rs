@@ -259,24 +259,29 @@ fn comparison_notes(comparison: &crate::Comparison) -> Vec<String> {
         let Some(first) = fidelity.metrics.first() else {
             continue;
         };
+        // `twin`, or `twin` / `policy` when compared per policy.
+        let label = match &fidelity.policy {
+            Some(policy) => format!("`{}` / `{policy}`", fidelity.fidelity),
+            None => format!("`{}`", fidelity.fidelity),
+        };
         if first.copies > 0 {
             notes.push(format!(
-                "`{}`: {} pairs are copies of earlier pairs (both fidelities gave bit-identical \
+                "{label}: {} pairs are copies of earlier pairs (both fidelities gave bit-identical \
                  repetitions) and are counted once: {} independent pairs.",
-                fidelity.fidelity, first.copies, first.pairs
+                first.copies, first.pairs
             ));
         }
         if first.reference_units > 0 && first.reference_units < first.pairs {
             notes.push(format!(
-                "`{}`: its {} pairs share {} distinct `{}` runs (the reference repeats itself), \
+                "{label}: its {} pairs share {} distinct `{}` runs (the reference repeats itself), \
                  so the differences of one policy and initial configuration are not independent \
                  of each other; read the intervals as conditional on those reference runs.",
-                fidelity.fidelity, first.pairs, first.reference_units, comparison.reference
+                first.pairs, first.reference_units, comparison.reference
             ));
         }
         for m in &fidelity.metrics {
             if let Some(reason) = disagreement(m) {
-                notes.push(format!("`{}` {}: {reason}", fidelity.fidelity, m.metric.label()));
+                notes.push(format!("{label} {}: {reason}", m.metric.label()));
             }
         }
     }
