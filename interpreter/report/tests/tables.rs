@@ -74,7 +74,12 @@ fn the_comparison_is_per_policy_when_the_summary_groups_by_policy() {
         .collect();
     assert_eq!(
         compared,
-        [("twin", "seed1"), ("twin", "seed2"), ("lab", "seed1"), ("lab", "seed2")]
+        [
+            ("twin", "seed1"),
+            ("twin", "seed2"),
+            ("lab", "seed1"),
+            ("lab", "seed2")
+        ]
     );
 }
 
