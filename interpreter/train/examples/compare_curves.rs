@@ -2,33 +2,55 @@
 //! figure):
 //!
 //! ```sh
-//! cargo run -p cpmx-train --example compare_curves -- OUT.svg TRAIN_DIR [SigmaRL *_data.json ...]
+//! cargo run -p cpmx-train --example compare_curves -- [--column NAME] OUT.svg TRAIN_DIR [SigmaRL *_data.json ...]
 //! ```
 //!
-//! `TRAIN_DIR` is a `cpmx train` folder (every `<seed>/learning_curve.csv` in it is drawn);
+//! `TRAIN_DIR` is a `cpmx train` folder: every `<seed>/learning_curve.csv` in it is drawn, and
+//! for a training in several fidelities every `<fidelity>/<seed>/learning_curve.csv`. `--column`
+//! draws another column of the curves than `episode_reward_mean` (`collisions`, a reward term);
 //! each JSON file is a SigmaRL checkpoint's `*_data.json` (its `episode_reward_mean_list`).
 
 use std::path::{Path, PathBuf};
 
-use cpmx_train::curve::{Series, reward_points, svg};
+use cpmx_train::curve::{Series, column_points, column_svg};
 
 fn main() -> Result<(), String> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let [out, train_dir, sigmarl @ ..] = args.as_slice() else {
-        return Err("usage: compare_curves OUT.svg TRAIN_DIR [SigmaRL *_data.json ...]".into());
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let column = match args.iter().position(|a| a == "--column") {
+        Some(at) if at + 1 < args.len() => {
+            let column = args.remove(at + 1);
+            args.remove(at);
+            column
+        }
+        Some(_) => return Err("--column needs a column name".into()),
+        None => "episode_reward_mean".to_owned(),
     };
+    let [out, train_dir, sigmarl @ ..] = args.as_slice() else {
+        return Err(
+            "usage: compare_curves [--column NAME] OUT.svg TRAIN_DIR [SigmaRL *_data.json ...]".into(),
+        );
+    };
+    if !sigmarl.is_empty() && column != "episode_reward_mean" {
+        return Err("SigmaRL's checkpoints hold episode_reward_mean only".into());
+    }
     let mut series = Vec::new();
-    let mut seeds: Vec<PathBuf> = std::fs::read_dir(train_dir)
-        .map_err(|e| format!("{train_dir}: {e}"))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.join("learning_curve.csv").is_file())
-        .collect();
-    seeds.sort();
-    for dir in seeds {
+    for (label, dir) in curve_folders(Path::new(train_dir))? {
         let text = std::fs::read_to_string(dir.join("learning_curve.csv")).map_err(|e| e.to_string())?;
+        let points = column_points(&text, &column);
+        if points.is_empty() {
+            return Err(format!(
+                "{}: no column `{column}`",
+                dir.join("learning_curve.csv").display()
+            ));
+        }
         series.push(Series {
-            name: format!("cpmx seed {}", name(&dir)),
-            points: reward_points(&text),
+            // "cpmx" where SigmaRL's curves are drawn beside.
+            name: if sigmarl.is_empty() {
+                label
+            } else {
+                format!("cpmx {label}")
+            },
+            points,
         });
     }
     for file in sigmarl {
@@ -54,8 +76,45 @@ fn main() -> Result<(), String> {
                 .collect(),
         });
     }
-    std::fs::write(out, svg("episode_reward_mean: cpmx and SigmaRL", &series))
-        .map_err(|e| format!("{out}: {e}"))
+    let title = if sigmarl.is_empty() {
+        format!("{column} per iteration")
+    } else {
+        format!("{column}: cpmx and SigmaRL")
+    };
+    std::fs::write(out, column_svg(&title, &column, &series)).map_err(|e| format!("{out}: {e}"))
+}
+
+/// The seed folders of a training folder with their legend labels (`seed 2`, or `sim-mpc
+/// seed 2` for `<fidelity>/<seed>/`), sorted.
+fn curve_folders(train_dir: &Path) -> Result<Vec<(String, PathBuf)>, String> {
+    let children = |dir: &Path| -> Result<Vec<PathBuf>, String> {
+        let mut dirs: Vec<PathBuf> = std::fs::read_dir(dir)
+            .map_err(|e| format!("{}: {e}", dir.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.is_dir())
+            .collect();
+        dirs.sort();
+        Ok(dirs)
+    };
+    let mut folders = Vec::new();
+    for child in children(train_dir)? {
+        if child.join("learning_curve.csv").is_file() {
+            folders.push((format!("seed {}", name(&child)), child));
+            continue;
+        }
+        for seed in children(&child)? {
+            if seed.join("learning_curve.csv").is_file() {
+                folders.push((format!("{} seed {}", name(&child), name(&seed)), seed));
+            }
+        }
+    }
+    if folders.is_empty() {
+        return Err(format!(
+            "{}: no learning_curve.csv in its seed folders",
+            train_dir.display()
+        ));
+    }
+    Ok(folders)
 }
 
 fn name(path: &Path) -> String {

@@ -102,6 +102,24 @@ pub fn reward_points(text: &str) -> Vec<(f64, f64)> {
         .collect()
 }
 
+/// `(iteration, value)` of `column` (found by its header) in every row where it is a number;
+/// empty when the curve has no such column.
+pub fn column_points(text: &str, column: &str) -> Vec<(f64, f64)> {
+    let mut lines = text.lines();
+    let Some(index) = lines
+        .next()
+        .and_then(|header| header.split(',').position(|c| c == column))
+    else {
+        return Vec::new();
+    };
+    lines
+        .filter_map(|line| {
+            let fields: Vec<&str> = line.split(',').collect();
+            Some((fields.first()?.parse().ok()?, fields.get(index)?.parse().ok()?))
+        })
+        .collect()
+}
+
 /// `(iteration, episode_reward_mean)` of the last row marked `best`.
 pub fn last_best(text: &str) -> Option<(u64, f64)> {
     let mut lines = text.lines();
@@ -117,7 +135,7 @@ pub fn last_best(text: &str) -> Option<(u64, f64)> {
 pub struct Series {
     /// Legend text.
     pub name: String,
-    /// `(iteration, episode_reward_mean)`.
+    /// `(iteration, value)`: `episode_reward_mean` unless the chart says otherwise.
     pub points: Vec<(f64, f64)>,
 }
 
@@ -125,6 +143,12 @@ const COLOURS: [&str; 6] = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e
 
 /// A line chart of `episode_reward_mean` over iterations, one line per series.
 pub fn svg(title: &str, series: &[Series]) -> String {
+    column_svg(title, "episode_reward_mean", series)
+}
+
+/// A line chart of a learning-curve column (`y_label`, e.g. `collisions`) over iterations, one
+/// line per series.
+pub fn column_svg(title: &str, y_label: &str, series: &[Series]) -> String {
     let (w, h) = (720.0, 380.0);
     let (left, right, top, bottom) = (64.0, 160.0, 36.0, 48.0);
     let all = series.iter().flat_map(|s| s.points.iter());
@@ -186,7 +210,7 @@ pub fn svg(title: &str, series: &[Series]) -> String {
         s,
         "<rect x=\"{left}\" y=\"{top}\" width=\"{pw}\" height=\"{ph}\" fill=\"none\" stroke=\"#333\"/>\n\
          <text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">iteration</text>\n\
-         <text transform=\"translate(16 {:.1}) rotate(-90)\" text-anchor=\"middle\">episode_reward_mean</text>",
+         <text transform=\"translate(16 {:.1}) rotate(-90)\" text-anchor=\"middle\">{y_label}</text>",
         left + pw / 2.0,
         h - 10.0,
         top + ph / 2.0
@@ -241,6 +265,15 @@ fn escape(text: &str) -> String {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_column_is_found_by_its_header() {
+        let text = "iteration,samples,episode_reward_mean,collisions\n1,10,-0.5,7\n2,20,0.25,x\n3,30,0.5,4\n";
+        assert_eq!(column_points(text, "collisions"), [(1.0, 7.0), (3.0, 4.0)]);
+        assert_eq!(column_points(text, "episode_reward_mean"), reward_points(text));
+        assert!(column_points(text, "missing").is_empty());
+    }
+
     use super::*;
 
     fn record(k: u64, reward: f64) -> IterationRecord {
