@@ -44,6 +44,14 @@ training:
   seeds: [7, 8]
 ";
 
+/// The text of `spec` with `from` replaced by `to`; fails when `from` is not in it (an edit that
+/// changes nothing would test the spec as it was).
+fn edited(spec: &Path, from: &str, to: &str) -> String {
+    let text = std::fs::read_to_string(spec).unwrap();
+    assert!(text.contains(from), "{} has no `{from}`", spec.display());
+    text.replace(from, to)
+}
+
 /// Writes the small spec into `dir` (training into `dir/out`) and returns its path.
 fn small_spec(dir: &Path, iterations: u32) -> PathBuf {
     let out = dir.join("out");
@@ -205,9 +213,8 @@ fn a_small_scenario_learns_and_the_trained_actor_runs() {
         "{}",
         String::from_utf8_lossy(&same.stderr)
     );
-    let text = std::fs::read_to_string(&spec).unwrap();
     let changed = dir.join("changed.yaml");
-    std::fs::write(&changed, text.replace("lr: 1.0e-3", "lr: 2.0e-3")).unwrap();
+    std::fs::write(&changed, edited(&spec, "lr: 1.0e-3", "lr: 2.0e-3")).unwrap();
     let out = validate(&changed);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "a warning, not an error: {stderr}");
@@ -229,7 +236,8 @@ fn a_small_scenario_learns_and_the_trained_actor_runs() {
 fn the_shaped_reward_logs_its_terms_and_the_agents_speed_up() {
     let dir = scratch("train-shaped");
     let spec = small_spec(&dir, 24);
-    let text = std::fs::read_to_string(&spec).unwrap().replace(
+    let text = edited(
+        &spec,
         "reward: stdlib:sigmarl-reward\n",
         "reward: stdlib:sigmarl-shaped-reward\n",
     );
@@ -390,11 +398,8 @@ fn bad_input_is_refused_and_nothing_trained_is_lost() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("by `seed` or `fidelity`"));
 
     // A changed spec does not continue the folder's run.
-    let text = std::fs::read_to_string(&spec)
-        .unwrap()
-        .replace("lr: 1.0e-3", "lr: 2.0e-3");
     let changed = dir.join("changed.yaml");
-    std::fs::write(&changed, text).unwrap();
+    std::fs::write(&changed, edited(&spec, "lr: 1.0e-3", "lr: 2.0e-3")).unwrap();
     let out = train(&dir, &changed, &["--only", "seed=8", "--resume"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("different training section"));
@@ -412,7 +417,8 @@ fn bad_input_is_refused_and_nothing_trained_is_lost() {
     assert_eq!(files(&dir.join("out")), trained);
 
     // Reference paths the map lacks: a diagnostic before anything is written.
-    let text = std::fs::read_to_string(&spec).unwrap().replace(
+    let text = edited(
+        &spec,
         "{extends: stdlib:sigmarl-intersection, envs: 8, agents: 2, episode_steps: 64}",
         "{ref_paths: [1, 400], envs: 8, agents: 2, episode_steps: 64, \
              start: {first_index: 3, speed_mps: [0, 1], min_gap_m: 0.37}, \
@@ -460,7 +466,8 @@ fn a_spec_that_only_trains_trains_and_has_nothing_to_run() {
 fn a_policy_not_trained_yet_refuses_its_runs_and_lets_the_others_run() {
     let dir = scratch("train-not-yet");
     let spec = small_spec(&dir, 2);
-    let text = std::fs::read_to_string(&spec).unwrap().replace(
+    let text = edited(
+        &spec,
         "policies:\n",
         "policies:\n  - {name: baseline, builtin: lane-follow}\n",
     );
@@ -498,9 +505,7 @@ fn shards_of_a_swept_training_merge_into_the_unsharded_folder_byte_for_byte() {
     let (whole, sharded) = (scratch("train-unsharded"), scratch("train-sharded"));
     for dir in [&whole, &sharded] {
         let spec = small_spec(dir, 2);
-        let text = std::fs::read_to_string(&spec)
-            .unwrap()
-            .replace("lr: 1.0e-3", "lr: {sweep: [1.0e-3, 3.0e-4]}");
+        let text = edited(&spec, "lr: 1.0e-3", "lr: {sweep: [1.0e-3, 3.0e-4]}");
         std::fs::write(&spec, text).unwrap();
     }
     ok(&train(&whole, &whole.join("small.yaml"), &[]));

@@ -119,24 +119,23 @@ pub fn compare(runs: &[RunRecord], reference: &str, bootstrap: &Bootstrap, by_po
     for fidelity in fidelities {
         let reference = reference_of(fidelity, reference, &names);
         for &policy in &groups {
-            let of_policy: Vec<RunRecord>;
-            let pooled = match policy {
-                Some(policy) => {
-                    of_policy = runs.iter().filter(|r| r.plan.policy == policy).cloned().collect();
-                    // A policy without runs in this fidelity has nothing to compare.
-                    if !of_policy.iter().any(|r| r.plan.fidelity == fidelity) {
-                        continue;
-                    }
-                    &of_policy[..]
-                }
-                None => runs,
-            };
+            let compared_runs: Vec<&RunRecord> = runs
+                .iter()
+                .filter(|r| policy.is_none_or(|p| r.plan.policy == p))
+                .collect();
+            // A policy without runs in this fidelity has nothing to compare.
+            if !compared_runs.iter().any(|r| r.plan.fidelity == fidelity) {
+                continue;
+            }
+            let copies = copied_pairs(&compared_runs, fidelity, &reference);
             compared.push(FidelityComparison {
                 fidelity: fidelity.to_owned(),
                 policy: policy.map(str::to_owned),
                 metrics: Metric::ALL
                     .iter()
-                    .map(|&metric| paired_metric(pooled, fidelity, &reference, metric, bootstrap))
+                    .map(|&metric| {
+                        paired_metric(&compared_runs, &copies, fidelity, &reference, metric, bootstrap)
+                    })
                     .collect(),
             });
         }
@@ -177,11 +176,11 @@ impl Signs {
 
 /// The pair keys of `test` × `reference` that repeat an earlier pair of the same policy and
 /// initial configuration with both recordings identical.
-fn copied_pairs(runs: &[RunRecord], test: &str, reference: &str) -> BTreeSet<String> {
+fn copied_pairs(runs: &[&RunRecord], test: &str, reference: &str) -> BTreeSet<String> {
     let digests = |fidelity: &str| -> BTreeMap<String, &RunRecord> {
         runs.iter()
             .filter(|r| r.plan.fidelity == fidelity)
-            .map(|r| (r.plan.pair_key(), r))
+            .map(|&r| (r.plan.pair_key(), r))
             .collect()
     };
     let (tests, references) = (digests(test), digests(reference));
@@ -206,14 +205,15 @@ fn copied_pairs(runs: &[RunRecord], test: &str, reference: &str) -> BTreeSet<Str
     copies
 }
 
+/// One metric over the pairs of `runs` (`copies`: the pair keys [`copied_pairs`] leaves out).
 fn paired_metric(
-    runs: &[RunRecord],
+    runs: &[&RunRecord],
+    copies: &BTreeSet<String>,
     test: &str,
     reference: &str,
     metric: Metric,
     bootstrap: &Bootstrap,
 ) -> PairedMetric {
-    let copies = copied_pairs(runs, test, reference);
     let side = |fidelity: &str| -> Vec<(String, f64)> {
         runs.iter()
             .filter(|r| r.plan.fidelity == fidelity && !copies.contains(&r.plan.pair_key()))

@@ -80,11 +80,13 @@ impl SegmentBoxes {
         let squared = |s: usize| squared_distance(p, points[s], points[s + 1]);
 
         // The smallest squared distance, from the box nearest the point outward.
-        let nearest_box = (0..self.boxes.len())
-            .min_by(|&a, &b| {
-                box_squared_distance(&self.boxes[a], p).total_cmp(&box_squared_distance(&self.boxes[b], p))
-            })
-            .unwrap_or(0);
+        let nearest_box = self
+            .boxes
+            .iter()
+            .map(|b| box_squared_distance(b, p))
+            .enumerate()
+            .min_by(|(_, a), (_, b)| a.total_cmp(b))
+            .map_or(0, |(b, _)| b);
         let mut smallest = segments_of(nearest_box)
             .map(squared)
             .fold(f64::INFINITY, f64::min);

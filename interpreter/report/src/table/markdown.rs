@@ -78,24 +78,12 @@ fn transfer_tables(out: &mut String, summary: &Summary, transfer: &Transfer) {
          paired percentile bootstrap, {} resamples, seed {}. p: two-sided Wilcoxon signed-rank test.\n",
         summary.bootstrap.resamples, summary.bootstrap.seed
     );
-    row(
-        out,
-        &[
-            "evaluated in",
-            "trained in",
-            "metric",
-            "pairs",
-            "difference",
-            "95 % CI",
-            "p",
-            "+/−/0",
-        ]
-        .map(String::from),
-    );
-    row(
-        out,
-        &[":--", ":--", ":--", "--:", "--:", "--:", "--:", "--:"].map(String::from),
-    );
+    let mut header = vec!["evaluated in", "trained in"];
+    header.extend(PAIRED_HEADER);
+    row(out, &header);
+    let mut align = vec![":--", ":--"];
+    align.extend(PAIRED_ALIGN);
+    row(out, &align);
     for (evaluated, comparison) in &transfer.comparisons {
         for trained in &comparison.fidelities {
             for m in &trained.metrics {
@@ -255,16 +243,10 @@ fn comparison_table(out: &mut String, summary: &Summary, comparison: &Comparison
         header.push("policy");
         align.push(":--");
     }
-    header.extend([
-        "metric",
-        "pairs",
-        "difference",
-        "95 % CI",
-        "p",
-        "+/−/0",
-        "P(better)",
-    ]);
-    align.extend([":--", "--:", "--:", "--:", "--:", "--:", "--:"]);
+    header.extend(PAIRED_HEADER);
+    header.push("P(better)");
+    align.extend(PAIRED_ALIGN);
+    align.push("--:");
     row(out, &header);
     row(out, &align);
     for fidelity in &comparison.fidelities {
@@ -286,6 +268,10 @@ fn comparison_table(out: &mut String, summary: &Summary, comparison: &Comparison
         }
     }
 }
+
+/// The columns of [`paired_cells`] and their alignment.
+const PAIRED_HEADER: [&str; 6] = ["metric", "pairs", "difference", "95 % CI", "p", "+/−/0"];
+const PAIRED_ALIGN: [&str; 6] = [":--", "--:", "--:", "--:", "--:", "--:"];
 
 /// A paired metric's cells: metric, pairs, difference, its CI, p, signs.
 fn paired_cells(summary: &Summary, m: &crate::PairedMetric) -> [String; 6] {
