@@ -96,6 +96,17 @@ enum Command {
 /// benchmarks) against the current flags. Not for users; undocumented in `--help`.
 const PARSE_ONLY: &str = "CPMX_PARSE_ONLY";
 
+/// The build that runs or trains: version and commit (recorded in a run folder's
+/// `provenance.json` and a training's `run.json`).
+fn made_by() -> String {
+    match option_env!("CPMX_COMMIT") {
+        Some(commit) if !commit.is_empty() => {
+            format!("cpmx {} (commit {commit})", env!("CARGO_PKG_VERSION"))
+        }
+        _ => format!("cpmx {}", env!("CARGO_PKG_VERSION")),
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     if std::env::var_os(PARSE_ONLY).is_some_and(|v| v == "1") {

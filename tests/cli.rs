@@ -152,6 +152,29 @@ fn a_far_start_is_located_beside_the_specs_other_problems_and_plan_does_not_blam
     std::fs::remove_dir_all(&dir).ok();
 }
 
+#[test]
+fn validate_draws_sampled_starts_as_run_will() {
+    let dir = std::env::temp_dir().join(format!("cpmx-crowd-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let spec = dir.join("crowd.yaml");
+    let minimal = std::fs::read_to_string(root().join("examples/minimal.yaml")).unwrap();
+    let crowd = minimal.replace("agents: 1\n", "agents: 40\n").replace(
+        "  - name: straight\n    agents:\n      - {ref_path: 1, arc_length: 0.2}\n",
+        "  - sample: {count: 2, seed: 1, min_gap: 0.5}\n",
+    );
+    assert_ne!(crowd, minimal);
+    let line = crowd.lines().position(|l| l.contains("sample:")).unwrap() + 1;
+    std::fs::write(&spec, &crowd).unwrap();
+    let out = cpmx(&["validate", spec.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("cpmx::map::no-room") && stderr.contains(&format!("crowd.yaml:{line}:")),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// Runs `spec` with one and with two threads and asserts that every file is identical.
 fn assert_identical_for_one_and_two_threads(spec: &str, min_files: usize) {
     let base = std::env::temp_dir().join(format!(

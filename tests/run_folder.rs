@@ -147,6 +147,61 @@ fn a_folder_of_another_spec_is_refused_without_force() {
 }
 
 #[test]
+fn report_merges_only_one_specs_folders_and_rescores_into_another_folder() {
+    let dir = scratch("merge");
+    let (quickstart, other) = (dir.join("quickstart"), dir.join("other"));
+    let (quickstart_arg, other_arg) = (quickstart.to_str().unwrap(), other.to_str().unwrap());
+    ok(&cpmx(&[
+        "run",
+        "experiments/quickstart.yaml",
+        "--out",
+        quickstart_arg,
+    ]));
+    ok(&cpmx(&["run", "examples/minimal.yaml", "--out", other_arg]));
+
+    // Another spec's folder would be left out of the first one's matrix without a word.
+    let mixed = cpmx(&["report", quickstart_arg, other_arg]);
+    assert_eq!(mixed.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&mixed.stderr);
+    assert!(
+        stderr.contains("another spec") && stderr.contains("minimal"),
+        "{stderr}"
+    );
+
+    // Re-scored summaries in the folder itself would contradict its metrics.json files.
+    let before = files(&quickstart);
+    let into_itself = cpmx(&[
+        "report",
+        quickstart_arg,
+        "--metrics",
+        "stdlib:at25-paper",
+        "--out",
+        quickstart_arg,
+    ]);
+    assert_eq!(into_itself.status.code(), Some(2));
+    assert!(files(&quickstart) == before);
+
+    // The builds that wrote the runs.
+    let provenance = std::fs::read_to_string(quickstart.join("provenance.json")).unwrap();
+    assert!(
+        provenance.contains("\"made_by\"") && provenance.contains("cpmx 0."),
+        "{provenance}"
+    );
+
+    // A damaged metrics.json is named, not counted as a run never made.
+    let damaged = quickstart.join("runs/sim/eager/crossing/rep1/metrics.json");
+    std::fs::write(&damaged, "{not json").unwrap();
+    let report = cpmx(&["report", quickstart_arg]);
+    assert!(report.status.success());
+    let stderr = String::from_utf8_lossy(&report.stderr);
+    assert!(
+        stderr.contains("cannot be read") && stderr.contains("eager/crossing/rep1/metrics.json"),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
 fn a_hand_edited_resolved_spec_is_caught() {
     let dir = scratch("edited");
     let out = dir.join("out");

@@ -141,6 +141,7 @@ pub fn run<'py>(
         data,
         stop: Some(stop.clone()),
         operator: None,
+        made_by: format!("cpmx Python package {}", env!("CARGO_PKG_VERSION")),
     };
 
     // Run in a thread of its own; this one waits without the GIL and looks for Ctrl-C.

@@ -241,7 +241,7 @@ fn check_version(spec: &Spec, ctx: &mut CheckContext<'_>) {
 }
 
 /// Reports every name that appears twice in `names` (pointer, name).
-fn report_duplicates(what: &str, names: &[(String, String)], ctx: &mut CheckContext<'_>) {
+fn report_duplicates(what: &str, plural: &str, names: &[(String, String)], ctx: &mut CheckContext<'_>) {
     let mut seen = HashSet::new();
     for (pointer, name) in names {
         if !seen.insert(name.as_str()) {
@@ -249,7 +249,7 @@ fn report_duplicates(what: &str, names: &[(String, String)], ctx: &mut CheckCont
             ctx.push(
                 Problem::error(
                     "cpmx::check::duplicate-name",
-                    format!("two {what}s are called `{name}`"),
+                    format!("two {plural} are called `{name}`"),
                     span,
                     "second use of this name",
                 )
@@ -268,7 +268,7 @@ fn check_names(spec: &Spec, ctx: &mut CheckContext<'_>) {
         .enumerate()
         .map(|(i, p)| (format!("/policies/{i}/name"), p.name.clone()))
         .collect();
-    report_duplicates("policy", &policies, ctx);
+    report_duplicates("policy", "policies", &policies, ctx);
 
     let mut configurations = Vec::new();
     let mut sample_counter = 0;
@@ -289,7 +289,12 @@ fn check_names(spec: &Spec, ctx: &mut CheckContext<'_>) {
             InitialConfiguration::FromRuns(_) => {}
         }
     }
-    report_duplicates("initial configuration", &configurations, ctx);
+    report_duplicates(
+        "initial configuration",
+        "initial configurations",
+        &configurations,
+        ctx,
+    );
 
     for name in spec.fidelities.keys() {
         let valid = !name.is_empty()
@@ -559,8 +564,15 @@ fn check_metrics(spec: &Spec, ctx: &mut CheckContext<'_>) {
 }
 
 fn check_report(spec: &Spec, ctx: &mut CheckContext<'_>) {
+    // A point of a swept fidelity (`sim@latency_ms=0`) is checked once the points exist
+    // (`check_compare`).
     if let Some(compare) = &spec.report.compare
-        && !spec.fidelities.contains_key(&compare.reference)
+        && !spec.fidelities.contains_key(
+            compare
+                .reference
+                .split_once('@')
+                .map_or(compare.reference.as_str(), |(base, _)| base),
+        )
     {
         let names: Vec<String> = spec.fidelities.keys().cloned().collect();
         let span = ctx.span("/report/compare/reference");

@@ -6,7 +6,10 @@ use std::collections::HashSet;
 
 use crate::check::{CheckContext, InterpreterChecks};
 use crate::diagnostic::Problem;
-use crate::model::{Control, Distribution, Fidelity, Parameter, ParameterRange, SimulatedFidelity, Spec};
+use crate::model::{
+    ActuationLayer, Control, Distribution, DynamicsLayer, Fidelity, Parameter, ParameterRange, SensingLayer,
+    SimulatedFidelity, Spec,
+};
 use crate::yaml::escape_pointer;
 
 pub(crate) fn needs_planner(fidelity: &Fidelity) -> bool {
@@ -50,6 +53,7 @@ pub(crate) fn check_fidelities(spec: &Spec, ctx: &mut CheckContext<'_>) {
         }
         if let Fidelity::Simulated(simulated) = fidelity {
             check_distributions(name, &pointer, simulated, ctx);
+            check_direct_layers(name, &pointer, simulated, ctx);
         }
         if let Fidelity::Lab(lab) = fidelity {
             if lab.vehicle_ids.len() != spec.agents as usize {
@@ -84,6 +88,55 @@ pub(crate) fn check_fidelities(spec: &Spec, ctx: &mut CheckContext<'_>) {
                 crate::check_lab::check_faults(faults, &lab.vehicle_ids, &format!("{pointer}/faults"), ctx);
             }
         }
+    }
+}
+
+/// `control: direct` applies each action to the kinematic bicycle with exact states (SigmaRL's
+/// simulation): grey-box dynamics, a sensing or actuation model and a follower are layers of
+/// the twin engine, which `control: trajectory` runs. Each such layer is an error at its key.
+fn check_direct_layers(name: &str, pointer: &str, fidelity: &SimulatedFidelity, ctx: &mut CheckContext<'_>) {
+    if fidelity.control != Control::Direct {
+        return;
+    }
+    let layers = [
+        (
+            "dynamics",
+            "grey-box dynamics",
+            matches!(fidelity.dynamics, DynamicsLayer::GreyBox(_)),
+        ),
+        (
+            "sensing",
+            "a sensing model",
+            matches!(fidelity.sensing, Some(SensingLayer::Model(_))),
+        ),
+        (
+            "actuation",
+            "an actuation model",
+            matches!(fidelity.actuation, Some(ActuationLayer::Model(_))),
+        ),
+        ("follower", "a `follower`", fidelity.follower.is_some()),
+    ];
+    for (key, what) in layers
+        .into_iter()
+        .filter(|layer| layer.2)
+        .map(|(key, what, _)| (key, what))
+    {
+        let spans = ctx.spans(&format!("{pointer}/{key}"));
+        ctx.push(
+            Problem::error(
+                "cpmx::check::direct-control",
+                format!(
+                    "fidelity `{name}` has `control: direct`, which applies actions to the kinematic bicycle with exact \
+                     states; {what} needs `control: trajectory`"
+                ),
+                spans.key.unwrap_or(spans.value),
+                "needs `control: trajectory`",
+            )
+            .with_help(format!(
+                "set `control: trajectory` (the lab's planner and MPC follower, as a twin runs; the spec then needs a \
+                 `planner`), or remove `{key}`"
+            )),
+        );
     }
 }
 

@@ -10,6 +10,7 @@
 //! ```
 
 mod check;
+mod check_compare;
 mod check_fidelities;
 mod check_files;
 mod check_lab;
@@ -178,10 +179,23 @@ pub fn check_scoped(
     let sweep::Found {
         sweeps,
         problems: sweep_problems,
-        refused,
+        mut refused,
     } = sweep::find(&doc);
     problems.extend(sweep_problems);
-    // The spans of every node of a refused sweep (mappings' spans only mark where they open).
+    // A preset that does not exist stays a name where a mapping belongs: the schema would say
+    // so again, less helpfully.
+    refused.extend(
+        doc.spans
+            .iter()
+            .filter(|(_, spans)| {
+                problems
+                    .iter()
+                    .any(|p| p.code == "cpmx::stdlib::unknown" && p.span == spans.value)
+            })
+            .map(|(pointer, _)| pointer.strip_suffix("/extends").unwrap_or(pointer).to_owned()),
+    );
+    // The spans of every node of a refused sweep or preset (mappings' spans only mark where
+    // they open).
     let refused_spans: Vec<ByteSpan> = doc
         .spans
         .iter()
@@ -195,7 +209,7 @@ pub fn check_scoped(
         .flat_map(|(_, spans)| [Some(spans.value), spans.key])
         .flatten()
         .collect();
-    let about_a_refused_sweep = |p: &Problem| refused_spans.contains(&p.span);
+    let about_a_refused_node = |p: &Problem| refused_spans.contains(&p.span);
     let mut base = doc.value.clone();
     for s in &sweeps {
         sweep::set(&mut base, &s.pointer, s.values[0]);
@@ -207,7 +221,7 @@ pub fn check_scoped(
     problems.extend(
         schema::validate(&at_first)
             .into_iter()
-            .filter(|p| !about_a_refused_sweep(p)),
+            .filter(|p| !about_a_refused_node(p)),
     );
     for s in &sweeps {
         let site = doc.spans_at(&s.pointer).value;
@@ -226,7 +240,12 @@ pub fn check_scoped(
         }
     }
     if problems.iter().any(|p| p.level == Level::Error) {
-        return Err(attach(problems));
+        // Misspelt keys alone do not stop the checks of meaning: they run without those keys,
+        // so one pass reports `descripton` beside a wrong `ref_path` (the errors are kept).
+        match without_unknown_keys(&base, &doc, &problems) {
+            Some(repaired) => base = repaired,
+            None => return Err(attach(problems)),
+        }
     }
     let early_warnings = problems;
     let spec: Spec = match serde_json::from_value(base.clone()) {
@@ -276,6 +295,12 @@ pub fn check_scoped(
             "",
         )])
     })?;
+    let reference_problems = check_compare::check_reference(&spec, &fidelity_points, &doc);
+    if !reference_problems.is_empty() {
+        let mut all = reference_problems;
+        all.extend(warnings);
+        return Err(attach(all));
+    }
     let training_points = sweep::training_points(&base, &sweeps).map_err(|e| {
         attach(vec![Problem::error(
             "cpmx::internal",
@@ -296,6 +321,39 @@ pub fn check_scoped(
         doc,
         source: named,
     })
+}
+
+/// `value` without the keys `problems` says are not keys of the language, when those are all
+/// its errors and the rest then passes the schema; `None` otherwise.
+fn without_unknown_keys(
+    value: &serde_json::Value,
+    doc: &SpannedDocument,
+    problems: &[Problem],
+) -> Option<serde_json::Value> {
+    const UNKNOWN_KEY: &str = "cpmx::schema::unknown-key";
+    let errors = || problems.iter().filter(|p| p.level == Level::Error);
+    if errors().any(|p| p.code != UNKNOWN_KEY) {
+        return None;
+    }
+    let mut repaired = value.clone();
+    for (pointer, spans) in &doc.spans {
+        let unknown = spans.key.is_some_and(|key| errors().any(|p| p.span == key));
+        let Some((parent, key)) = pointer.rsplit_once('/').filter(|_| unknown) else {
+            continue;
+        };
+        let key = key.replace("~1", "/").replace("~0", "~");
+        if let Some(object) = repaired
+            .pointer_mut(parent)
+            .and_then(serde_json::Value::as_object_mut)
+        {
+            object.remove(&key);
+        }
+    }
+    let clean = SpannedDocument {
+        value: repaired,
+        spans: doc.spans.clone(),
+    };
+    (!schema::validate(&clean).iter().any(|p| p.level == Level::Error)).then_some(clean.value)
 }
 
 /// Reads and checks a faults file (`cpmx lab emulate --faults FILE`): the mapping of a lab

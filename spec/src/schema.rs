@@ -220,7 +220,12 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
             let problem = Problem::error(
                 "cpmx::schema::type",
                 format!(
-                    "`{field}` must be {}, found {}",
+                    "{} must be {}, found {}",
+                    if field.is_empty() {
+                        "the spec".to_owned()
+                    } else {
+                        format!("`{field}`")
+                    },
                     type_name(kind),
                     value_kind(instance)
                 ),

@@ -13,6 +13,8 @@
 //!
 //! This module owns where sweeps may stand, what a point is called, and the grids.
 
+use std::borrow::Cow;
+
 use serde_json::Value;
 
 use crate::diagnostic::Problem;
@@ -242,9 +244,62 @@ pub fn point_suffix(sweeps: &[&Sweep], point: &[usize]) -> String {
     format!("@{}", parts.join("+"))
 }
 
+/// The fidelity of the run matrix that `fidelity` is paired with in the report's comparison
+/// with `reference` (a fidelity of the spec, or one point of a swept one), `is_name` telling
+/// which names the run matrix has: for a point of a sweep (`twin@delay_ms=80`), the reference
+/// at the same point when the sweep covers it too (a metric parameter's sweep makes
+/// `sim@slack=0.1`), else the reference itself. The result may not be a name of the matrix: a
+/// swept reference has no run under its bare name (`cpmx validate` refuses that spec).
+pub fn paired_reference<'a>(
+    fidelity: &str,
+    reference: &'a str,
+    is_name: impl Fn(&str) -> bool,
+) -> Cow<'a, str> {
+    if let Some((_, point)) = fidelity.split_once('@') {
+        let at_point = format!("{reference}@{point}");
+        if is_name(&at_point) {
+            return Cow::Owned(at_point);
+        }
+    }
+    Cow::Borrowed(reference)
+}
+
+/// Whether `fidelity` (a name of the run matrix) is the comparison's `reference`, or a point of
+/// it when the reference fidelity is swept.
+pub fn is_reference(fidelity: &str, reference: &str) -> bool {
+    fidelity == reference
+        || fidelity
+            .split_once('@')
+            .is_some_and(|(base, _)| base == reference)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn points_pair_with_the_reference_at_the_same_point_else_with_the_reference() {
+        let names = [
+            "sim@slack=0",
+            "sim@slack=0.1",
+            "twin@slack=0",
+            "twin@slack=0.1",
+            "lab",
+        ];
+        let is_name = |n: &str| names.contains(&n);
+        assert_eq!(
+            paired_reference("twin@slack=0.1", "sim", is_name),
+            "sim@slack=0.1"
+        );
+        assert_eq!(paired_reference("lab", "sim", is_name), "sim");
+        // One point of a swept fidelity as the reference: every other point pairs with it.
+        assert_eq!(
+            paired_reference("sim@slack=0.1", "sim@slack=0", is_name),
+            "sim@slack=0"
+        );
+        assert!(is_reference("sim@slack=0.1", "sim") && is_reference("sim", "sim"));
+        assert!(!is_reference("sim@slack=0.1", "sim@slack=0") && !is_reference("sim-mpc", "sim"));
+    }
 
     fn sweep(label: &str, values: &[f64]) -> Sweep {
         Sweep {

@@ -163,7 +163,11 @@ pub fn parse(text: &str) -> Result<SpannedDocument, Vec<Problem>> {
         let span = err
             .location()
             .map_or(ByteSpan::new(0, 0), |l| location_span(text, &l));
-        vec![Problem::yaml_syntax(strip_location(&err.to_string()), span)]
+        let message = strip_location(&err.to_string());
+        vec![match duplicate_key(&message) {
+            Some(key) => Problem::duplicate_key(key, span),
+            None => Problem::yaml_syntax(message, span),
+        }]
     })?;
     if matches!(root.value, Node::Null) {
         return Err(vec![Problem::empty_document()]);
@@ -198,6 +202,16 @@ fn char_to_byte(text: &str, char_offset: u64) -> usize {
     text.char_indices()
         .nth(char_offset as usize)
         .map_or(text.len(), |(b, _)| b)
+}
+
+/// The key of serde-saphyr's duplicate-key message ("duplicate mapping key: seed, set
+/// DuplicateKeyPolicy in Options if acceptable"), whose advice is for programmers.
+fn duplicate_key(message: &str) -> Option<&str> {
+    let rest = message.strip_prefix("duplicate mapping key: ")?;
+    Some(
+        rest.split_once(", set DuplicateKeyPolicy")
+            .map_or(rest, |(key, _)| key),
+    )
 }
 
 /// serde-saphyr's messages start with "line L column C: "; the diagnostic shows the place itself.

@@ -7,14 +7,16 @@ mod common;
 use cpmx_spec::model::Fidelity;
 use cpmx_spec::{CheckContext, InterpreterChecks, Resources, Spec, SpecDiagnostic};
 
-/// Stands in for the interpreter: can run only `control: direct` on `kinematic` dynamics.
-struct SimOnly;
+/// Stands in for the interpreter: a build without the twin's grey-box model or a lab.
+struct NoTwin;
 
-impl InterpreterChecks for SimOnly {
+impl InterpreterChecks for NoTwin {
     fn cannot_run(&self, fidelity: &Fidelity) -> Option<String> {
         match fidelity {
-            Fidelity::Simulated(s) if s.control == cpmx_spec::model::Control::Direct => None,
-            _ => Some("only the sim engine exists in this test".into()),
+            Fidelity::Simulated(s) if !matches!(s.dynamics, cpmx_spec::model::DynamicsLayer::GreyBox(_)) => {
+                None
+            }
+            _ => Some("no twin or lab in this test".into()),
         }
     }
     fn check(&self, _: &Spec, _: &Resources, _: &mut CheckContext<'_>) {}
@@ -40,7 +42,7 @@ fidelities:
 ";
 
 fn check(text: &str) -> Result<cpmx_spec::CheckedSpec, Vec<SpecDiagnostic>> {
-    common::check_with(text, &SimOnly)
+    common::check_with(text, &NoTwin)
 }
 
 /// The valid spec with `from` replaced by `to` (which must occur).
@@ -266,7 +268,7 @@ case!(
 #[test]
 fn unsupported_fidelities_are_warnings_not_errors() {
     let text = format!(
-        "{VALID}  mpc: {{control: trajectory, dynamics: kinematic}}\nplanner: {{control_horizon: 4, prediction_horizon: 12}}\n"
+        "{VALID}  mpc: {{control: trajectory, dynamics: stdlib:mu-car-greybox}}\nplanner: {{control_horizon: 4, prediction_horizon: 12}}\n"
     );
     let checked = check(&text).unwrap();
     assert_eq!(checked.plan().len(), 2);
@@ -328,7 +330,36 @@ fn an_unknown_preset_gets_a_did_you_mean() {
     let problems = check(&format!("{VALID}vehicle: stdlib:mucar\n")).unwrap_err();
     let text = cpmx_spec::render(&problems, false);
     assert!(text.contains("did you mean `stdlib:mu-car`?"), "{text}");
+    // Said once: not again as "`vehicle` must be a mapping".
+    assert_eq!(problems.len(), 1, "{text}");
 }
+
+#[test]
+fn a_misspelt_key_does_not_hide_the_problems_of_meaning() {
+    let text = edit("name: demo\n", "name: demo\ndescripton: typo\n").replace(
+        "  - {name: base, builtin: lane-follow}\n",
+        "  - {name: base, builtin: lane-follow}\n  - {name: base, builtin: lane-follow}\n",
+    );
+    let problems = check(&text).unwrap_err();
+    let codes: Vec<&str> = problems.iter().map(|p| p.problem.code).collect();
+    assert_eq!(
+        codes,
+        ["cpmx::schema::unknown-key", "cpmx::check::duplicate-name"],
+        "{}",
+        cpmx_spec::render(&problems, false)
+    );
+    assert!(cpmx_spec::render(&problems, false).contains("two policies are called `base`"));
+}
+
+case!(
+    direct_control_with_an_actuation_model,
+    edit(
+        "sim: {control: direct, dynamics: kinematic}",
+        "sim: {control: direct, dynamics: kinematic, actuation: {delay_ms: 80}, sensing: stdlib:cpm-ips}"
+    ),
+    16,
+    47
+);
 
 #[test]
 fn deep_nesting_is_a_diagnostic() {
@@ -370,69 +401,56 @@ fn from_runs_needs_runs_of_that_fidelity() {
 }
 
 // Randomised layer parameters: a distribution must be one, inside the parameter's range.
-case!(
-    reversed_uniform_range,
+
+/// The valid spec whose `sim` plans trajectories through an actuation layer `{layer}`.
+fn with_actuation(layer: &str) -> String {
     edit(
         "sim: {control: direct, dynamics: kinematic}",
-        "sim: {control: direct, dynamics: kinematic, actuation: {delay_ms: {uniform: [120, 40]}}}"
-    ),
+        &format!("sim: {{control: trajectory, dynamics: kinematic, actuation: {{{layer}}}}}"),
+    ) + "planner: {control_horizon: 4, prediction_horizon: 12}\n"
+}
+
+case!(
+    reversed_uniform_range,
+    with_actuation("delay_ms: {uniform: [120, 40]}"),
     16,
-    70
+    74
 );
 case!(
     empty_uniform_range,
-    edit(
-        "sim: {control: direct, dynamics: kinematic}",
-        "sim: {control: direct, dynamics: kinematic, actuation: {delay_ms: {uniform: [50, 50]}}}"
-    ),
+    with_actuation("delay_ms: {uniform: [50, 50]}"),
     16,
-    70
+    74
 );
 case!(
     uniform_range_outside_the_parameter,
-    edit(
-        "sim: {control: direct, dynamics: kinematic}",
-        "sim: {control: direct, dynamics: kinematic, actuation: {delay_ms: {uniform: [-10, 40]}}}"
-    ),
+    with_actuation("delay_ms: {uniform: [-10, 40]}"),
     16,
-    70
+    74
 );
 case!(
     normal_without_spread,
-    edit(
-        "sim: {control: direct, dynamics: kinematic}",
-        "sim: {control: direct, dynamics: kinematic, actuation: {delay_ms: {normal: {mean: 80, std: 0}}}}"
-    ),
+    with_actuation("delay_ms: {normal: {mean: 80, std: 0}}"),
     16,
-    94
+    98
 );
 case!(
     unknown_distribution,
-    edit(
-        "sim: {control: direct, dynamics: kinematic}",
-        "sim: {control: direct, dynamics: kinematic, actuation: {delay_ms: {gaussian: {mean: 80, std: 5}}}}"
-    ),
+    with_actuation("delay_ms: {gaussian: {mean: 80, std: 5}}"),
     16,
-    70
+    74
 );
 case!(
     distribution_over_a_parameter_that_does_not_exist,
-    edit(
-        "sim: {control: direct, dynamics: kinematic}",
-        "sim: {control: direct, dynamics: kinematic, actuation: {delay_s: {uniform: [0.04, 0.12]}}}"
-    ),
+    with_actuation("delay_s: {uniform: [0.04, 0.12]}"),
     16,
-    59
+    63
 );
 
 /// A randomised fidelity is not deterministic: no warning that its repetitions are copies.
 #[test]
 fn a_randomised_fidelity_has_repetitions_worth_running() {
-    let text = edit(
-        "sim: {control: direct, dynamics: kinematic}",
-        "sim: {control: direct, dynamics: kinematic, actuation: {delay_ms: {uniform: [40, 120]}}}",
-    )
-    .replace("repetitions: 1", "repetitions: 3");
+    let text = with_actuation("delay_ms: {uniform: [40, 120]}").replace("repetitions: 1", "repetitions: 3");
     let checked = check(&text).unwrap();
     assert!(checked.warnings.is_empty(), "{:?}", checked.warnings);
     let deterministic = check(&VALID.replace("repetitions: 1", "repetitions: 3")).unwrap();

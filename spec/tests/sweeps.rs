@@ -168,3 +168,38 @@ case!(
     5,
     1
 );
+
+/// `report:` comparing with `reference`.
+fn comparing_with(text: &str, reference: &str) -> String {
+    format!("{text}report:\n  compare: {{reference: {reference}, test: paired}}\n")
+}
+
+case!(
+    a_swept_reference_that_the_others_cannot_pair_with,
+    comparing_with(
+        &common::edit(VALID, "{delay_ms: 80}", "{delay_ms: {sweep: [0, 80]}}"),
+        "twin"
+    ),
+    20,
+    24
+);
+case!(
+    a_reference_point_the_sweep_does_not_have,
+    comparing_with(
+        &common::edit(VALID, "{delay_ms: 80}", "{delay_ms: {sweep: [0, 80]}}"),
+        "twin@delay_ms=40"
+    ),
+    20,
+    24
+);
+
+#[test]
+fn a_reference_is_a_fidelity_swept_alike_or_one_point_of_a_swept_one() {
+    let swept = common::edit(VALID, "{delay_ms: 80}", "{delay_ms: {sweep: [0, 80]}}");
+    let checked = check(&comparing_with(&swept, "twin@delay_ms=0")).unwrap();
+    assert_eq!(checked.plan().len(), 3);
+    check(&comparing_with(&swept, "sim")).unwrap();
+    // A metric's sweep sweeps every fidelity alike: each point pairs with the reference's.
+    let metric = format!("{VALID}metrics: {{extends: stdlib:at25, cra_l: {{slack: {{sweep: [0, 0.1]}}}}}}\n");
+    check(&comparing_with(&metric, "sim")).unwrap();
+}

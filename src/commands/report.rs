@@ -53,6 +53,13 @@ fn check_is_run_folder(dir: &Path) -> Result<(), Failure> {
         );
         return Err(Failure::Usage);
     }
+    if !dir.exists() {
+        eprintln!(
+            "error: `{}` does not exist\nhelp: name a folder written by `cpmx run`",
+            dir.display()
+        );
+        return Err(Failure::Usage);
+    }
     if !dir.join("matrix.csv").is_file() {
         eprintln!(
             "error: `{}` is not a run folder (it has no matrix.csv)\nhelp: name a folder written by `cpmx run`",
@@ -88,6 +95,57 @@ fn check_for_scoring(
         eprint!("{}", cpmx_spec::render(&d, false));
         Failure::InvalidInput
     })
+}
+
+/// Every folder after the first holds runs of the first one's spec (its context hash: the
+/// resolved spec but its report section and description), as the shards of one sweep do. The
+/// summary follows the first folder's run matrix: another spec's runs would be left out
+/// without a word.
+fn check_same_spec(dirs: &[PathBuf], context: &str, data: &DataArgs) -> Result<(), Failure> {
+    let first = &dirs[0];
+    for dir in &dirs[1..] {
+        let path = dir.join("spec.resolved.yaml");
+        let text = folder::read_resolved_spec(dir).map_err(fail)?;
+        let checked = check_for_scoring(path.display().to_string(), text, dir, data)?;
+        if folder::context_hash(&checked) != context {
+            eprintln!(
+                "error: `{}` holds runs of another spec than `{}` (`{}`): `cpmx report` merges the folders of one \
+                 spec, e.g. its shards\nhelp: report each folder on its own (`cpmx report {}`)",
+                dir.display(),
+                first.display(),
+                checked.spec.name,
+                dir.display()
+            );
+            return Err(Failure::Usage);
+        }
+    }
+    Ok(())
+}
+
+/// `--metrics` writes into a folder that is not one of those reported: re-scored summaries in
+/// a run folder would contradict its own `metrics.json` files and spec, and the next `cpmx
+/// report` of it would give the old numbers again.
+fn check_out_is_not_reported(out: Option<&Path>, dirs: &[PathBuf]) -> Result<(), Failure> {
+    let Some(out) = out else {
+        return Ok(());
+    };
+    let Ok(out_canonical) = out.canonicalize() else {
+        return Ok(()); // not there yet: a new folder
+    };
+    if let Some(dir) = dirs
+        .iter()
+        .find(|d| d.canonicalize().is_ok_and(|d| d == out_canonical))
+    {
+        eprintln!(
+            "error: `--out {}` is a folder being reported: its summaries, scored with --metrics, would contradict \
+             its runs' metrics.json and its spec\nhelp: write the re-scored summaries into another folder, e.g. \
+             `--out {}-rescored`",
+            out.display(),
+            dir.display()
+        );
+        return Err(Failure::Usage);
+    }
+    Ok(())
 }
 
 /// The folder's resolved spec with its `metrics` section replaced by `metrics` (a preset name
@@ -128,16 +186,29 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
             check_for_scoring(name, text, first, &args.data)?
         }
     };
+    check_same_spec(&args.dirs, &context, &args.data)?;
+    if args.metrics.is_some() {
+        check_out_is_not_reported(args.out.as_deref(), &args.dirs)?;
+    }
     let scoring =
         Scoring::prepare(&checked).map_err(|e| fail(format!("{}: {e}", resolved_path.display())))?;
     let plans = folder::read_matrix(first).map_err(fail)?;
 
     // Every run of the matrix, from whichever folder holds it, measured from its trajectory.
     let mut records = Vec::new();
-    let (mut missing, mut stale) = (Vec::new(), Vec::new());
+    let (mut missing, mut stale, mut damaged) = (Vec::new(), Vec::new(), Vec::new());
     for plan in &plans {
         let Some(dir) = args.dirs.iter().find(|d| store::finished(d, plan)) else {
-            missing.push(plan.key.clone());
+            // A metrics.json that is there but cannot be read is not a run never made.
+            match args.dirs.iter().find_map(|d| {
+                let run = store::run_dir(d, plan);
+                run.join("metrics.json")
+                    .is_file()
+                    .then(|| store::read_stored(&run).err())?
+            }) {
+                Some(why) => damaged.push(why),
+                None => missing.push(plan.key.clone()),
+            }
             continue;
         };
         let run = store::run_dir(dir, plan);
@@ -168,6 +239,15 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
             missing[0]
         );
     }
+    if !damaged.is_empty() {
+        eprintln!(
+            "warning: the metrics.json of {} of {} runs cannot be read, and they are left out (e.g. {}); run \
+             them again with `cpmx run SPEC --resume`",
+            damaged.len(),
+            plans.len(),
+            damaged[0]
+        );
+    }
     if !stale.is_empty() {
         eprintln!(
             "note: {} runs were made from an earlier spec and are left out (e.g. {}); run them again with \
@@ -177,6 +257,17 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
         );
     }
 
+    if records.is_empty() {
+        return Err(fail(format!(
+            "no finished run of `{}` is in {}: nothing to report",
+            scoring.spec.name,
+            if args.dirs.len() == 1 {
+                "this folder"
+            } else {
+                "these folders"
+            }
+        )));
+    }
     let summary = summarize(
         &scoring.spec.name,
         &records,

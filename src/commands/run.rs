@@ -73,6 +73,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         data: args.data.data.clone(),
         stop: Some(crate::interrupt::flag()),
         operator: Some(operator),
+        made_by: crate::made_by(),
     };
 
     // Policies bound from Python run only from Python.

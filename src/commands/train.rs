@@ -40,16 +40,6 @@ pub struct TrainArgs {
     pub data: DataArgs,
 }
 
-/// The build that trains: version and commit.
-fn made_by() -> String {
-    match option_env!("CPMX_COMMIT") {
-        Some(commit) if !commit.is_empty() => {
-            format!("cpmx {} (commit {commit})", env!("CARGO_PKG_VERSION"))
-        }
-        _ => format!("cpmx {}", env!("CARGO_PKG_VERSION")),
-    }
-}
-
 /// What `--only` keeps of an axis (`seed` or `fidelity`): every value listed for it, checked
 /// against the spec's (all of them when the axis is not named).
 fn selected<T: Clone + PartialEq + std::fmt::Display>(
@@ -175,7 +165,13 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
             if !mine {
                 continue;
             }
-            match SeedRun::open(setup, &folder(point, fidelity), seed, args.resume, &made_by()) {
+            match SeedRun::open(
+                setup,
+                &folder(point, fidelity),
+                seed,
+                args.resume,
+                &crate::made_by(),
+            ) {
                 Ok((run, start)) => runs.push((point.clone(), fidelity.clone(), run, start)),
                 Err(e) => return Err(report_open_error(&e)),
             }
@@ -213,6 +209,8 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
         }
         let bar = progress_bar(run.planned(), first);
         let mut last_rewards: Vec<f64> = Vec::new();
+        // Said once, as soon as it shows (a resumed run's curve counts from its first row).
+        let mut collapse = None;
         while run.done() < run.planned() {
             let record = pool.install(|| run.iterate()).map_err(|e| {
                 bar.abandon();
@@ -245,6 +243,12 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
                 );
                 return Err(Failure::Interrupted);
             }
+            if collapse.is_none() {
+                collapse = run.collapse();
+                if let Some(seen) = &collapse {
+                    bar.suspend(|| eprintln!("{}", collapse_warning(&label, seen, &run)));
+                }
+            }
             let message = format!(
                 "{label}  reward {}  best {:.2}",
                 show(record.episode_reward_mean),
@@ -268,14 +272,16 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
         run.finish().map_err(|e| report_io(&e))?;
         let trained = run.done() - first;
         let seconds = seed_started.elapsed().as_secs_f64();
-        summary.push((
+        let collapse = collapse.or_else(|| run.collapse());
+        summary.push(SeedSummary {
+            warning: collapse.map(|seen| collapse_warning(&label, &seen, &run)),
             label,
-            run.done(),
-            run.best_reward(),
+            done: run.done(),
+            best: run.best_reward(),
             last_rewards,
-            (trained > 0).then(|| seconds / trained as f64),
-            run.dir().to_owned(),
-        ));
+            seconds_per_iteration: (trained > 0).then(|| seconds / trained as f64),
+            dir: run.dir().to_owned(),
+        });
     }
     for (point, fidelity, setup) in &setups {
         write_overview(&folder(point, fidelity), &spec_name, &setup.seeds).map_err(|e| report_io(&e))?;
@@ -283,18 +289,52 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
 
     println!("| run | iterations | best episode_reward_mean | mean of the last 10 | s/iteration | actor |");
     println!("|---:|---:|---:|---:|---:|---|");
-    for (label, done, best, rewards, per_iteration, dir) in summary {
-        let tail = &rewards[rewards.len().saturating_sub(10)..];
+    for seed in &summary {
+        let tail = &seed.last_rewards[seed.last_rewards.len().saturating_sub(10)..];
         let tail_mean = (!tail.is_empty()).then(|| tail.iter().sum::<f64>() / tail.len() as f64);
         println!(
-            "| {label} | {done} | {} | {} | {} | {} |",
-            show(best),
+            "| {} | {} | {} | {} | {} | {} |",
+            seed.label,
+            seed.done,
+            show(seed.best),
             tail_mean.map_or("–".into(), |m| format!("{m:.3}")),
-            per_iteration.map_or("–".into(), |s| format!("{s:.2}")),
-            dir.join("actor.safetensors").display()
+            seed.seconds_per_iteration
+                .map_or("–".into(), |s| format!("{s:.2}")),
+            seed.dir.join("actor.safetensors").display()
         );
     }
+    // Again after the table: a warning said mid-training scrolls away in a long log.
+    for warning in summary.iter().filter_map(|seed| seed.warning.as_ref()) {
+        eprintln!("{warning}");
+    }
     Ok(())
+}
+
+/// A seed's line of the summary table, and its warning.
+struct SeedSummary {
+    label: String,
+    done: u64,
+    best: f64,
+    /// `episode_reward_mean` of the iterations trained by this command.
+    last_rewards: Vec<f64>,
+    seconds_per_iteration: Option<f64>,
+    dir: PathBuf,
+    warning: Option<String>,
+}
+
+/// What `cpmx train` says about a collapsed training: the evidence, what it means for the
+/// actor kept, and where to look.
+fn collapse_warning(label: &str, seen: &cpmx_train::collapse::Collapse, run: &SeedRun) -> String {
+    let best = run
+        .best_iteration()
+        .map_or_else(String::new, |k| format!(" (the best so far: iteration {k})"));
+    format!(
+        "warning: {label}: {seen}: the training has collapsed. SigmaRL's best-actor rule reads \
+         `episode_reward_mean` alone, which can stay level while episodes shorten, so the actor \
+         it keeps{best} may come from the collapse.\n\
+         help: the `collisions` column of {} shows it; docs/training.md, \"A training that collapses\"",
+        run.dir().join("learning_curve.csv").display()
+    )
 }
 
 fn run_seed(run: &SeedRun) -> String {

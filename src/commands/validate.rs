@@ -67,15 +67,21 @@ fn map_only(path: &Path, data: &DataArgs) -> Option<Result<String, String>> {
     };
     Some(
         cpmx_engine::load_map_spec(&map_spec, file.as_deref())
-            .map(|map| summary(path, file.as_deref(), &map))
+            .map(|map| {
+                let name = match (&map_spec, &file) {
+                    (_, Some(file)) => file.display().to_string(),
+                    (MapSpec::Builtin(name), None) => name.clone(),
+                    (MapSpec::File(f), None) => f.file.clone(),
+                };
+                summary(path, &name, &map)
+            })
             .map_err(|e| e.to_string()),
     )
 }
 
 /// What a map holds, for a person choosing `ref_path` ids.
-fn summary(spec: &Path, file: Option<&Path>, map: &Map) -> String {
+fn summary(spec: &Path, name: &str, map: &Map) -> String {
     let mut s = String::new();
-    let name = file.map_or_else(|| "built-in map".to_owned(), |f| f.display().to_string());
     let _ = writeln!(s, "ok: {}: map-only spec; the map {name} holds:", spec.display());
     let _ = writeln!(
         s,

@@ -4,16 +4,13 @@
 
 use cpmx_metrics::collision::{PlacedBox, mtv_distance_m};
 use cpmx_policy::ActorError;
-use cpmx_spec::model::{
-    ActuationLayer, Control, DynamicsLayer, Fidelity, InitialConfiguration, MapSpec, SensingLayer,
-    SimulatedFidelity,
-};
+use cpmx_spec::model::{Fidelity, InitialConfiguration, MapSpec, SampleSpec};
 use cpmx_spec::{CheckContext, InterpreterChecks, Problem, Resources, Spec};
-use cpmx_vehicle::footprint_corners;
+use cpmx_vehicle::{VehicleParams, footprint_corners};
 use cpmx_world::Map;
 
 use crate::experiment::{PrepareError, load_map, load_network, observation, vehicle_params};
-use crate::starts::explicit_start;
+use crate::starts::{explicit_start, sample_starts};
 
 /// The checks of this build of cpmx.
 #[derive(Debug, Clone, Copy, Default)]
@@ -62,43 +59,12 @@ impl InterpreterChecks for BuildChecks {
 
 /// Why this build cannot run a fidelity, or `None` when it can. `control: trajectory` runs
 /// every layer stack (twin engine); `control: direct` drives the kinematic bicycle with ideal
-/// sensing and actuation (SigmaRL's simulation); the lab driver runs whatever discovery
-/// rustdds can do (no initial peers beyond this host).
+/// sensing and actuation (SigmaRL's simulation; the spec's checks refuse other layers with it);
+/// the lab driver runs whatever discovery rustdds can do (no initial peers beyond this host).
 pub(crate) fn unsupported_reason(fidelity: &Fidelity) -> Option<String> {
     match fidelity {
         Fidelity::Lab(lab) => crate::lab::discovery_config(lab).err(),
-        Fidelity::Simulated(SimulatedFidelity {
-            control: Control::Trajectory,
-            ..
-        }) => None,
-        Fidelity::Simulated(SimulatedFidelity {
-            control: Control::Direct,
-            dynamics,
-            sensing,
-            actuation,
-            follower,
-            ..
-        }) => {
-            let mut extra = Vec::new();
-            if matches!(dynamics, DynamicsLayer::GreyBox(_)) {
-                extra.push("grey-box dynamics");
-            }
-            if matches!(sensing, Some(SensingLayer::Model(_))) {
-                extra.push("a sensing model");
-            }
-            if matches!(actuation, Some(ActuationLayer::Model(_))) {
-                extra.push("an actuation model");
-            }
-            if follower.is_some() {
-                extra.push("a `follower`");
-            }
-            (!extra.is_empty()).then(|| {
-                format!(
-                    "`control: direct` applies actions to the kinematic bicycle; {} need `control: trajectory`",
-                    extra.join(", ")
-                )
-            })
-        }
+        Fidelity::Simulated(_) => None,
     }
 }
 
@@ -254,6 +220,9 @@ fn check_starts(spec: &Spec, map: &Map, ctx: &mut CheckContext<'_>) {
         _ => format!("{ids:?}"),
     };
     for (c, configuration) in spec.initial_configurations.iter().enumerate() {
+        if let InitialConfiguration::Sampled(sampled) = configuration {
+            check_sampled_starts(spec, c, &sampled.sample, map, &vehicle, ctx);
+        }
         let InitialConfiguration::Explicit(e) = configuration else {
             continue;
         };
@@ -331,4 +300,38 @@ fn check_starts(spec: &Spec, map: &Map, ctx: &mut CheckContext<'_>) {
             placed.push((a, this));
         }
     }
+}
+
+/// Every draw of a `sample:` entry finds a place for every agent, as `cpmx run` will draw them
+/// (the same stream): the first draw that does not is an error at the entry.
+fn check_sampled_starts(
+    spec: &Spec,
+    entry: usize,
+    sample: &SampleSpec,
+    map: &Map,
+    vehicle: &VehicleParams,
+    ctx: &mut CheckContext<'_>,
+) {
+    let Some((index, reason)) = (0..sample.count).find_map(|index| {
+        sample_starts(sample, index, spec.agents as usize, map, vehicle)
+            .err()
+            .map(|reason| (index, reason))
+    }) else {
+        return;
+    };
+    let span = ctx.span(&format!("/initial_configurations/{entry}/sample"));
+    ctx.push(
+        Problem::error(
+            "cpmx::map::no-room",
+            format!(
+                "draw {} of {} of this sample cannot place {} agents: {reason}",
+                index + 1,
+                sample.count,
+                spec.agents
+            ),
+            span,
+            "no room on this map",
+        )
+        .with_help("lower `agents` or `min_gap`, or name a larger map"),
+    );
 }

@@ -88,6 +88,10 @@ pub struct Provenance {
     pub spec: PathBuf,
     /// The data path of that run, in order.
     pub data_path: Vec<PathBuf>,
+    /// The builds that wrote runs into the folder, in order (`cpmx 0.1.0 (commit 09b1a77)`): a
+    /// folder resumed by another build lists both.
+    #[serde(default)]
+    pub made_by: Vec<String>,
 }
 
 impl Provenance {

@@ -12,6 +12,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use cpmx_metrics::stats::{self, Interval};
 use cpmx_spec::model::Bootstrap;
+use cpmx_spec::sweep::{is_reference, paired_reference};
 
 use crate::RunRecord;
 use crate::aggregate::CONFIDENCE;
@@ -70,29 +71,8 @@ pub struct PairedMetric {
     pub probability_of_improvement: f64,
 }
 
-/// The reference a fidelity is paired with: for a point of a sweep (`twin@delay_ms=80`), the
-/// reference at the same point when the sweep covers it too (a metric parameter's sweep makes
-/// `sim@slack=0.1`), else the reference itself.
-fn reference_of<'a>(fidelity: &str, reference: &'a str, names: &BTreeSet<&str>) -> std::borrow::Cow<'a, str> {
-    if let Some((_, point)) = fidelity.split_once('@') {
-        let at_point = format!("{reference}@{point}");
-        if names.contains(at_point.as_str()) {
-            return std::borrow::Cow::Owned(at_point);
-        }
-    }
-    std::borrow::Cow::Borrowed(reference)
-}
-
-/// Whether `fidelity` is the reference, or the reference at a point of a sweep.
-fn is_reference(fidelity: &str, reference: &str) -> bool {
-    fidelity == reference
-        || fidelity
-            .split_once('@')
-            .is_some_and(|(base, _)| base == reference)
-}
-
 /// Compares every fidelity of `runs` other than `reference` with it (points of a sweep with
-/// the reference at the same point, see [`reference_of`]): per policy when `by_policy` (as a
+/// the reference at the same point, see [`paired_reference`]): per policy when `by_policy` (as a
 /// summary grouped by policy reads), else pooling the policies' pairs.
 ///
 /// Each bootstrap interval uses `ChaCha8Rng::seed_from_u64(bootstrap.seed)` afresh, so any
@@ -117,7 +97,7 @@ pub fn compare(runs: &[RunRecord], reference: &str, bootstrap: &Bootstrap, by_po
     };
     let mut compared = Vec::new();
     for fidelity in fidelities {
-        let reference = reference_of(fidelity, reference, &names);
+        let reference = paired_reference(fidelity, reference, |name| names.contains(name));
         for &policy in &groups {
             let compared_runs: Vec<&RunRecord> = runs
                 .iter()

@@ -77,6 +77,8 @@ pub struct RunRequest {
     pub stop: Option<Arc<AtomicBool>>,
     /// Where lab runs tell the operator what they wait for (the preflight's table).
     pub operator: Option<Operator>,
+    /// The build that runs (`cpmx 0.1.0 (commit 09b1a77)`), recorded in `provenance.json`.
+    pub made_by: String,
 }
 
 /// Why a matrix could not be run; nothing was run (runs that fail are outcomes, not this).
@@ -266,9 +268,14 @@ pub fn run_matrix(
         .unwrap_or_else(|| Path::new("out").join(&checked.spec.name));
     let mut notes = Vec::new();
     check_folder_spec(&out, checked, request.force, &mut notes)?;
+    let mut made_by = folder::Provenance::read(&out).made_by;
+    if made_by.last() != Some(&request.made_by) {
+        made_by.push(request.made_by.clone());
+    }
     let provenance = folder::Provenance {
         spec: std::fs::canonicalize(&request.spec_path).unwrap_or_else(|_| request.spec_path.clone()),
         data_path: data_path(&request.spec_path, &request.data),
+        made_by,
     };
     let io = |e| RunError::Io {
         path: out.clone(),

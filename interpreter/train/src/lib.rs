@@ -5,7 +5,8 @@
 //! reward, algorithm, network, fidelity) and the map; [`TrainingEnv`] hands the environments
 //! to the learner; [`SeedRun`] trains one seed into `<out>/<seed>/`, checkpointing every
 //! iteration so that a killed run resumes to the same weights; [`trained_actors`] tells whether
-//! the actors a spec's policies name were trained by its section as it stands. Rewards, resets and PPO live in
+//! the actors a spec's policies name were trained by its section as it stands; [`collapse`]
+//! notices a training whose collisions climb back to their untrained level. Rewards, resets and PPO live in
 //! the crates below; the command line (progress bar, `--jobs`, `--only`) lives in `cpmx`.
 //!
 //! ```text
@@ -19,6 +20,7 @@
 //! }
 //! ```
 
+pub mod collapse;
 pub mod curve;
 mod environment;
 mod provenance;

@@ -21,6 +21,7 @@ use std::path::{Path, PathBuf};
 
 use cpmx_learn::{IterationRecord, TrainError, Trainer};
 
+use crate::collapse::{self, Collapse};
 use crate::curve;
 use crate::environment::{TrainingEnv, reward_term_names};
 use crate::setup::TrainingSetup;
@@ -259,6 +260,16 @@ impl SeedRun {
     /// SigmaRL's best `episode_reward_mean` so far (-1000 before any episode ended).
     pub fn best_reward(&self) -> f64 {
         self.trainer.best().2
+    }
+
+    /// The iteration whose actor is the best so far (none before any episode ended).
+    pub fn best_iteration(&self) -> Option<u64> {
+        self.info.best_iteration
+    }
+
+    /// The first collapse of the learning curve so far ([`crate::collapse`]).
+    pub fn collapse(&self) -> Option<Collapse> {
+        collapse::find(&curve::column_points(&self.curve_text, "collisions"))
     }
 
     /// One iteration, then its files: the curve's row, the actors and critic, the

@@ -39,7 +39,8 @@ pub struct Spec {
     pub vehicle: VehicleSpec,
     /// Policy step and evaluation horizon.
     pub timing: Timing,
-    /// Number of agents (vehicles) in every run. A spec that only trains (`training:`) may
+    /// Number of agents (vehicles) in every run; required, with the other axes of the run
+    /// matrix (`cpmx validate` says which are missing). A spec that only trains (`training:`) may
     /// leave out the run matrix (`agents`, `policies`, `initial_configurations`,
     /// `repetitions`, `seed`; `fidelities` then only names fidelities to train in, by default
     /// SigmaRL's `sim`, and `timing` defaults to SigmaRL's `dt: 0.1`); `cpmx run` then has
@@ -47,22 +48,27 @@ pub struct Spec {
     #[serde(default)]
     #[schemars(range(min = 1, max = 64))]
     pub agents: u32,
-    /// The policies to compare: one axis of the run matrix.
+    /// The policies to compare: one axis of the run matrix. Required unless the spec only
+    /// trains (see `agents`).
     #[serde(default)]
     #[schemars(length(min = 1))]
     pub policies: Vec<PolicySpec>,
     /// Initial configurations, shared by every fidelity (paired design): one axis of the matrix.
+    /// Required unless the spec only trains (see `agents`).
     #[serde(default)]
     #[schemars(length(min = 1))]
     pub initial_configurations: Vec<InitialConfiguration>,
     /// Repetitions of every (fidelity, policy, initial configuration): one axis of the matrix.
+    /// Required unless the spec only trains (see `agents`).
     #[serde(default = "one_repetition")]
     #[schemars(range(min = 1, max = 10000))]
     pub repetitions: u32,
-    /// Root seed: every random stream of every run derives from it.
+    /// Root seed: every random stream of every run derives from it. Required unless the spec
+    /// only trains (see `agents`).
     #[serde(default)]
     pub seed: u64,
-    /// Fidelity levels by name, each a stack of layers: one axis of the matrix.
+    /// Fidelity levels by name, each a stack of layers: one axis of the matrix. Required
+    /// unless the spec only trains (see `agents`).
     #[serde(default)]
     #[schemars(length(min = 1))]
     pub fidelities: IndexMap<String, Fidelity>,

@@ -143,7 +143,9 @@ pub enum FollowerSolver {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "kebab-case")]
 pub enum Control {
-    /// The action is applied to the vehicle model every `dt` (SigmaRL's simulation).
+    /// The action is applied to the kinematic bicycle every `dt` with exact states (SigmaRL's
+    /// simulation). Grey-box dynamics, a sensing or actuation model and a `follower` need
+    /// `trajectory`.
     Direct,
     /// The policy plans a timed trajectory over Hc/Hp that a vehicle-side MPC follows (the lab).
     Trajectory,
