@@ -240,9 +240,10 @@ pub fn check_scoped(
         }
     }
     if problems.iter().any(|p| p.level == Level::Error) {
-        // Misspelt keys alone do not stop the checks of meaning: they run without those keys,
-        // so one pass reports `descripton` beside a wrong `ref_path` (the errors are kept).
-        match without_unknown_keys(&base, &doc, &problems) {
+        // Misspelt keys and misplaced sweeps alone do not stop the checks of meaning: they run
+        // without them, so one pass reports `descripton` beside a wrong `ref_path` or a missing
+        // file (the errors are kept).
+        match repaired_for_meaning(&base, &doc, &problems, &refused) {
             Some(repaired) => base = repaired,
             None => return Err(attach(problems)),
         }
@@ -323,30 +324,34 @@ pub fn check_scoped(
     })
 }
 
-/// `value` without the keys `problems` says are not keys of the language, when those are all
-/// its errors and the rest then passes the schema; `None` otherwise.
-fn without_unknown_keys(
+/// `value` repaired so that the checks of meaning can still run, when its only errors are keys
+/// that are not keys of the language (removed) and sweeps refused where they stand (`refused`:
+/// replaced by their first value, or 0 when they have none), and the rest then passes the
+/// schema; `None` otherwise.
+fn repaired_for_meaning(
     value: &serde_json::Value,
     doc: &SpannedDocument,
     problems: &[Problem],
+    refused: &[String],
 ) -> Option<serde_json::Value> {
-    const UNKNOWN_KEY: &str = "cpmx::schema::unknown-key";
     let errors = || problems.iter().filter(|p| p.level == Level::Error);
-    if errors().any(|p| p.code != UNKNOWN_KEY) {
+    if errors().any(|p| p.code != "cpmx::schema::unknown-key" && !p.code.starts_with("cpmx::sweep::")) {
         return None;
     }
     let mut repaired = value.clone();
     for (pointer, spans) in &doc.spans {
-        let unknown = spans.key.is_some_and(|key| errors().any(|p| p.span == key));
-        let Some((parent, key)) = pointer.rsplit_once('/').filter(|_| unknown) else {
-            continue;
-        };
-        let key = key.replace("~1", "/").replace("~0", "~");
-        if let Some(object) = repaired
-            .pointer_mut(parent)
-            .and_then(serde_json::Value::as_object_mut)
-        {
-            object.remove(&key);
+        if spans.key.is_some_and(|key| errors().any(|p| p.span == key)) {
+            remove_at(&mut repaired, pointer);
+        }
+    }
+    for pointer in refused {
+        let first = value
+            .pointer(&format!("{pointer}/sweep/0"))
+            .filter(|v| v.is_number())
+            .cloned()
+            .unwrap_or_else(|| serde_json::Value::from(0));
+        if let Some(slot) = repaired.pointer_mut(pointer) {
+            *slot = first;
         }
     }
     let clean = SpannedDocument {
@@ -354,6 +359,20 @@ fn without_unknown_keys(
         spans: doc.spans.clone(),
     };
     (!schema::validate(&clean).iter().any(|p| p.level == Level::Error)).then_some(clean.value)
+}
+
+/// Removes the member at JSON pointer `pointer` from its parent mapping.
+fn remove_at(value: &mut serde_json::Value, pointer: &str) {
+    let Some((parent, key)) = pointer.rsplit_once('/') else {
+        return;
+    };
+    let key = key.replace("~1", "/").replace("~0", "~");
+    if let Some(object) = value
+        .pointer_mut(parent)
+        .and_then(serde_json::Value::as_object_mut)
+    {
+        object.remove(&key);
+    }
 }
 
 /// Reads and checks a faults file (`cpmx lab emulate --faults FILE`): the mapping of a lab

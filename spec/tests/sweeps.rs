@@ -203,3 +203,24 @@ fn a_reference_is_a_fidelity_swept_alike_or_one_point_of_a_swept_one() {
     let metric = format!("{VALID}metrics: {{extends: stdlib:at25, cra_l: {{slack: {{sweep: [0, 0.1]}}}}}}\n");
     check(&comparing_with(&metric, "sim")).unwrap();
 }
+
+#[test]
+fn a_refused_sweep_does_not_hide_the_specs_other_problems() {
+    let text = common::edit(VALID, "{delay_ms: 80}", "{delay_ms: {sweep: []}}").replace(
+        "map: stdlib:intersection",
+        "map: {file: nowhere.xml}\ndescripton: typo",
+    );
+    let problems = check(&text).unwrap_err();
+    let codes: Vec<&str> = problems.iter().map(|p| p.problem.code).collect();
+    for code in [
+        "cpmx::sweep::empty",
+        "cpmx::schema::unknown-key",
+        "cpmx::check::missing-file",
+    ] {
+        assert!(
+            codes.contains(&code),
+            "{code}: {}",
+            cpmx_spec::render(&problems, false)
+        );
+    }
+}
