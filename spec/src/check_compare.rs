@@ -3,7 +3,7 @@
 //!
 //! A fidelity swept on its own layers becomes one fidelity per point (`sim@latency_ms=100`)
 //! and no longer has runs under its bare name; a fidelity compared with it pairs only when it
-//! is swept alike (the reference at its point, [`crate::sweep::paired_reference`]). Without
+//! is swept alike (the reference's point with its values, [`crate::sweep::paired_reference`]). Without
 //! this check such a spec validates and its comparison table is empty.
 
 use indexmap::IndexMap;
@@ -52,7 +52,13 @@ pub(crate) fn check_reference(
         .keys()
         .map(String::as_str)
         .filter(|name| !is_reference(name, reference))
-        .filter(|name| !is_name(&paired_reference(name, reference, is_name)))
+        .filter(|name| {
+            !is_name(&paired_reference(
+                name,
+                reference,
+                points.keys().map(String::as_str),
+            ))
+        })
         .collect();
     if unpaired.is_empty() {
         return Vec::new();

@@ -296,7 +296,11 @@ pub fn check_scoped(
             "",
         )])
     })?;
-    let reference_problems = check_compare::check_reference(&spec, &fidelity_points, &doc);
+    // Scoring a folder made before this check existed still works (its comparison is empty).
+    let reference_problems = match scope {
+        CheckScope::Run => check_compare::check_reference(&spec, &fidelity_points, &doc),
+        CheckScope::Measure => Vec::new(),
+    };
     if !reference_problems.is_empty() {
         let mut all = reference_problems;
         all.extend(warnings);
@@ -325,34 +329,43 @@ pub fn check_scoped(
 }
 
 /// `value` repaired so that the checks of meaning can still run, when its only errors are keys
-/// that are not keys of the language (removed) and sweeps refused where they stand (`refused`:
-/// replaced by their first value, or 0 when they have none), and the rest then passes the
-/// schema; `None` otherwise.
+/// that are not keys of the language (read as the key they most likely mean, or left out) and
+/// sweeps refused where they stand (`refused`: read as their first value), and the rest then
+/// passes the schema; `None` otherwise.
 fn repaired_for_meaning(
     value: &serde_json::Value,
     doc: &SpannedDocument,
     problems: &[Problem],
     refused: &[String],
 ) -> Option<serde_json::Value> {
+    const UNKNOWN_KEY: &str = "cpmx::schema::unknown-key";
     let errors = || problems.iter().filter(|p| p.level == Level::Error);
-    if errors().any(|p| p.code != "cpmx::schema::unknown-key" && !p.code.starts_with("cpmx::sweep::")) {
+    if errors().any(|p| p.code != UNKNOWN_KEY && !p.code.starts_with("cpmx::sweep::")) {
         return None;
     }
     let mut repaired = value.clone();
-    for (pointer, spans) in &doc.spans {
-        if spans.key.is_some_and(|key| errors().any(|p| p.span == key)) {
-            remove_at(&mut repaired, pointer);
-        }
-    }
+    // A refused sweep stands for its first value; without one (`{sweep: []}`) any number put
+    // there could raise problems of its own.
     for pointer in refused {
         let first = value
             .pointer(&format!("{pointer}/sweep/0"))
-            .filter(|v| v.is_number())
-            .cloned()
-            .unwrap_or_else(|| serde_json::Value::from(0));
-        if let Some(slot) = repaired.pointer_mut(pointer) {
-            *slot = first;
-        }
+            .filter(|v| v.is_number())?;
+        *repaired.pointer_mut(pointer)? = first.clone();
+    }
+    // A misspelt key is read as the key it most likely means (`plannr` as `planner`: the checks
+    // then do not also say the planner is missing), or left out.
+    for (pointer, spans) in &doc.spans {
+        let Some(problem) = spans
+            .key
+            .and_then(|key| errors().find(|p| p.code == UNKNOWN_KEY && p.span == key))
+        else {
+            continue;
+        };
+        let meant = problem
+            .help
+            .as_deref()
+            .and_then(|help| help.strip_prefix("did you mean `")?.strip_suffix("`?"));
+        rename_at(&mut repaired, pointer, meant);
     }
     let clean = SpannedDocument {
         value: repaired,
@@ -361,17 +374,23 @@ fn repaired_for_meaning(
     (!schema::validate(&clean).iter().any(|p| p.level == Level::Error)).then_some(clean.value)
 }
 
-/// Removes the member at JSON pointer `pointer` from its parent mapping.
-fn remove_at(value: &mut serde_json::Value, pointer: &str) {
+/// Moves the member at JSON pointer `pointer` to key `to` of the same mapping when that key is
+/// free, else removes it.
+fn rename_at(value: &mut serde_json::Value, pointer: &str, to: Option<&str>) {
     let Some((parent, key)) = pointer.rsplit_once('/') else {
         return;
     };
     let key = key.replace("~1", "/").replace("~0", "~");
-    if let Some(object) = value
+    let Some(object) = value
         .pointer_mut(parent)
         .and_then(serde_json::Value::as_object_mut)
+    else {
+        return;
+    };
+    if let Some(member) = object.remove(&key)
+        && let Some(to) = to.filter(|to| !object.contains_key(*to))
     {
-        object.remove(&key);
+        object.insert(to.to_owned(), member);
     }
 }
 

@@ -245,23 +245,28 @@ pub fn point_suffix(sweeps: &[&Sweep], point: &[usize]) -> String {
 }
 
 /// The fidelity of the run matrix that `fidelity` is paired with in the report's comparison
-/// with `reference` (a fidelity of the spec, or one point of a swept one), `is_name` telling
-/// which names the run matrix has: for a point of a sweep (`twin@delay_ms=80`), the reference
-/// at the same point when the sweep covers it too (a metric parameter's sweep makes
+/// with `reference` (a fidelity of the spec, or one point of a swept one), among the run
+/// matrix's fidelities `names`: for a point of a sweep (`twin@delay_ms=80+slack=0.1`), the
+/// point of the reference whose swept values it shares (a metric parameter's sweep makes
 /// `sim@slack=0.1`), else the reference itself. The result may not be a name of the matrix: a
 /// swept reference has no run under its bare name (`cpmx validate` refuses that spec).
-pub fn paired_reference<'a>(
+pub fn paired_reference<'a, 'n>(
     fidelity: &str,
     reference: &'a str,
-    is_name: impl Fn(&str) -> bool,
+    names: impl IntoIterator<Item = &'n str>,
 ) -> Cow<'a, str> {
-    if let Some((_, point)) = fidelity.split_once('@') {
-        let at_point = format!("{reference}@{point}");
-        if is_name(&at_point) {
-            return Cow::Owned(at_point);
-        }
-    }
-    Cow::Borrowed(reference)
+    let Some((_, point)) = fidelity.split_once('@') else {
+        return Cow::Borrowed(reference);
+    };
+    let values: Vec<&str> = point.split('+').collect();
+    names
+        .into_iter()
+        .find(|name| {
+            name.split_once('@').is_some_and(|(base, at)| {
+                base == reference && at.split('+').all(|value| values.contains(&value))
+            })
+        })
+        .map_or(Cow::Borrowed(reference), |name| Cow::Owned(name.to_owned()))
 }
 
 /// Whether `fidelity` (a name of the run matrix) is the comparison's `reference`, or a point of
@@ -282,19 +287,17 @@ mod tests {
         let names = [
             "sim@slack=0",
             "sim@slack=0.1",
-            "twin@slack=0",
-            "twin@slack=0.1",
+            "twin@delay_ms=80+slack=0.1",
             "lab",
         ];
-        let is_name = |n: &str| names.contains(&n);
         assert_eq!(
-            paired_reference("twin@slack=0.1", "sim", is_name),
+            paired_reference("twin@delay_ms=80+slack=0.1", "sim", names),
             "sim@slack=0.1"
         );
-        assert_eq!(paired_reference("lab", "sim", is_name), "sim");
+        assert_eq!(paired_reference("lab", "sim", names), "sim");
         // One point of a swept fidelity as the reference: every other point pairs with it.
         assert_eq!(
-            paired_reference("sim@slack=0.1", "sim@slack=0", is_name),
+            paired_reference("sim@slack=0.1", "sim@slack=0", names),
             "sim@slack=0"
         );
         assert!(is_reference("sim@slack=0.1", "sim") && is_reference("sim", "sim"));

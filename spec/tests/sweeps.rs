@@ -206,14 +206,18 @@ fn a_reference_is_a_fidelity_swept_alike_or_one_point_of_a_swept_one() {
 
 #[test]
 fn a_refused_sweep_does_not_hide_the_specs_other_problems() {
-    let text = common::edit(VALID, "{delay_ms: 80}", "{delay_ms: {sweep: []}}").replace(
-        "map: stdlib:intersection",
-        "map: {file: nowhere.xml}\ndescripton: typo",
-    );
+    let text = common::edit(VALID, "agents: 2", "agents: {sweep: [2, 3]}")
+        .replace(
+            "map: stdlib:intersection",
+            "map: {file: nowhere.xml}\ndescripton: typo",
+        )
+        .replace("planner:", "plannr:");
     let problems = check(&text).unwrap_err();
     let codes: Vec<&str> = problems.iter().map(|p| p.problem.code).collect();
+    // `plannr` is read as `planner`: `twin` is not also said to lack one.
+    assert!(!codes.contains(&"cpmx::check::planner"), "{codes:?}");
     for code in [
-        "cpmx::sweep::empty",
+        "cpmx::sweep::place",
         "cpmx::schema::unknown-key",
         "cpmx::check::missing-file",
     ] {
@@ -223,4 +227,15 @@ fn a_refused_sweep_does_not_hide_the_specs_other_problems() {
             cpmx_spec::render(&problems, false)
         );
     }
+}
+
+#[test]
+fn a_fidelity_swept_beside_a_metric_pairs_with_the_reference_at_the_metrics_point() {
+    let text = format!(
+        "{}metrics: {{extends: stdlib:at25, cra_l: {{slack: {{sweep: [0, 0.1]}}}}}}\n\
+         report:\n  compare: {{reference: sim, test: paired}}\n",
+        common::edit(VALID, "{delay_ms: 80}", "{delay_ms: {sweep: [0, 80]}}")
+    );
+    let checked = check(&text).unwrap();
+    assert_eq!(checked.plan().len(), 2 + 4);
 }

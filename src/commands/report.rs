@@ -101,21 +101,36 @@ fn check_for_scoring(
 /// resolved spec but its report section and description), as the shards of one sweep do. The
 /// summary follows the first folder's run matrix: another spec's runs would be left out
 /// without a word.
-fn check_same_spec(dirs: &[PathBuf], context: &str, data: &DataArgs) -> Result<(), Failure> {
+fn check_same_spec(
+    dirs: &[PathBuf],
+    first_name: &str,
+    context: &str,
+    data: &DataArgs,
+) -> Result<(), Failure> {
     let first = &dirs[0];
     for dir in &dirs[1..] {
         let path = dir.join("spec.resolved.yaml");
         let text = folder::read_resolved_spec(dir).map_err(fail)?;
         let checked = check_for_scoring(path.display().to_string(), text, dir, data)?;
         if folder::context_hash(&checked) != context {
-            eprintln!(
-                "error: `{}` holds runs of another spec than `{}` (`{}`): `cpmx report` merges the folders of one \
-                 spec, e.g. its shards\nhelp: report each folder on its own (`cpmx report {}`)",
-                dir.display(),
-                first.display(),
-                checked.spec.name,
-                dir.display()
-            );
+            if checked.spec.name == first_name {
+                eprintln!(
+                    "error: `{}` and `{}` hold runs of two versions of spec `{first_name}`: `cpmx report` merges \
+                     the folders of one spec, e.g. its shards\nhelp: run the older shard again with the current \
+                     spec (`cpmx run SPEC --out DIR --shard K/N --resume --force`), or report each folder on its own",
+                    first.display(),
+                    dir.display(),
+                );
+            } else {
+                eprintln!(
+                    "error: `{}` holds runs of another spec than `{}` (`{}`): `cpmx report` merges the folders of \
+                     one spec, e.g. its shards\nhelp: report each folder on its own (`cpmx report {}`)",
+                    dir.display(),
+                    first.display(),
+                    checked.spec.name,
+                    dir.display()
+                );
+            }
             return Err(Failure::Usage);
         }
     }
@@ -186,7 +201,7 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
             check_for_scoring(name, text, first, &args.data)?
         }
     };
-    check_same_spec(&args.dirs, &context, &args.data)?;
+    check_same_spec(&args.dirs, &checked.spec.name, &context, &args.data)?;
     if args.metrics.is_some() {
         check_out_is_not_reported(args.out.as_deref(), &args.dirs)?;
     }
@@ -259,7 +274,7 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
 
     if records.is_empty() {
         return Err(fail(format!(
-            "no finished run of `{}` is in {}: nothing to report",
+            "nothing to report: no run of `{}` in {} is finished with its current spec",
             scoring.spec.name,
             if args.dirs.len() == 1 {
                 "this folder"

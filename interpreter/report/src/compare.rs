@@ -97,7 +97,7 @@ pub fn compare(runs: &[RunRecord], reference: &str, bootstrap: &Bootstrap, by_po
     };
     let mut compared = Vec::new();
     for fidelity in fidelities {
-        let reference = paired_reference(fidelity, reference, |name| names.contains(name));
+        let reference = paired_reference(fidelity, reference, names.iter().copied());
         for &policy in &groups {
             let compared_runs: Vec<&RunRecord> = runs
                 .iter()

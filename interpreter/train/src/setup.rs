@@ -6,10 +6,7 @@
 use cpmx_env::{EnvConfig, Plant, StackPlant, config_from_training, training_paths};
 use cpmx_learn::Hyperparameters;
 use cpmx_spec::CheckedSpec;
-use cpmx_spec::model::{
-    Activation, ActuationLayer, Control, DynamicsLayer, Fidelity, Lookahead, SensingLayer, TrainingSpec,
-    ValueLoss,
-};
+use cpmx_spec::model::{Activation, Control, Fidelity, Lookahead, TrainingSpec, ValueLoss};
 use cpmx_world::ReferencePath;
 use sha2::{Digest, Sha256};
 
@@ -180,8 +177,7 @@ fn hyperparameters(training: &TrainingSpec, vehicle: &cpmx_vehicle::VehicleParam
 }
 
 /// The plant of the fidelity to train in: SigmaRL's simulation for `control: direct` (the
-/// kinematic bicycle with exact states; any other layer needs `control: trajectory`, as in
-/// `cpmx run`), the lab's control architecture with the fidelity's layers and the spec's
+/// kinematic bicycle with exact states: the spec's checks refuse other layers with it), the lab's control architecture with the fidelity's layers and the spec's
 /// planner (and the section's `lookahead`) for `control: trajectory`; a lab driver is refused.
 fn plant_of(checked: &CheckedSpec, name: &str, lookahead: Lookahead) -> Result<Plant, SetupError> {
     let refuse = |reason: &str| {
@@ -211,24 +207,8 @@ fn plant_of(checked: &CheckedSpec, name: &str, lookahead: Lookahead) -> Result<P
                 lookahead,
             })))
         }
-        Some(Fidelity::Simulated(f)) => {
-            if !matches!(f.dynamics, DynamicsLayer::Kinematic(_)) {
-                return refuse(
-                    "`control: direct` applies actions to the kinematic bicycle; grey-box dynamics need `control: trajectory`",
-                );
-            }
-            if !matches!(f.sensing, None | Some(SensingLayer::Ideal(_))) {
-                return refuse(
-                    "`control: direct` observes exact states; a sensing model needs `control: trajectory`",
-                );
-            }
-            if !matches!(f.actuation, None | Some(ActuationLayer::Ideal(_))) {
-                return refuse(
-                    "`control: direct` applies actions exactly; an actuation model needs `control: trajectory`",
-                );
-            }
-            Ok(Plant::Direct)
-        }
+        // The spec's checks refuse `control: direct` with any layer but the kinematic bicycle.
+        Some(Fidelity::Simulated(_)) => Ok(Plant::Direct),
     }
 }
 
