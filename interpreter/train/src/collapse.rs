@@ -163,6 +163,13 @@ mod tests {
         for seed in 1..=3 {
             assert_eq!(collapsed(&format!("domain-shift/intersection/{seed}")), None);
         }
+        for seed in 1..=2 {
+            assert_eq!(collapsed(&format!("transfer/sim-mpc/{seed}")), None);
+            assert!(
+                collapsed(&format!("transfer/twin-random/{seed}")).is_some(),
+                "{seed}"
+            );
+        }
         let twin = collapsed("transfer/twin-random/1").expect("the randomised twin's collapse");
         // docs/training.md quotes it.
         assert_eq!(

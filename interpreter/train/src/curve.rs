@@ -139,7 +139,11 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
 }
 
-const COLOURS: [&str; 6] = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"];
+/// Ten distinct colours (matplotlib's tab10, in an order that keeps the first ones apart).
+const COLOURS: [&str; 10] = [
+    "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
+    "#17becf",
+];
 
 /// A line chart of `episode_reward_mean` over iterations, one line per series.
 pub fn svg(title: &str, series: &[Series]) -> String {
