@@ -11,54 +11,10 @@ use jsonschema::error::{TypeKind, ValidationErrorKind};
 use jsonschema::{ValidationError, Validator};
 use serde_json::Value;
 
+pub use published::{json_schema, json_schema_text};
+
 use crate::diagnostic::Problem;
-use crate::model::Spec;
 use crate::yaml::{SpannedDocument, escape_pointer};
-
-/// The published JSON Schema (draft 2020-12), as `cpmx schema` prints it.
-pub fn json_schema() -> Value {
-    let mut schema = schemars::schema_for!(Spec).to_value();
-    if let Some(root) = schema.as_object_mut() {
-        root.insert(
-            "$id".into(),
-            Value::from("https://cpmx.dev/schema/v1/cpmx.schema.json"),
-        );
-    }
-    mark_preset_defaults(&mut schema);
-    schema
-}
-
-/// The keys cpmx fills with a preset when a spec leaves them out (`vehicle`, `metrics`,
-/// `training.observation`): optional, with that preset as their default, since serde sees
-/// them only after `resolve` has inserted them.
-fn mark_preset_defaults(schema: &mut Value) {
-    for default in &crate::resolve::PRESET_DEFAULTS {
-        let object = match default.definition {
-            None => Some(&mut *schema),
-            Some(name) => schema.pointer_mut(&format!("/$defs/{name}")),
-        };
-        let Some(object) = object.and_then(Value::as_object_mut) else {
-            continue;
-        };
-        if let Some(required) = object.get_mut("required").and_then(Value::as_array_mut) {
-            required.retain(|key| key != default.key);
-        }
-        if let Some(property) = object
-            .get_mut("properties")
-            .and_then(|p| p.get_mut(default.key))
-            .and_then(Value::as_object_mut)
-        {
-            property.insert("default".into(), Value::from(default.value));
-        }
-    }
-}
-
-/// The published schema as pretty-printed text with a final newline (`cpmx.schema.json`).
-pub fn json_schema_text() -> String {
-    let mut text = serde_json::to_string_pretty(&json_schema()).unwrap_or_default();
-    text.push('\n');
-    text
-}
 
 /// The strict schema: every preset field reduced to its inline object.
 fn strict_schema() -> &'static (Value, Option<Validator>) {
@@ -594,5 +550,6 @@ fn plain(v: &Value) -> String {
     }
 }
 
+mod published;
 #[cfg(test)]
 mod tests;
