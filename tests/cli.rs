@@ -120,8 +120,7 @@ fn exit_codes_follow_the_cli_contract() {
 
 #[test]
 fn a_far_start_is_located_beside_the_specs_other_problems_and_plan_does_not_blame_the_path() {
-    let dir = std::env::temp_dir().join(format!("cpmx-far-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = support::scratch("far");
     let spec = dir.join("far.yaml");
     let quickstart = std::fs::read_to_string(root().join("experiments/quickstart.yaml")).unwrap();
     let far = quickstart.replace(
@@ -154,8 +153,7 @@ fn a_far_start_is_located_beside_the_specs_other_problems_and_plan_does_not_blam
 
 #[test]
 fn validate_draws_sampled_starts_as_run_will() {
-    let dir = std::env::temp_dir().join(format!("cpmx-crowd-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = support::scratch("crowd");
     let spec = dir.join("crowd.yaml");
     let minimal = std::fs::read_to_string(root().join("examples/minimal.yaml")).unwrap();
     let crowd = minimal.replace("agents: 1\n", "agents: 40\n").replace(

@@ -567,12 +567,9 @@ fn check_report(spec: &Spec, ctx: &mut CheckContext<'_>) {
     // A point of a swept fidelity (`sim@latency_ms=0`) is checked once the points exist
     // (`check_compare`).
     if let Some(compare) = &spec.report.compare
-        && !spec.fidelities.contains_key(
-            compare
-                .reference
-                .split_once('@')
-                .map_or(compare.reference.as_str(), |(base, _)| base),
-        )
+        && !spec
+            .fidelities
+            .contains_key(crate::sweep::base_fidelity(&compare.reference))
     {
         let names: Vec<String> = spec.fidelities.keys().cloned().collect();
         let span = ctx.span("/report/compare/reference");
@@ -586,7 +583,7 @@ fn check_report(spec: &Spec, ctx: &mut CheckContext<'_>) {
             "unknown fidelity",
         );
         p = match crate::schema::did_you_mean(&compare.reference, &names) {
-            Some(best) => p.with_help(format!("did you mean `{best}`?")),
+            Some(best) => p.with_suggestion(best),
             None => p.with_help(format!("fidelities: {}", names.join(", "))),
         };
         ctx.push(p);

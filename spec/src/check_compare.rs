@@ -10,7 +10,7 @@ use indexmap::IndexMap;
 
 use crate::diagnostic::Problem;
 use crate::model::Spec;
-use crate::sweep::{FidelityPoint, is_reference, paired_reference};
+use crate::sweep::{FidelityPoint, base_fidelity, is_reference, paired_reference};
 use crate::yaml::SpannedDocument;
 
 const AT: &str = "/report/compare/reference";
@@ -32,7 +32,7 @@ pub(crate) fn check_reference(
         .filter(|name| is_reference(name, reference) && *name != reference)
         .collect();
     if reference.contains('@') && !is_name(reference) {
-        let base = reference.split_once('@').map_or(reference, |(base, _)| base);
+        let base = base_fidelity(reference);
         let others: Vec<&str> = points
             .keys()
             .map(String::as_str)

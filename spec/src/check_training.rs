@@ -143,7 +143,7 @@ fn check_trained_fidelity(
                 "unknown training fidelity",
             );
             ctx.push(match crate::schema::did_you_mean(name, &names) {
-                Some(best) => p.with_help(format!("did you mean `{best}`?")),
+                Some(best) => p.with_suggestion(best),
                 None => p.with_help(format!("one of: {}", names.join(", "))),
             });
         }
@@ -191,7 +191,7 @@ fn check_fidelity(spec: &Spec, training: &TrainingSpec, ctx: &mut CheckContext<'
                     "unknown fidelity",
                 );
                 ctx.push(match crate::schema::did_you_mean(name, &defined) {
-                    Some(best) => p.with_help(format!("did you mean `{best}`?")),
+                    Some(best) => p.with_suggestion(best),
                     None => p.with_help(format!(
                         "fidelities: {} (the default is `sim`)",
                         defined.join(", ")

@@ -44,6 +44,9 @@ pub struct Problem {
     pub label: String,
     /// What to do about it.
     pub help: Option<String>,
+    /// The name the spec most likely meant where it has an unknown one (the help's "did you
+    /// mean"), for tools that read on past the problem.
+    pub suggestion: Option<String>,
 }
 
 impl Problem {
@@ -61,6 +64,7 @@ impl Problem {
             span,
             label: label.into(),
             help: None,
+            suggestion: None,
         }
     }
 
@@ -80,6 +84,14 @@ impl Problem {
     /// Adds a help line.
     pub fn with_help(mut self, help: impl Into<String>) -> Self {
         self.help = Some(help.into());
+        self
+    }
+
+    /// Adds the name most likely meant, and the help line "did you mean `name`?".
+    pub fn with_suggestion(mut self, name: impl Into<String>) -> Self {
+        let name = name.into();
+        self.help = Some(format!("did you mean `{name}`?"));
+        self.suggestion = Some(name);
         self
     }
 

@@ -361,11 +361,7 @@ fn repaired_for_meaning(
         else {
             continue;
         };
-        let meant = problem
-            .help
-            .as_deref()
-            .and_then(|help| help.strip_prefix("did you mean `")?.strip_suffix("`?"));
-        rename_at(&mut repaired, pointer, meant);
+        rename_at(&mut repaired, pointer, problem.suggestion.as_deref());
     }
     let clean = SpannedDocument {
         value: repaired,

@@ -92,13 +92,7 @@ fn validate_with(schema: &Value, validator: Option<&Validator>, doc: &SpannedDoc
     let suggested: Vec<String> = problems
         .iter()
         .filter(|p| p.code == "cpmx::schema::unknown-key")
-        .filter_map(|p| {
-            p.help
-                .as_deref()?
-                .strip_prefix("did you mean `")?
-                .strip_suffix("`?")
-                .map(str::to_owned)
-        })
+        .filter_map(|p| p.suggestion.clone())
         .collect();
     problems.retain(|p| {
         p.code != "cpmx::schema::missing"
@@ -130,7 +124,7 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
                     "not a key of the language",
                 );
                 p = match did_you_mean(key, &allowed) {
-                    Some(best) => p.with_help(format!("did you mean `{best}`?")),
+                    Some(best) => p.with_suggestion(best),
                     None if !allowed.is_empty() => {
                         p.with_help(format!("allowed keys: {}", allowed.join(", ")))
                     }
@@ -208,7 +202,7 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
                 format!("{} is not `{expected}`", plain(instance)),
             );
             if did_you_mean(&plain(instance), std::slice::from_ref(&expected)).is_some() {
-                p = p.with_help(format!("did you mean `{expected}`?"));
+                p = p.with_suggestion(expected);
             }
             p
         }
@@ -309,7 +303,7 @@ fn not_one_of(field: &str, names: &[String], span: crate::diagnostic::ByteSpan, 
         format!("{} is not one of them", plain(instance)),
     );
     match did_you_mean(&plain(instance), names) {
-        Some(best) => p.with_help(format!("did you mean `{best}`?")),
+        Some(best) => p.with_suggestion(best),
         None => p,
     }
 }
@@ -401,7 +395,7 @@ fn key_no_form_accepts(
         "not a key of the language",
     );
     Some(match did_you_mean(key, &allowed) {
-        Some(best) => problem.with_help(format!("did you mean `{best}`?")),
+        Some(best) => problem.with_suggestion(best),
         None => problem.with_help(format!("one of: {}", allowed.join(", "))),
     })
 }

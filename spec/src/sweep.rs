@@ -269,13 +269,15 @@ pub fn paired_reference<'a, 'n>(
         .map_or(Cow::Borrowed(reference), |name| Cow::Owned(name.to_owned()))
 }
 
+/// The spec's fidelity a name of the run matrix belongs to: `twin` for `twin@delay_ms=80`.
+pub fn base_fidelity(name: &str) -> &str {
+    name.split_once('@').map_or(name, |(base, _)| base)
+}
+
 /// Whether `fidelity` (a name of the run matrix) is the comparison's `reference`, or a point of
 /// it when the reference fidelity is swept.
 pub fn is_reference(fidelity: &str, reference: &str) -> bool {
-    fidelity == reference
-        || fidelity
-            .split_once('@')
-            .is_some_and(|(base, _)| base == reference)
+    fidelity == reference || base_fidelity(fidelity) == reference
 }
 
 #[cfg(test)]

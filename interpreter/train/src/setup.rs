@@ -177,8 +177,9 @@ fn hyperparameters(training: &TrainingSpec, vehicle: &cpmx_vehicle::VehicleParam
 }
 
 /// The plant of the fidelity to train in: SigmaRL's simulation for `control: direct` (the
-/// kinematic bicycle with exact states: the spec's checks refuse other layers with it), the lab's control architecture with the fidelity's layers and the spec's
-/// planner (and the section's `lookahead`) for `control: trajectory`; a lab driver is refused.
+/// kinematic bicycle with exact states: the spec's checks refuse other layers with it), the
+/// lab's control architecture with the fidelity's layers and the spec's planner (and the
+/// section's `lookahead`) for `control: trajectory`; a lab driver is refused.
 fn plant_of(checked: &CheckedSpec, name: &str, lookahead: Lookahead) -> Result<Plant, SetupError> {
     let refuse = |reason: &str| {
         Err(SetupError::Fidelity {
