@@ -210,7 +210,7 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
         let bar = progress_bar(run.planned(), first);
         let mut last_rewards: Vec<f64> = Vec::new();
         // Said once, as soon as it shows (a resumed run's curve counts from its first row).
-        let mut collapse = None;
+        let mut collapse_said = false;
         while run.done() < run.planned() {
             let record = pool.install(|| run.iterate()).map_err(|e| {
                 bar.abandon();
@@ -243,11 +243,9 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
                 );
                 return Err(Failure::Interrupted);
             }
-            if collapse.is_none() {
-                collapse = run.collapse();
-                if let Some(seen) = &collapse {
-                    bar.suspend(|| eprintln!("{}", collapse_warning(&label, seen, &run)));
-                }
+            if !collapse_said && let Some(seen) = run.collapse() {
+                collapse_said = true;
+                bar.suspend(|| eprintln!("{}", collapse_warning(&label, &seen, &run)));
             }
             let message = format!(
                 "{label}  reward {}  best {:.2}",
@@ -272,9 +270,8 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
         run.finish().map_err(|e| report_io(&e))?;
         let trained = run.done() - first;
         let seconds = seed_started.elapsed().as_secs_f64();
-        let collapse = collapse.or_else(|| run.collapse());
         summary.push(SeedSummary {
-            warning: collapse.map(|seen| collapse_warning(&label, &seen, &run)),
+            warning: run.collapse().map(|seen| collapse_warning(&label, &seen, &run)),
             label,
             done: run.done(),
             best: run.best_reward(),

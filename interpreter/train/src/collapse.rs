@@ -64,36 +64,76 @@ impl std::fmt::Display for Collapse {
 /// curve's `collisions` column, [`crate::curve::column_points`]); `None` while the training
 /// has not learned or has not fallen back.
 pub fn find(points: &[(f64, f64)]) -> Option<Collapse> {
-    let windows: Vec<Window> = points
-        .windows(WINDOW)
-        .map(|w| Window {
-            iterations: (w[0].0 as u64, w[WINDOW - 1].0 as u64),
-            collisions_per_iteration: w.iter().map(|p| p.1).sum::<f64>() / WINDOW as f64,
-        })
-        .collect();
-    let untrained = *windows.first()?;
-    if untrained.collisions_per_iteration <= 0.0 {
-        return None;
-    }
-    let mut learned: Option<Window> = None;
-    for &window in &windows[1..] {
+    let mut watch = Watch::default();
+    points
+        .iter()
+        .find_map(|&(iteration, collisions)| watch.push(iteration, collisions))
+}
+
+/// The rule fed one iteration at a time, as a training makes them: it keeps the last
+/// [`WINDOW`] iterations and what it has seen so far, so each iteration costs a window's sum
+/// however long the curve.
+#[derive(Debug, Clone, Default)]
+pub struct Watch {
+    /// The last [`WINDOW`] `(iteration, collisions)` points, oldest first.
+    recent: std::collections::VecDeque<(f64, f64)>,
+    /// The first window, once there is one.
+    untrained: Option<Window>,
+    /// The lowest window since the training learned.
+    learned: Option<Window>,
+    /// The first collapse, once seen (the watch then stops looking).
+    collapse: Option<Collapse>,
+}
+
+impl Watch {
+    /// Adds one iteration; the collapse if this iteration completes the first window that
+    /// shows it, else `None`.
+    pub fn push(&mut self, iteration: f64, collisions: f64) -> Option<Collapse> {
+        if self.collapse.is_some() {
+            return None;
+        }
+        if self.recent.len() == WINDOW {
+            self.recent.pop_front();
+        }
+        self.recent.push_back((iteration, collisions));
+        if self.recent.len() < WINDOW {
+            return None;
+        }
+        let window = Window {
+            iterations: (self.recent[0].0 as u64, self.recent[WINDOW - 1].0 as u64),
+            collisions_per_iteration: self.recent.iter().map(|p| p.1).sum::<f64>() / WINDOW as f64,
+        };
+        let Some(untrained) = self.untrained else {
+            self.untrained = Some(window);
+            return None;
+        };
+        // An untrained policy that never collides has nothing to fall back to.
+        if untrained.collisions_per_iteration <= 0.0 {
+            return None;
+        }
         let level = window.collisions_per_iteration / untrained.collisions_per_iteration;
-        match learned {
+        match self.learned {
             Some(low) if level >= BACK_FRACTION => {
-                return Some(Collapse {
+                self.collapse = Some(Collapse {
                     untrained,
                     learned: low,
                     back: window,
                 });
+                return self.collapse;
             }
             Some(low) if window.collisions_per_iteration < low.collisions_per_iteration => {
-                learned = Some(window)
+                self.learned = Some(window)
             }
-            None if level <= 0.5 => learned = Some(window),
+            None if level <= 0.5 => self.learned = Some(window),
             _ => {}
         }
+        None
     }
-    None
+
+    /// The first collapse seen so far.
+    pub fn collapse(&self) -> Option<Collapse> {
+        self.collapse
+    }
 }
 
 #[cfg(test)]
@@ -115,6 +155,24 @@ mod tests {
         values.extend(std::iter::repeat_n(350.0, 30));
         values.extend(std::iter::repeat_n(100.0, 100));
         assert_eq!(find(&curve(values)), None);
+    }
+
+    #[test]
+    fn the_watch_says_a_collapse_once_at_the_iteration_that_shows_it() {
+        let mut values = vec![900.0; 10];
+        values.extend(std::iter::repeat_n(150.0, 20));
+        values.extend(std::iter::repeat_n(1000.0, 30));
+        let points = curve(values);
+        let mut watch = Watch::default();
+        let said: Vec<(usize, Collapse)> = points
+            .iter()
+            .enumerate()
+            .filter_map(|(i, &(iteration, collisions))| Some((i, watch.push(iteration, collisions)?)))
+            .collect();
+        assert_eq!(said.len(), 1);
+        assert_eq!(Some(said[0].1), find(&points));
+        assert_eq!(said[0].1.back.iterations.1, points[said[0].0].0 as u64);
+        assert_eq!(watch.collapse(), Some(said[0].1));
     }
 
     #[test]

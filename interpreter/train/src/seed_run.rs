@@ -137,6 +137,8 @@ pub struct SeedRun {
     info: RunInfo,
     /// Rows of the curve so far (header first), kept to rewrite the SVG.
     curve_text: String,
+    /// The collapse rule fed every row of the curve ([`crate::collapse`]).
+    collapse_watch: collapse::Watch,
     /// The folder's lock, held for as long as the run is open.
     _lock: fs::File,
 }
@@ -209,11 +211,16 @@ impl SeedRun {
             if info.made_by.last().map(String::as_str) != Some(made_by) {
                 info.made_by.push(made_by.to_owned());
             }
+            let mut collapse_watch = collapse::Watch::default();
+            for (iteration, collisions) in curve::column_points(&curve_text, "collisions") {
+                collapse_watch.push(iteration, collisions);
+            }
             let run = SeedRun {
                 trainer,
                 dir,
                 info,
                 curve_text,
+                collapse_watch,
                 _lock: lock,
             };
             write_atomic(&run.dir.join("learning_curve.csv"), run.curve_text.as_bytes())?;
@@ -233,6 +240,7 @@ impl SeedRun {
                     &setup.randomised_parameters()
                 )
             ),
+            collapse_watch: collapse::Watch::default(),
             _lock: lock,
         };
         // run.json first: a checkpoint is never without it.
@@ -269,7 +277,7 @@ impl SeedRun {
 
     /// The first collapse of the learning curve so far ([`crate::collapse`]).
     pub fn collapse(&self) -> Option<Collapse> {
-        collapse::find(&curve::column_points(&self.curve_text, "collisions"))
+        self.collapse_watch.collapse()
     }
 
     /// One iteration, then its files: the curve's row, the actors and critic, the
@@ -279,6 +287,8 @@ impl SeedRun {
         let row = curve::row(&record);
         self.curve_text.push_str(&row);
         self.curve_text.push('\n');
+        self.collapse_watch
+            .push(record.iteration as f64, record.collisions as f64);
         append_line(&self.dir.join("learning_curve.csv"), &row)?;
         write_atomic(
             &self.dir.join("actor.last.safetensors"),
