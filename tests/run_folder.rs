@@ -232,15 +232,23 @@ fn stored_runs_are_rescored_with_other_metrics() {
     let script = ok(&cpmx(&["run", "experiments/quickstart.yaml", "--out", out_arg]));
     let paper = ok(&cpmx(&["report", out_arg, "--metrics", "stdlib:at25-paper"]));
     assert_ne!(script, paper, "a 10 % lane slack changes CRA-L");
+    // The title says what scored the table; the spec's own metrics did not.
+    let (title, table) = paper.split_once('\n').unwrap();
+    assert_eq!(title, "# quickstart (scored with --metrics stdlib:at25-paper)");
+    assert!(script.starts_with("# quickstart\n"), "{script}");
     let file = dir.join("metrics.yaml");
     std::fs::write(
         &file,
         "{extends: stdlib:at25, cra_l: {slack: 0.1, per_distance_m: 100}}\n",
     )
     .unwrap();
+    let from_file = ok(&cpmx(&["report", out_arg, "--metrics", file.to_str().unwrap()]));
     assert_eq!(
-        ok(&cpmx(&["report", out_arg, "--metrics", file.to_str().unwrap()])),
-        paper
+        from_file.split_once('\n').unwrap(),
+        (
+            format!("# quickstart (scored with --metrics {})", file.display()).as_str(),
+            table
+        )
     );
     let unknown = cpmx(&["report", out_arg, "--metrics", "stdlib:at52"]);
     assert_eq!(unknown.status.code(), Some(1));

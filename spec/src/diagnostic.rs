@@ -47,6 +47,9 @@ pub struct Problem {
     /// The name the spec most likely meant where it has an unknown one (the help's "did you
     /// mean"), for tools that read on past the problem.
     pub suggestion: Option<String>,
+    /// The JSON pointer of the node the problem is about (in the spec with its presets
+    /// expanded), where the check knows it: for tools that read on past the problem.
+    pub pointer: Option<String>,
 }
 
 impl Problem {
@@ -65,6 +68,7 @@ impl Problem {
             label: label.into(),
             help: None,
             suggestion: None,
+            pointer: None,
         }
     }
 
@@ -92,6 +96,12 @@ impl Problem {
         let name = name.into();
         self.help = Some(format!("did you mean `{name}`?"));
         self.suggestion = Some(name);
+        self
+    }
+
+    /// Names the node the problem is about (its JSON pointer).
+    pub fn at_pointer(mut self, pointer: impl Into<String>) -> Self {
+        self.pointer = Some(pointer.into());
         self
     }
 

@@ -240,10 +240,10 @@ pub fn check_scoped(
         }
     }
     if problems.iter().any(|p| p.level == Level::Error) {
-        // Misspelt keys and misplaced sweeps alone do not stop the checks of meaning: they run
-        // without them, so one pass reports `descripton` beside a wrong `ref_path` or a missing
-        // file (the errors are kept).
-        match repaired_for_meaning(&base, &doc, &problems, &refused) {
+        // Errors about one node do not stop the checks of meaning: they run without it, so one
+        // pass reports `descripton` or a negative `sample_period_s` beside a wrong `ref_path` or
+        // a missing file (the errors are kept).
+        match repaired_for_meaning(&base, &problems, &refused) {
             Some(repaired) => base = repaired,
             None => return Err(attach(problems)),
         }
@@ -328,21 +328,17 @@ pub fn check_scoped(
     })
 }
 
-/// `value` repaired so that the checks of meaning can still run, when its only errors are keys
-/// that are not keys of the language (read as the key they most likely mean, or left out) and
-/// sweeps refused where they stand (`refused`: read as their first value), and the rest then
-/// passes the schema; `None` otherwise.
+/// `value` repaired so that the checks of meaning can still run, when the rest then passes the
+/// schema; `None` otherwise. Keys that are not keys of the language are read as the key they
+/// most likely mean (or left out), sweeps refused where they stand (`refused`) as their first
+/// value, and a value of the wrong type, out of range or none of the choices is left out, so
+/// that its default stands in (a required key left out fails the schema again: the checks of
+/// meaning then do not run). The errors themselves are kept and reported.
 fn repaired_for_meaning(
     value: &serde_json::Value,
-    doc: &SpannedDocument,
     problems: &[Problem],
     refused: &[String],
 ) -> Option<serde_json::Value> {
-    const UNKNOWN_KEY: &str = "cpmx::schema::unknown-key";
-    let errors = || problems.iter().filter(|p| p.level == Level::Error);
-    if errors().any(|p| p.code != UNKNOWN_KEY && !p.code.starts_with("cpmx::sweep::")) {
-        return None;
-    }
     let mut repaired = value.clone();
     // A refused sweep stands for its first value; without one (`{sweep: []}`) any number put
     // there could raise problems of its own.
@@ -352,22 +348,40 @@ fn repaired_for_meaning(
             .filter(|v| v.is_number())?;
         *repaired.pointer_mut(pointer)? = first.clone();
     }
-    // A misspelt key is read as the key it most likely means (`plannr` as `planner`: the checks
-    // then do not also say the planner is missing), or left out.
-    for (pointer, spans) in &doc.spans {
-        let Some(problem) = spans
-            .key
-            .and_then(|key| errors().find(|p| p.code == UNKNOWN_KEY && p.span == key))
-        else {
-            continue;
-        };
-        rename_at(&mut repaired, pointer, problem.suggestion.as_deref());
+    let errors = problems
+        .iter()
+        .filter(|p| p.level == Level::Error && !p.code.starts_with("cpmx::sweep::"));
+    for problem in errors {
+        // An error about no one node (or about a preset that does not exist) stops here.
+        let pointer = problem.pointer.as_deref()?;
+        match problem.code {
+            // `plannr` is read as `planner`: the checks then do not also say the planner is
+            // missing.
+            "cpmx::schema::unknown-key" => rename_at(&mut repaired, pointer, problem.suggestion.as_deref()),
+            "cpmx::schema::missing" => return None,
+            _ => leave_out(&mut repaired, pointer)?,
+        }
     }
     let clean = SpannedDocument {
         value: repaired,
-        spans: doc.spans.clone(),
+        spans: Default::default(),
     };
     (!schema::validate(&clean).iter().any(|p| p.level == Level::Error)).then_some(clean.value)
+}
+
+/// Removes the member at JSON pointer `pointer` from its mapping (nothing to do when an
+/// enclosing node is already gone); `None` for the whole spec or an item of a list, which
+/// cannot be left out without changing what the others mean.
+fn leave_out(value: &mut serde_json::Value, pointer: &str) -> Option<()> {
+    let (parent, key) = pointer.rsplit_once('/')?;
+    match value.pointer_mut(parent) {
+        None => Some(()),
+        Some(serde_json::Value::Object(object)) => {
+            object.remove(&key.replace("~1", "/").replace("~0", "~"));
+            Some(())
+        }
+        Some(_) => None,
+    }
 }
 
 /// Moves the member at JSON pointer `pointer` to key `to` of the same mapping when that key is

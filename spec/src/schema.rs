@@ -115,14 +115,16 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
         ValidationErrorKind::AdditionalProperties { unexpected } => {
             let allowed = allowed_properties(schema, error.schema_path().as_str());
             for key in unexpected {
-                let key_spans = doc.spans_at(&format!("{pointer}/{}", escape_pointer(key)));
+                let key_pointer = format!("{pointer}/{}", escape_pointer(key));
+                let key_spans = doc.spans_at(&key_pointer);
                 let span = key_spans.key.unwrap_or(key_spans.value);
                 let mut p = Problem::error(
                     "cpmx::schema::unknown-key",
                     format!("unknown key `{key}` in {}", describe(&pointer)),
                     span,
                     "not a key of the language",
-                );
+                )
+                .at_pointer(key_pointer);
                 p = match did_you_mean(key, &allowed) {
                     Some(best) => p.with_suggestion(best),
                     None if !allowed.is_empty() => {
@@ -140,7 +142,7 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
                 return;
             }
             if let Some(names) = constants_of_every_branch(context, &pointer) {
-                out.push(not_one_of(field, &names, spans.value, instance));
+                out.push(not_one_of(field, &names, spans.value, instance).at_pointer(pointer));
                 return;
             }
             if let Some(branch) = best_branch(context, &pointer) {
@@ -261,7 +263,7 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
             "here",
         ),
     };
-    out.push(match (layer_forms(&pointer), instance.as_ref()) {
+    let problem = match (layer_forms(&pointer), instance.as_ref()) {
         (Some(forms), Value::String(_)) => Problem {
             help: Some(match &problem.help {
                 Some(help) => format!("{help} The valid forms: {forms}"),
@@ -270,7 +272,8 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
             ..problem
         },
         _ => problem,
-    });
+    };
+    out.push(problem.at_pointer(pointer));
 }
 
 /// The forms a fidelity layer accepts, for a word that is none of them (`dynamics: greybox`).
@@ -387,13 +390,15 @@ fn key_no_form_accepts(
     }
     let [key] = &unexpected?[..] else { return None };
     allowed.dedup();
-    let key_spans = doc.spans_at(&format!("{pointer}/{}", escape_pointer(key)));
+    let key_pointer = format!("{pointer}/{}", escape_pointer(key));
+    let key_spans = doc.spans_at(&key_pointer);
     let problem = Problem::error(
         "cpmx::schema::unknown-key",
         format!("unknown key `{key}` in {}", describe(pointer)),
         key_spans.key.unwrap_or(key_spans.value),
         "not a key of the language",
-    );
+    )
+    .at_pointer(key_pointer);
     Some(match did_you_mean(key, &allowed) {
         Some(best) => problem.with_suggestion(best),
         None => problem.with_help(format!("one of: {}", allowed.join(", "))),

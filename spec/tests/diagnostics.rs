@@ -351,6 +351,46 @@ fn a_misspelt_key_does_not_hide_the_problems_of_meaning() {
     assert!(cpmx_spec::render(&problems, false).contains("two policies are called `base`"));
 }
 
+#[test]
+fn a_wrong_value_does_not_hide_the_problems_of_meaning() {
+    // A list where text belongs and a word that is none of the choices, both of keys with
+    // defaults: the checks of meaning run without them and find the duplicate policy.
+    let text = edit("name: demo\n", "name: demo\ndescription: [a, b]\n").replace(
+        "  - {name: base, builtin: lane-follow}\n",
+        "  - {name: base, builtin: lane-follow}\n  - {name: base, builtin: lane-follow}\non_collision: halt\n",
+    );
+    let problems = check(&text).unwrap_err();
+    let codes: Vec<&str> = problems.iter().map(|p| p.problem.code).collect();
+    assert_eq!(
+        codes,
+        [
+            "cpmx::schema::type",
+            "cpmx::check::duplicate-name",
+            "cpmx::schema::choice"
+        ],
+        "{}",
+        cpmx_spec::render(&problems, false)
+    );
+}
+
+#[test]
+fn a_wrong_value_of_a_required_key_stops_before_the_checks_of_meaning() {
+    // Without `agents` the checks of meaning would say more about its absence than the spec's
+    // other problems: the range error is said alone.
+    let text = edit("agents: 2\n", "agents: -1\n").replace(
+        "  - {name: base, builtin: lane-follow}\n",
+        "  - {name: base, builtin: lane-follow}\n  - {name: base, builtin: lane-follow}\n",
+    );
+    let problems = check(&text).unwrap_err();
+    let codes: Vec<&str> = problems.iter().map(|p| p.problem.code).collect();
+    assert_eq!(
+        codes,
+        ["cpmx::schema::range"],
+        "{}",
+        cpmx_spec::render(&problems, false)
+    );
+}
+
 case!(
     direct_control_with_an_actuation_model,
     edit(

@@ -193,7 +193,7 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
     let text = folder::read_resolved_spec(first).map_err(fail)?;
     let checked = check_for_scoring(resolved_path.display().to_string(), text, first, &args.data)?;
     let context = folder::context_hash(&checked);
-    let checked = match &args.metrics {
+    let mut checked = match &args.metrics {
         None => checked,
         Some(metrics) => {
             let text = with_metrics(&checked.resolved, metrics)?;
@@ -202,8 +202,10 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
         }
     };
     check_same_spec(&args.dirs, &checked.spec.name, &context, &args.data)?;
-    if args.metrics.is_some() {
+    if let Some(metrics) = &args.metrics {
         check_out_is_not_reported(args.out.as_deref(), &args.dirs)?;
+        // The summary's title says what scored it: the spec's own metrics did not.
+        checked.spec.name = format!("{} (scored with --metrics {metrics})", checked.spec.name);
     }
     let scoring =
         Scoring::prepare(&checked).map_err(|e| fail(format!("{}: {e}", resolved_path.display())))?;
