@@ -231,7 +231,9 @@ pub fn check_scoped(
             for mut p in schema::validate(&variant) {
                 // A value of this sweep is out of range: point at it.
                 if p.span == site {
-                    p.span = doc.spans_at(&format!("{}/sweep/{k}", s.pointer)).value;
+                    let value_pointer = format!("{}/sweep/{k}", s.pointer);
+                    p.span = doc.spans_at(&value_pointer).value;
+                    p.pointer = Some(value_pointer);
                     if !problems.contains(&p) {
                         problems.push(p);
                     }
@@ -248,9 +250,14 @@ pub fn check_scoped(
             None => return Err(attach(problems)),
         }
     }
-    let early_warnings = problems;
+    let early_problems = problems;
     let spec: Spec = match serde_json::from_value(base.clone()) {
         Ok(spec) => spec,
+        // A repaired spec that does not read (a key whose default only the schema knows): the
+        // schema's errors are the answer.
+        Err(_) if early_problems.iter().any(|p| p.level == Level::Error) => {
+            return Err(attach(early_problems));
+        }
         Err(e) => {
             return Err(attach(vec![Problem::error(
                 "cpmx::internal",
@@ -272,7 +279,7 @@ pub fn check_scoped(
         // `resources`), so one pass reports a wrong `ref_path` beside a missing `planner`.
         interpreter.check(&spec, &resources, &mut ctx);
     }
-    let mut problems = early_warnings;
+    let mut problems = early_problems;
     problems.extend(before_interpreter);
     problems.extend(ctx.into_problems());
     if scope == CheckScope::Measure {
@@ -331,9 +338,11 @@ pub fn check_scoped(
 /// `value` repaired so that the checks of meaning can still run, when the rest then passes the
 /// schema; `None` otherwise. Keys that are not keys of the language are read as the key they
 /// most likely mean (or left out), sweeps refused where they stand (`refused`) as their first
-/// value, and a value of the wrong type, out of range or none of the choices is left out, so
-/// that its default stands in (a required key left out fails the schema again: the checks of
-/// meaning then do not run). The errors themselves are kept and reported.
+/// value, a sweep's later value out of range as the first, which is in range, and a wrong value
+/// (type, range, choice) of a key with a default is left out, so that the default stands in.
+/// Any other error stops: without the key (`planner`, a policy's `builtin`, a fidelity) the
+/// checks of meaning would mostly say that it is missing. The errors themselves are kept and
+/// reported.
 fn repaired_for_meaning(
     value: &serde_json::Value,
     problems: &[Problem],
@@ -359,7 +368,12 @@ fn repaired_for_meaning(
             // missing.
             "cpmx::schema::unknown-key" => rename_at(&mut repaired, pointer, problem.suggestion.as_deref()),
             "cpmx::schema::missing" => return None,
-            _ => leave_out(&mut repaired, pointer)?,
+            // A later value of a sweep: `repaired` holds the first.
+            _ if pointer
+                .rsplit_once('/')
+                .is_some_and(|(p, _)| p.ends_with("/sweep")) => {}
+            _ if schema::has_default(pointer) => leave_out(&mut repaired, pointer),
+            _ => return None,
         }
     }
     let clean = SpannedDocument {
@@ -370,17 +384,16 @@ fn repaired_for_meaning(
 }
 
 /// Removes the member at JSON pointer `pointer` from its mapping (nothing to do when an
-/// enclosing node is already gone); `None` for the whole spec or an item of a list, which
-/// cannot be left out without changing what the others mean.
-fn leave_out(value: &mut serde_json::Value, pointer: &str) -> Option<()> {
-    let (parent, key) = pointer.rsplit_once('/')?;
-    match value.pointer_mut(parent) {
-        None => Some(()),
-        Some(serde_json::Value::Object(object)) => {
-            object.remove(&key.replace("~1", "/").replace("~0", "~"));
-            Some(())
-        }
-        Some(_) => None,
+/// enclosing node is already gone).
+fn leave_out(value: &mut serde_json::Value, pointer: &str) {
+    let Some((parent, key)) = pointer.rsplit_once('/') else {
+        return;
+    };
+    if let Some(object) = value
+        .pointer_mut(parent)
+        .and_then(serde_json::Value::as_object_mut)
+    {
+        object.remove(&key.replace("~1", "/").replace("~0", "~"));
     }
 }
 

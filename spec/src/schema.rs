@@ -30,6 +30,76 @@ fn strict_schema() -> &'static (Value, Option<Validator>) {
     })
 }
 
+/// Whether the key at JSON pointer `pointer` is a named member of a mapping of the language
+/// that has a default (`on_collision`, a metric's parameter): leaving it out then means its
+/// default, not a missing part. Entries of user-named mappings (a fidelity, a policy's name)
+/// and list items have none.
+pub(crate) fn has_default(pointer: &str) -> bool {
+    let (schema, _) = strict_schema();
+    let resolve = |mut node: &'static Value| {
+        while let Some(target) = node.get("$ref").and_then(Value::as_str) {
+            match schema.pointer(target.trim_start_matches('#')) {
+                Some(n) => node = n,
+                None => break,
+            }
+        }
+        node
+    };
+    // The schema of the property `key` of an object schema, looking through `anyOf`/`oneOf`/
+    // `allOf` branches (the property node itself, whose `default` sits beside its `$ref`).
+    fn property<'a>(
+        node: &'a Value,
+        key: &str,
+        resolve: &dyn Fn(&'a Value) -> &'a Value,
+    ) -> Option<&'a Value> {
+        let node = resolve(node);
+        if let Some(found) = node.get("properties").and_then(|p| p.get(key)) {
+            return Some(found);
+        }
+        ["anyOf", "oneOf", "allOf"]
+            .iter()
+            .filter_map(|k| node.get(*k).and_then(Value::as_array))
+            .flatten()
+            .find_map(|branch| property(branch, key, resolve))
+    }
+    fn step<'a>(
+        node: &'a Value,
+        segment: &str,
+        resolve: &dyn Fn(&'a Value) -> &'a Value,
+    ) -> Option<&'a Value> {
+        if let Some(found) = property(node, segment, resolve) {
+            return Some(found);
+        }
+        let node = resolve(node);
+        let through = |k: &str| node.get(k).filter(|n| n.is_object());
+        if let Some(any) = ["anyOf", "oneOf"]
+            .iter()
+            .filter_map(|k| node.get(*k).and_then(Value::as_array))
+            .flatten()
+            .find_map(|branch| step(branch, segment, resolve))
+        {
+            return Some(any);
+        }
+        through("additionalProperties").or_else(|| through("items"))
+    }
+    let segments: Vec<String> = pointer
+        .split('/')
+        .skip(1)
+        .map(|s| s.replace("~1", "/").replace("~0", "~"))
+        .collect();
+    let Some((last, parents)) = segments.split_last() else {
+        return false;
+    };
+    let mut node: &Value = schema;
+    for segment in parents {
+        match step(node, segment, &resolve) {
+            Some(next) => node = next,
+            None => return false,
+        }
+    }
+    property(node, last, &resolve).is_some_and(|p| p.get("default").is_some())
+}
+
 fn reduce_presets(node: &mut Value) {
     match node {
         Value::Object(map) => {
@@ -101,7 +171,9 @@ fn validate_with(schema: &Value, validator: Option<&Validator>, doc: &SpannedDoc
                 .any(|s| p.message.ends_with(&format!("needs `{s}`")))
     });
     problems.sort_by_key(|p| (p.span.offset, p.code));
-    problems.dedup();
+    // The same words at the same place are one problem, whichever node the check reached it by.
+    problems
+        .dedup_by(|a, b| (a.code, &a.message, a.span, &a.label) == (b.code, &b.message, b.span, &b.label));
     problems
 }
 

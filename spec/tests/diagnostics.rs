@@ -351,44 +351,71 @@ fn a_misspelt_key_does_not_hide_the_problems_of_meaning() {
     assert!(cpmx_spec::render(&problems, false).contains("two policies are called `base`"));
 }
 
-#[test]
-fn a_wrong_value_does_not_hide_the_problems_of_meaning() {
-    // A list where text belongs and a word that is none of the choices, both of keys with
-    // defaults: the checks of meaning run without them and find the duplicate policy.
-    let text = edit("name: demo\n", "name: demo\ndescription: [a, b]\n").replace(
+/// The valid spec with a second policy called `base`, which only the checks of meaning find.
+fn with_duplicate_policy(text: &str) -> String {
+    common::edit(
+        text,
         "  - {name: base, builtin: lane-follow}\n",
-        "  - {name: base, builtin: lane-follow}\n  - {name: base, builtin: lane-follow}\non_collision: halt\n",
-    );
-    let problems = check(&text).unwrap_err();
-    let codes: Vec<&str> = problems.iter().map(|p| p.problem.code).collect();
+        "  - {name: base, builtin: lane-follow}\n  - {name: base, builtin: lane-follow}\n",
+    )
+}
+
+/// The codes of `text`'s problems, in order.
+fn codes(text: &str) -> Vec<&'static str> {
+    let problems = check(text).unwrap_err();
+    eprintln!("{}", cpmx_spec::render(&problems, false));
+    problems.iter().map(|p| p.problem.code).collect()
+}
+
+#[test]
+fn a_wrong_value_of_a_key_with_a_default_does_not_hide_the_problems_of_meaning() {
+    // A word where a list belongs and a word that is none of the choices: the checks of meaning
+    // run with their defaults and find the duplicate policy.
+    let text = with_duplicate_policy(&edit(
+        "seed: 5\n",
+        "seed: 5\non_collision: halt\nreport: {group_by: fidelity}\n",
+    ));
     assert_eq!(
-        codes,
+        codes(&text),
         [
-            "cpmx::schema::type",
             "cpmx::check::duplicate-name",
-            "cpmx::schema::choice"
-        ],
-        "{}",
-        cpmx_spec::render(&problems, false)
+            "cpmx::schema::choice",
+            "cpmx::schema::type"
+        ]
+    );
+    // A later value of a sweep out of range: the checks run with the first.
+    let swept = with_duplicate_policy(&format!(
+        "{VALID}metrics: {{sample_period_s: {{sweep: [0.1, -0.1]}}}}\n"
+    ));
+    assert_eq!(
+        codes(&swept),
+        ["cpmx::check::duplicate-name", "cpmx::schema::range"]
     );
 }
 
 #[test]
-fn a_wrong_value_of_a_required_key_stops_before_the_checks_of_meaning() {
-    // Without `agents` the checks of meaning would say more about its absence than the spec's
-    // other problems: the range error is said alone.
-    let text = edit("agents: 2\n", "agents: -1\n").replace(
-        "  - {name: base, builtin: lane-follow}\n",
-        "  - {name: base, builtin: lane-follow}\n  - {name: base, builtin: lane-follow}\n",
-    );
-    let problems = check(&text).unwrap_err();
-    let codes: Vec<&str> = problems.iter().map(|p| p.problem.code).collect();
-    assert_eq!(
-        codes,
-        ["cpmx::schema::range"],
-        "{}",
-        cpmx_spec::render(&problems, false)
-    );
+fn a_wrong_value_without_a_default_stops_before_the_checks_of_meaning() {
+    // Without the key the checks of meaning would say more about its absence than the spec's
+    // other problems: the schema's error is said alone.
+    for (from, to, code) in [
+        ("agents: 2\n", "agents: -1\n", "cpmx::schema::range"),
+        ("seed: 5\n", "seed: 5\nplanner: [4, 12]\n", "cpmx::schema::type"),
+        (
+            "seed: 5\n",
+            "seed: 5\ndescription: [a, b]\n",
+            "cpmx::schema::type",
+        ),
+        ("seed: 5\n", "seed: 5\nmetrics: at25\n", "cpmx::schema::type"),
+        (
+            "sim: {control: direct,",
+            "sim: {control: directt,",
+            "cpmx::schema::choice",
+        ),
+    ] {
+        assert_eq!(codes(&with_duplicate_policy(&edit(from, to))), [code], "{to}");
+    }
+    let builtin = edit("builtin: lane-follow}", "builtin: lane-folow}");
+    assert_eq!(codes(&builtin), ["cpmx::schema::choice"]);
 }
 
 case!(
