@@ -218,7 +218,7 @@ mod tests {
         for seed in 1..=3 {
             assert_eq!(collapsed(&format!("transfer/sim-mpc/{seed}")), None);
         }
-        for seed in 1..=2 {
+        for seed in 1..=3 {
             assert!(
                 collapsed(&format!("transfer/twin-random/{seed}")).is_some(),
                 "{seed}"
