@@ -2,11 +2,12 @@
 //! figure):
 //!
 //! ```sh
-//! cargo run -p cpmx-train --example compare_curves -- [--column NAME] OUT.svg TRAIN_DIR [SigmaRL *_data.json ...]
+//! cargo run -p cpmx-train --example compare_curves -- [--column NAME] OUT.svg TRAIN_DIR... [SigmaRL *_data.json ...]
 //! ```
 //!
-//! `TRAIN_DIR` is a `cpmx train` folder: every `<seed>/learning_curve.csv` in it is drawn, and
-//! for a training in several fidelities every `<fidelity>/<seed>/learning_curve.csv`. `--column`
+//! Each `TRAIN_DIR` is a `cpmx train` folder: every `<seed>/learning_curve.csv` in it is drawn,
+//! and for a training in several fidelities every `<fidelity>/<seed>/learning_curve.csv`; or one
+//! seed's folder, drawn alone (to set one training beside another's). `--column`
 //! draws another column of the curves than `episode_reward_mean` (`collisions`, a reward term);
 //! each JSON file is a SigmaRL checkpoint's `*_data.json` (its `episode_reward_mean_list`).
 
@@ -25,16 +26,26 @@ fn main() -> Result<(), String> {
         Some(_) => return Err("--column needs a column name".into()),
         None => "episode_reward_mean".to_owned(),
     };
-    let [out, train_dir, sigmarl @ ..] = args.as_slice() else {
-        return Err(
-            "usage: compare_curves [--column NAME] OUT.svg TRAIN_DIR [SigmaRL *_data.json ...]".into(),
-        );
+    let usage = "usage: compare_curves [--column NAME] OUT.svg TRAIN_DIR... [SigmaRL *_data.json ...]";
+    let [out, inputs @ ..] = args.as_slice() else {
+        return Err(usage.into());
     };
+    let (sigmarl, train_dirs): (Vec<&String>, Vec<&String>) =
+        inputs.iter().partition(|a| a.ends_with(".json"));
+    if train_dirs.is_empty() {
+        return Err(usage.into());
+    }
     if !sigmarl.is_empty() && column != "episode_reward_mean" {
         return Err("SigmaRL's checkpoints hold episode_reward_mean only".into());
     }
     let mut series = Vec::new();
-    for (label, dir) in curve_folders(Path::new(train_dir))? {
+    let mut folders = Vec::new();
+    // Beside another training, a training's seeds are named by its folder too.
+    let qualify = train_dirs.len() > 1;
+    for train_dir in train_dirs {
+        folders.extend(curve_folders(Path::new(train_dir), qualify)?);
+    }
+    for (label, dir) in folders {
         let text = std::fs::read_to_string(dir.join("learning_curve.csv")).map_err(|e| e.to_string())?;
         let points = column_points(&text, &column);
         if points.is_empty() {
@@ -53,7 +64,7 @@ fn main() -> Result<(), String> {
             points,
         });
     }
-    for file in sigmarl {
+    for file in &sigmarl {
         let text = std::fs::read_to_string(file).map_err(|e| format!("{file}: {e}"))?;
         let data: serde_json::Value = serde_json::from_str(&text).map_err(|e| format!("{file}: {e}"))?;
         let rewards = data["episode_reward_mean_list"]
@@ -85,8 +96,16 @@ fn main() -> Result<(), String> {
 }
 
 /// The seed folders of a training folder with their legend labels (`seed 2`, or `sim-mpc
-/// seed 2` for `<fidelity>/<seed>/`), sorted.
-fn curve_folders(train_dir: &Path) -> Result<Vec<(String, PathBuf)>, String> {
+/// seed 2` for `<fidelity>/<seed>/`; with `qualify`, `<folder> seed 2`), sorted; a seed's
+/// folder itself, labelled by its parent folder and its own (`twin-random seed 3`).
+fn curve_folders(train_dir: &Path, qualify: bool) -> Result<Vec<(String, PathBuf)>, String> {
+    if train_dir.join("learning_curve.csv").is_file() {
+        let parent = train_dir.parent().map(name).unwrap_or_default();
+        return Ok(vec![(
+            format!("{parent} seed {}", name(train_dir)).trim().to_owned(),
+            train_dir.to_owned(),
+        )]);
+    }
     let children = |dir: &Path| -> Result<Vec<PathBuf>, String> {
         let mut dirs: Vec<PathBuf> = std::fs::read_dir(dir)
             .map_err(|e| format!("{}: {e}", dir.display()))?
@@ -99,7 +118,12 @@ fn curve_folders(train_dir: &Path) -> Result<Vec<(String, PathBuf)>, String> {
     let mut folders = Vec::new();
     for child in children(train_dir)? {
         if child.join("learning_curve.csv").is_file() {
-            folders.push((format!("seed {}", name(&child)), child));
+            let label = if qualify {
+                format!("{} seed {}", name(train_dir), name(&child))
+            } else {
+                format!("seed {}", name(&child))
+            };
+            folders.push((label, child));
             continue;
         }
         for seed in children(&child)? {
