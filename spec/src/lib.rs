@@ -366,13 +366,13 @@ fn repaired_for_meaning(
         match problem.code {
             // `plannr` is read as `planner`: the checks then do not also say the planner is
             // missing.
-            "cpmx::schema::unknown-key" => rename_at(&mut repaired, pointer, problem.suggestion.as_deref()),
+            "cpmx::schema::unknown-key" => move_member(&mut repaired, pointer, problem.suggestion.as_deref()),
             "cpmx::schema::missing" => return None,
             // A later value of a sweep: `repaired` holds the first.
             _ if pointer
                 .rsplit_once('/')
                 .is_some_and(|(p, _)| p.ends_with("/sweep")) => {}
-            _ if schema::has_default(pointer) => leave_out(&mut repaired, pointer),
+            _ if schema::has_default(pointer) => move_member(&mut repaired, pointer, None),
             _ => return None,
         }
     }
@@ -383,27 +383,13 @@ fn repaired_for_meaning(
     (!schema::validate(&clean).iter().any(|p| p.level == Level::Error)).then_some(clean.value)
 }
 
-/// Removes the member at JSON pointer `pointer` from its mapping (nothing to do when an
-/// enclosing node is already gone).
-fn leave_out(value: &mut serde_json::Value, pointer: &str) {
-    let Some((parent, key)) = pointer.rsplit_once('/') else {
-        return;
-    };
-    if let Some(object) = value
-        .pointer_mut(parent)
-        .and_then(serde_json::Value::as_object_mut)
-    {
-        object.remove(&key.replace("~1", "/").replace("~0", "~"));
-    }
-}
-
 /// Moves the member at JSON pointer `pointer` to key `to` of the same mapping when that key is
-/// free, else removes it.
-fn rename_at(value: &mut serde_json::Value, pointer: &str, to: Option<&str>) {
+/// free, else (or without `to`) removes it; nothing to do when an enclosing node is gone.
+fn move_member(value: &mut serde_json::Value, pointer: &str, to: Option<&str>) {
     let Some((parent, key)) = pointer.rsplit_once('/') else {
         return;
     };
-    let key = key.replace("~1", "/").replace("~0", "~");
+    let key = yaml::unescape_pointer(key);
     let Some(object) = value
         .pointer_mut(parent)
         .and_then(serde_json::Value::as_object_mut)

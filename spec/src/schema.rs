@@ -14,7 +14,7 @@ use serde_json::Value;
 pub use published::{json_schema, json_schema_text};
 
 use crate::diagnostic::Problem;
-use crate::yaml::{SpannedDocument, escape_pointer};
+use crate::yaml::{SpannedDocument, escape_pointer, unescape_pointer};
 
 /// The strict schema: every preset field reduced to its inline object.
 fn strict_schema() -> &'static (Value, Option<Validator>) {
@@ -36,68 +36,55 @@ fn strict_schema() -> &'static (Value, Option<Validator>) {
 /// and list items have none.
 pub(crate) fn has_default(pointer: &str) -> bool {
     let (schema, _) = strict_schema();
-    let resolve = |mut node: &'static Value| {
-        while let Some(target) = node.get("$ref").and_then(Value::as_str) {
-            match schema.pointer(target.trim_start_matches('#')) {
-                Some(n) => node = n,
-                None => break,
-            }
-        }
-        node
-    };
-    // The schema of the property `key` of an object schema, looking through `anyOf`/`oneOf`/
-    // `allOf` branches (the property node itself, whose `default` sits beside its `$ref`).
-    fn property<'a>(
-        node: &'a Value,
-        key: &str,
-        resolve: &dyn Fn(&'a Value) -> &'a Value,
-    ) -> Option<&'a Value> {
-        let node = resolve(node);
-        if let Some(found) = node.get("properties").and_then(|p| p.get(key)) {
-            return Some(found);
-        }
-        ["anyOf", "oneOf", "allOf"]
-            .iter()
-            .filter_map(|k| node.get(*k).and_then(Value::as_array))
-            .flatten()
-            .find_map(|branch| property(branch, key, resolve))
-    }
-    fn step<'a>(
-        node: &'a Value,
-        segment: &str,
-        resolve: &dyn Fn(&'a Value) -> &'a Value,
-    ) -> Option<&'a Value> {
-        if let Some(found) = property(node, segment, resolve) {
-            return Some(found);
-        }
-        let node = resolve(node);
-        let through = |k: &str| node.get(k).filter(|n| n.is_object());
-        if let Some(any) = ["anyOf", "oneOf"]
-            .iter()
-            .filter_map(|k| node.get(*k).and_then(Value::as_array))
-            .flatten()
-            .find_map(|branch| step(branch, segment, resolve))
-        {
-            return Some(any);
-        }
-        through("additionalProperties").or_else(|| through("items"))
-    }
-    let segments: Vec<String> = pointer
-        .split('/')
-        .skip(1)
-        .map(|s| s.replace("~1", "/").replace("~0", "~"))
-        .collect();
+    let segments: Vec<String> = pointer.split('/').skip(1).map(unescape_pointer).collect();
     let Some((last, parents)) = segments.split_last() else {
         return false;
     };
-    let mut node: &Value = schema;
-    for segment in parents {
-        match step(node, segment, &resolve) {
-            Some(next) => node = next,
-            None => return false,
+    parents
+        .iter()
+        .try_fold(schema, |node, segment| child_schema(schema, node, segment))
+        .and_then(|node| property_schema(schema, node, last))
+        .is_some_and(|property| property.get("default").is_some())
+}
+
+/// `node` with its `$ref`s followed.
+fn resolve_refs<'a>(schema: &'a Value, mut node: &'a Value) -> &'a Value {
+    while let Some(target) = node.get("$ref").and_then(Value::as_str) {
+        match schema.pointer(target.trim_start_matches('#')) {
+            Some(next) if !std::ptr::eq(next, node) => node = next,
+            _ => break,
         }
     }
-    property(node, last, &resolve).is_some_and(|p| p.get("default").is_some())
+    node
+}
+
+/// The branches of a schema's `anyOf`, `oneOf` and `allOf`.
+fn branches(node: &Value) -> impl Iterator<Item = &Value> {
+    ["anyOf", "oneOf", "allOf"]
+        .into_iter()
+        .filter_map(|k| node.get(k).and_then(Value::as_array))
+        .flatten()
+}
+
+/// The schema of property `key` of the object schema `node`, also in its branches: the
+/// property's own node, whose `default` sits beside its `$ref`.
+fn property_schema<'a>(schema: &'a Value, node: &'a Value, key: &str) -> Option<&'a Value> {
+    let node = resolve_refs(schema, node);
+    node.get("properties")
+        .and_then(|p| p.get(key))
+        .or_else(|| branches(node).find_map(|branch| property_schema(schema, branch, key)))
+}
+
+/// The schema of the value at `segment` below `node`: a property, else an entry of a mapping
+/// or an item of a list.
+fn child_schema<'a>(schema: &'a Value, node: &'a Value, segment: &str) -> Option<&'a Value> {
+    property_schema(schema, node, segment).or_else(|| {
+        let node = resolve_refs(schema, node);
+        branches(node)
+            .find_map(|branch| child_schema(schema, branch, segment))
+            .or_else(|| node.get("additionalProperties").filter(|n| n.is_object()))
+            .or_else(|| node.get("items").filter(|n| n.is_object()))
+    })
 }
 
 fn reduce_presets(node: &mut Value) {
@@ -499,7 +486,7 @@ fn allowed_properties(schema: &Value, schema_path: &str) -> Vec<String> {
     let parent = schema_path.rsplit_once('/').map_or("", |(p, _)| p);
     let mut node = schema;
     for segment in parent.split('/').filter(|s| !s.is_empty()) {
-        let segment = segment.replace("~1", "/").replace("~0", "~");
+        let segment = unescape_pointer(segment);
         node = match node {
             Value::Object(map) if segment == "$ref" => {
                 let target = map.get("$ref").and_then(Value::as_str).unwrap_or("");
@@ -519,10 +506,8 @@ fn allowed_properties(schema: &Value, schema_path: &str) -> Vec<String> {
             _ => return vec![],
         };
     }
-    if let Some(target) = node.get("$ref").and_then(Value::as_str) {
-        node = schema.pointer(target.trim_start_matches('#')).unwrap_or(node);
-    }
-    node.get("properties")
+    resolve_refs(schema, node)
+        .get("properties")
         .and_then(Value::as_object)
         .map_or(vec![], |p| p.keys().cloned().collect())
 }
@@ -561,7 +546,7 @@ pub fn describe(pointer: &str) -> String {
             if !out.is_empty() {
                 out.push('.');
             }
-            out.push_str(&segment.replace("~1", "/").replace("~0", "~"));
+            out.push_str(&unescape_pointer(segment));
         }
     }
     format!("`{out}`")

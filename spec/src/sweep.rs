@@ -72,9 +72,9 @@ pub(crate) fn find(doc: &SpannedDocument) -> Found {
         let inside_distribution = segments.iter().any(|s| *s == "uniform" || *s == "normal");
         let scope = match segments.as_slice() {
             _ if inside_distribution => None,
-            ["fidelities", name, layer, ..] if LAYERS.contains(layer) => Some(SweepScope::Fidelity(
-                (*name).replace("~1", "/").replace("~0", "~"),
-            )),
+            ["fidelities", name, layer, ..] if LAYERS.contains(layer) => {
+                Some(SweepScope::Fidelity(crate::yaml::unescape_pointer(name)))
+            }
             ["metrics", _, ..] => Some(SweepScope::Metrics),
             ["training", "algorithm" | "reward", _, ..] => Some(SweepScope::Training),
             _ => None,

@@ -113,24 +113,31 @@ fn check_same_spec(
         let text = folder::read_resolved_spec(dir).map_err(fail)?;
         let checked = check_for_scoring(path.display().to_string(), text, dir, data)?;
         if folder::context_hash(&checked) != context {
-            if checked.spec.name == first_name {
-                eprintln!(
-                    "error: `{}` and `{}` hold runs of two versions of spec `{first_name}`: `cpmx report` merges \
-                     the folders of one spec, e.g. its shards\nhelp: run the older shard again with the current \
-                     spec (`cpmx run SPEC --out DIR --shard K/N --resume --force`), or report each folder on its own",
-                    first.display(),
-                    dir.display(),
-                );
+            let (what, help) = if checked.spec.name == first_name {
+                (
+                    format!(
+                        "`{}` and `{}` hold runs of two versions of spec `{first_name}`",
+                        first.display(),
+                        dir.display()
+                    ),
+                    "run the older shard again with the current spec (`cpmx run SPEC --out DIR --shard K/N \
+                     --resume --force`), or report each folder on its own"
+                        .to_owned(),
+                )
             } else {
-                eprintln!(
-                    "error: `{}` holds runs of another spec than `{}` (`{}`): `cpmx report` merges the folders of \
-                     one spec, e.g. its shards\nhelp: report each folder on its own (`cpmx report {}`)",
-                    dir.display(),
-                    first.display(),
-                    checked.spec.name,
-                    dir.display()
-                );
-            }
+                (
+                    format!(
+                        "`{}` holds runs of another spec than `{}` (`{}`)",
+                        dir.display(),
+                        first.display(),
+                        checked.spec.name
+                    ),
+                    format!("report each folder on its own (`cpmx report {}`)", dir.display()),
+                )
+            };
+            eprintln!(
+                "error: {what}: `cpmx report` merges the folders of one spec, e.g. its shards\nhelp: {help}"
+            );
             return Err(Failure::Usage);
         }
     }
