@@ -23,8 +23,13 @@ pub struct Resources {
     /// The network file of each policy with an `mlp` (its weights) or an `onnx` (its file), by
     /// policy index.
     pub weights: Vec<Option<PathBuf>>,
+    /// The observation of each policy that is a SigmaRL checkpoint, from its `*_data.json`, by
+    /// policy index (the spec's policies get it before the interpreter's checks).
+    pub observations: Vec<Option<crate::model::ObservationSpec>>,
     /// The folder of each `from_runs` entry, by initial-configuration index.
     pub from_runs: Vec<Option<PathBuf>>,
+    /// The poses of each `from_poses` entry, read, by initial-configuration index.
+    pub poses: Vec<Option<crate::poses::MeasuredPoses>>,
     /// The spec's folder (where policy processes run).
     pub spec_dir: PathBuf,
 }
@@ -286,7 +291,7 @@ fn check_names(spec: &Spec, ctx: &mut CheckContext<'_>) {
                     ));
                 }
             }
-            InitialConfiguration::FromRuns(_) => {}
+            InitialConfiguration::FromRuns(_) | InitialConfiguration::FromPoses(_) => {}
         }
     }
     report_duplicates(

@@ -10,7 +10,7 @@ use crate::model::{InitialConfiguration, MapSpec, Spec};
 use crate::paths::{DataPath, NotFound};
 
 /// A problem for a file that is on none of the data path's folders.
-fn missing_file(what: &str, file: &str, tried: &[PathBuf], span: ByteSpan) -> Problem {
+pub(crate) fn missing_file(what: &str, file: &str, tried: &[PathBuf], span: ByteSpan) -> Problem {
     let places: Vec<String> = tried.iter().map(|p| format!("  {}", p.display())).collect();
     Problem::error(
         "cpmx::check::missing-file",
@@ -25,7 +25,7 @@ fn missing_file(what: &str, file: &str, tried: &[PathBuf], span: ByteSpan) -> Pr
 }
 
 /// A problem for a pinned file: missing, or present only with other content.
-fn missing_pinned(
+pub(crate) fn missing_pinned(
     what: &str,
     file: &str,
     sha256: Option<&str>,
@@ -95,6 +95,7 @@ pub(crate) fn find_files(
             }
         }
     }
+    let mut observations = vec![None; spec.policies.len()];
     for (i, policy) in spec.policies.iter().enumerate() {
         let found = policy
             .mlp
@@ -117,7 +118,11 @@ pub(crate) fn find_files(
                 },
                 (None, Some(_)) if scope == CheckScope::Measure => None,
                 (None, Some(trained)) => crate::check_training::find_trained(spec, i, trained, data, ctx),
-                (None, None) => None,
+                (None, None) => {
+                    let found = crate::check_checkpoint::find_checkpoint(spec, i, mlp, data, scope, ctx);
+                    observations[i] = found.observation;
+                    found.policy
+                }
             })
             .or_else(|| {
                 let onnx = policy.onnx.as_ref()?;
@@ -138,6 +143,15 @@ pub(crate) fn find_files(
                 }
             });
         resources.weights.push(found);
+    }
+    resources.observations = observations;
+    for (i, c) in spec.initial_configurations.iter().enumerate() {
+        resources.poses.push(match c {
+            InitialConfiguration::FromPoses(f) => {
+                crate::check_poses::find_poses(spec, i, &f.from_poses, data, scope, ctx)
+            }
+            _ => None,
+        });
     }
     if scope == CheckScope::Measure {
         resources.from_runs = vec![None; spec.initial_configurations.len()];

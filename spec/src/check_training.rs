@@ -28,19 +28,50 @@ fn check_trained_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
     for (i, p) in spec.policies.iter().enumerate() {
         let Some(mlp) = &p.mlp else { continue };
         let base = format!("/policies/{i}/mlp");
+        let sources: Vec<&str> = [
+            ("weights", mlp.weights.is_some()),
+            ("trained", mlp.trained.is_some()),
+            ("sigmarl", mlp.sigmarl.is_some()),
+        ]
+        .into_iter()
+        .filter_map(|(key, given)| given.then_some(key))
+        .collect();
+        if sources.len() > 1 {
+            let span = key_span(ctx, &format!("{base}/{}", sources[1]));
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::policy-kind",
+                    format!(
+                        "policy `{}` names its weights twice: `{}` and `{}`",
+                        p.name, sources[0], sources[1]
+                    ),
+                    span,
+                    "second source of weights",
+                )
+                .with_help("keep one of `weights: FILE`, `trained: {seed: N}` or `sigmarl: CHECKPOINT`"),
+            );
+            continue;
+        }
+        if mlp.pick.is_some() && mlp.sigmarl.is_none() {
+            let span = key_span(ctx, &format!("{base}/pick"));
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::policy-kind",
+                    format!(
+                        "policy `{}` picks an actor, but names no SigmaRL checkpoint folder",
+                        p.name
+                    ),
+                    span,
+                    "pick from what?",
+                )
+                .with_help(
+                    "`pick` goes with `sigmarl: FOLDER`; for trained actors use `trained: {which: last}`",
+                ),
+            );
+        }
         match (&mlp.weights, &mlp.trained) {
-            (Some(_), Some(_)) => {
-                let span = key_span(ctx, &format!("{base}/trained"));
-                ctx.push(
-                    Problem::error(
-                        "cpmx::check::policy-kind",
-                        format!("policy `{}` names both a weight file and a trained actor", p.name),
-                        span,
-                        "second source of weights",
-                    )
-                    .with_help("keep `weights: FILE` or `trained: {seed: N}`"),
-                );
-            }
+            (Some(_), Some(_)) => {}
+            (None, None) if mlp.sigmarl.is_some() => {}
             (None, None) => {
                 let span = ctx.span(&base);
                 ctx.push(
@@ -50,7 +81,10 @@ fn check_trained_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
                         span,
                         "which network?",
                     )
-                    .with_help("add `weights: FILE`, or `trained: {seed: N}` for an actor this spec trains"),
+                    .with_help(
+                        "add `weights: FILE`, `trained: {seed: N}` for an actor this spec trains, or \
+                         `sigmarl: CHECKPOINT` for a SigmaRL checkpoint",
+                    ),
                 );
             }
             (None, Some(trained)) => match &spec.training {

@@ -10,18 +10,22 @@
 //! ```
 
 mod check;
+mod check_checkpoint;
 mod check_compare;
 mod check_fidelities;
 mod check_files;
 mod check_lab;
+mod check_poses;
 mod check_training;
 mod diagnostic;
 pub mod matrix;
 pub mod model;
 mod paths;
+pub mod poses;
 pub mod reference;
 mod resolve;
 pub mod schema;
+pub mod sigmarl;
 pub mod sweep;
 mod yaml;
 
@@ -272,6 +276,21 @@ pub fn check_scoped(
     let mut ctx = CheckContext::new(&doc);
     let resources = check::check_meaning(&spec, data, scope, &mut ctx);
     let before_interpreter = ctx.into_problems();
+    // A SigmaRL checkpoint's observation, read from its `*_data.json`, is the policy's.
+    let mut spec = spec;
+    for (i, observation) in resources.observations.iter().enumerate() {
+        if let Some(observation) = observation {
+            spec.policies[i].observation = Some(observation.clone());
+            if let (Some(policy), Ok(value)) = (
+                doc.value
+                    .pointer_mut(&format!("/policies/{i}"))
+                    .and_then(serde_json::Value::as_object_mut),
+                serde_json::to_value(observation),
+            ) {
+                policy.insert("observation".to_owned(), value);
+            }
+        }
+    }
     let mut ctx = CheckContext::new(&doc);
     if scope == CheckScope::Run {
         check_fidelities::check_capabilities(&spec, interpreter, &mut ctx);

@@ -114,6 +114,9 @@ pub enum ConfigurationSource {
     Sampled { entry: usize, index: u32 },
     /// The measured start of a recorded run (its key in that folder).
     Recorded { entry: usize, run_key: String },
+    /// A configuration of the poses file of the `from_poses` entry `entry`: each run starts
+    /// from its own row.
+    Measured { entry: usize },
 }
 
 /// A named initial configuration.
@@ -123,8 +126,9 @@ pub struct NamedConfiguration {
     pub source: ConfigurationSource,
 }
 
-/// The named configurations of a spec, in order: explicit names, `sample1..`, and one per
-/// recorded run of a `from_runs` folder (named `<fidelity>-<policy>-<configuration>-rep<N>`).
+/// The named configurations of a spec, in order: explicit names, `sample1..`, one per
+/// recorded run of a `from_runs` folder (named `<fidelity>-<policy>-<configuration>-rep<N>`),
+/// and the configurations a `from_poses` file names, in the file's order.
 pub fn configurations(spec: &Spec, resources: &Resources) -> Vec<NamedConfiguration> {
     let mut out = Vec::new();
     let mut sample_counter = 0;
@@ -151,6 +155,17 @@ pub fn configurations(spec: &Spec, resources: &Resources) -> Vec<NamedConfigurat
                     out.push(NamedConfiguration {
                         name: run_key.replace('/', "-"),
                         source: ConfigurationSource::Recorded { entry, run_key },
+                    });
+                }
+            }
+            InitialConfiguration::FromPoses(_) => {
+                let Some(poses) = resources.poses.get(entry).and_then(Option::as_ref) else {
+                    continue;
+                };
+                for name in poses.configurations() {
+                    out.push(NamedConfiguration {
+                        name: name.to_owned(),
+                        source: ConfigurationSource::Measured { entry },
                     });
                 }
             }

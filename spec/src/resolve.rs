@@ -19,6 +19,8 @@ fn preset_fields(doc: &Value) -> Vec<(String, PresetKind)> {
     let mut fields = vec![
         ("/vehicle".to_owned(), PresetKind::Vehicle),
         ("/metrics".to_owned(), PresetKind::Metrics),
+        // After `/metrics`: a preset of metrics expands first, then its footprint.
+        ("/metrics/footprint".to_owned(), PresetKind::Vehicle),
     ];
     if let Some(policies) = doc.get("policies").and_then(Value::as_array) {
         for (i, _) in policies.iter().enumerate() {
@@ -122,7 +124,13 @@ fn insert_defaults(doc: &mut Value) {
     if let Some(policies) = root.get_mut("policies").and_then(Value::as_array_mut) {
         for policy in policies.iter_mut().filter_map(Value::as_object_mut) {
             let trained = policy.get("mlp").and_then(|m| m.get("trained")).is_some();
-            if policy.contains_key("mlp") || policy.contains_key("onnx") || policy.contains_key("python") {
+            // A SigmaRL checkpoint's observation comes from its `*_data.json` (check_files).
+            let checkpoint = policy.get("mlp").and_then(|m| m.get("sigmarl")).is_some();
+            if !checkpoint
+                && (policy.contains_key("mlp")
+                    || policy.contains_key("onnx")
+                    || policy.contains_key("python"))
+            {
                 policy.entry("observation").or_insert_with(|| {
                     if trained {
                         trained_with.clone()

@@ -1,12 +1,12 @@
 //! `cpmx plan SPEC`: the run matrix as a table, CSV or JSON, with the start poses of every
 //! initial configuration (sampled ones included): every run of a configuration starts from
-//! them, whatever its fidelity, policy and repetition; then the training runs and the layer
-//! parameters that fidelities draw.
+//! them, whatever its fidelity (and, but for measured starts per run, its policy and
+//! repetition); then the training runs and the layer parameters that fidelities draw.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
-use cpmx_engine::{InitialState, Scoring, initial_states};
+use cpmx_engine::{ConfigurationStarts, InitialState, Scoring, initial_states};
 use cpmx_spec::model::{Distribution, Fidelity, Parameter};
 use cpmx_spec::{RunPlan, Spec, TrainingPlan};
 
@@ -22,7 +22,21 @@ pub enum PlanFormat {
 }
 
 /// The start poses of each initial configuration, by name.
-pub type Starts = [(String, Vec<InitialState>)];
+pub type Starts = [(String, ConfigurationStarts)];
+
+/// Each start with what it is the start of: the configuration's name, or for a measured start
+/// per run `configuration/policy/repN`.
+fn labelled(starts: &Starts) -> Vec<(String, &[InitialState])> {
+    starts
+        .iter()
+        .flat_map(|(name, starts)| {
+            starts.each().into_iter().map(move |(run, states)| match run {
+                None => (name.clone(), states),
+                Some((policy, repetition)) => (format!("{name}/{policy}/rep{repetition}"), states),
+            })
+        })
+        .collect()
+}
 
 pub fn run(spec: &Path, format: PlanFormat, data: &DataArgs) -> Result<(), Failure> {
     let checked = load_checked(spec, data)?;
@@ -101,13 +115,15 @@ fn randomised_table(randomised: &[Randomised]) -> String {
 
 /// The start poses as a table, after the matrix.
 fn starts_table(starts: &Starts) -> String {
-    let mut out = String::from("\nstart poses (every run of a configuration starts here):\n");
+    let mut out = String::from(
+        "\nstart poses (every run of a configuration starts here; measured starts per run of a policy and repetition):\n",
+    );
     let _ = writeln!(
         out,
         "{:<24} {:>5} {:>8} {:>8} {:>8} {:>8} {:>9}",
         "initial_configuration", "agent", "ref_path", "x [m]", "y [m]", "yaw [°]", "v [m/s]"
     );
-    for (name, agents) in starts {
+    for (name, agents) in labelled(starts) {
         for (agent, s) in agents.iter().enumerate() {
             let _ = writeln!(
                 out,
@@ -133,8 +149,8 @@ fn plan_json(
     training: &[TrainingPlan],
     randomised: &[Randomised],
 ) -> String {
-    let starts: serde_json::Map<String, serde_json::Value> = starts
-        .iter()
+    let starts: serde_json::Map<String, serde_json::Value> = labelled(starts)
+        .into_iter()
         .map(|(name, agents)| {
             let agents: Vec<serde_json::Value> = agents
                 .iter()
@@ -145,7 +161,7 @@ fn plan_json(
                     })
                 })
                 .collect();
-            (name.clone(), serde_json::Value::from(agents))
+            (name, serde_json::Value::from(agents))
         })
         .collect();
     let mut value = serde_json::json!({ "runs": runs, "starts": starts });

@@ -61,6 +61,11 @@ pub const PRESETS: &[Preset] = &[
         yaml: include_str!("../presets/vehicle/mu-car.yaml"),
     },
     Preset {
+        kind: PresetKind::Vehicle,
+        name: "sigmarl-2025",
+        yaml: include_str!("../presets/vehicle/sigmarl-2025.yaml"),
+    },
+    Preset {
         kind: PresetKind::Dynamics,
         name: "mu-car-greybox",
         yaml: include_str!("../presets/dynamics/mu-car-greybox.yaml"),

@@ -60,9 +60,7 @@ fn check(name: &str, dir: &Path, text: String) -> CheckedSpec {
 
 /// Run one planned run through the sim engine; returns the number of recorded steps.
 fn run(experiment: &Experiment, plan: &RunPlan) -> usize {
-    let starts = experiment
-        .start(&plan.initial_configuration)
-        .expect("the plan's initial configuration");
+    let starts = experiment.start(plan).expect("the plan's initial configuration");
     let recording = SimEngine
         .run(&RunInputs {
             experiment,

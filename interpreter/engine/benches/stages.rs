@@ -64,7 +64,7 @@ fn stages(c: &mut Criterion) {
         b.iter(|| {
             measure_recording(
                 &experiment.map,
-                &experiment.vehicle,
+                &experiment.footprint,
                 &experiment.metrics,
                 black_box(&recording),
             )
@@ -84,7 +84,7 @@ fn stages(c: &mut Criterion) {
                 &experiment.map,
                 black_box(&recording),
                 &metrics,
-                &experiment.vehicle,
+                &experiment.footprint,
             )
             .len()
         })

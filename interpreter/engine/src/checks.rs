@@ -2,15 +2,11 @@
 //! only the map and the networks can tell (reference path ids, starts that leave the road or
 //! overlap, regions, weights whose tensors do not fit the observation).
 
-use cpmx_metrics::collision::{PlacedBox, mtv_distance_m};
 use cpmx_policy::ActorError;
-use cpmx_spec::model::{Fidelity, InitialConfiguration, MapSpec, SampleSpec};
+use cpmx_spec::model::{Fidelity, MapSpec};
 use cpmx_spec::{CheckContext, InterpreterChecks, Problem, Resources, Spec};
-use cpmx_vehicle::{VehicleParams, footprint_corners};
-use cpmx_world::Map;
 
-use crate::experiment::{PrepareError, load_map, load_network, observation, vehicle_params};
-use crate::starts::{explicit_start, sample_starts};
+use crate::experiment::{PrepareError, load_map, load_network, observation};
 
 /// The checks of this build of cpmx.
 #[derive(Debug, Clone, Copy, Default)]
@@ -53,7 +49,7 @@ impl InterpreterChecks for BuildChecks {
                 return;
             }
         };
-        check_starts(spec, &map, ctx);
+        crate::check_starts::check_starts(spec, resources, &map, ctx);
     }
 }
 
@@ -209,129 +205,4 @@ fn check_processes(spec: &Spec, resources: &Resources, ctx: &mut CheckContext<'_
             );
         }
     }
-}
-
-/// Explicit starts name paths of the map, stand on the road and do not overlap.
-fn check_starts(spec: &Spec, map: &Map, ctx: &mut CheckContext<'_>) {
-    let vehicle = vehicle_params(&spec.vehicle);
-    let ids = map.valid_path_ids();
-    let range = match (ids.first(), ids.last()) {
-        (Some(first), Some(last)) if last - first + 1 == ids.len() => format!("{first}..={last}"),
-        _ => format!("{ids:?}"),
-    };
-    for (c, configuration) in spec.initial_configurations.iter().enumerate() {
-        if let InitialConfiguration::Sampled(sampled) = configuration {
-            check_sampled_starts(spec, c, &sampled.sample, map, &vehicle, ctx);
-        }
-        let InitialConfiguration::Explicit(e) = configuration else {
-            continue;
-        };
-        let mut placed: Vec<(usize, PlacedBox)> = Vec::new();
-        for (a, agent) in e.agents.iter().enumerate() {
-            let pointer = format!("/initial_configurations/{c}/agents/{a}");
-            if map.reference_path(agent.ref_path as usize).is_none() {
-                let span = ctx.span(&format!("{pointer}/ref_path"));
-                ctx.push(
-                    Problem::error(
-                        "cpmx::map::ref-path",
-                        format!("the map has no reference path {}", agent.ref_path),
-                        span,
-                        "unknown reference path",
-                    )
-                    .with_help(format!("this map's reference paths are {range}")),
-                );
-                continue;
-            }
-            let start = match explicit_start(agent, map) {
-                Ok(start) => start,
-                Err(reason) => {
-                    let length_m = map
-                        .reference_path(agent.ref_path as usize)
-                        .map_or(0.0, |p| p.center_line.length_m());
-                    let span = ctx.span(&format!("{pointer}/arc_length"));
-                    ctx.push(
-                        Problem::error(
-                            "cpmx::map::arc-length",
-                            format!("agent {a} of `{}`: {reason}", e.name),
-                            span,
-                            "beyond the path's end",
-                        )
-                        .with_help(format!(
-                            "an arc length on path {} lies in [0, {length_m:.3}] m; `cpmx validate` of a \
-                             spec with only `cpmx`, `name` and `map` lists every path's length",
-                            agent.ref_path
-                        )),
-                    );
-                    continue;
-                }
-            };
-            let corners = footprint_corners(&vehicle, start.x_m, start.y_m, start.yaw_rad);
-            if map.footprint_on_road(start.ref_path, &corners) == Some(false) {
-                let span = ctx.span(&pointer);
-                ctx.push(
-                    Problem::error(
-                        "cpmx::map::off-road",
-                        format!(
-                            "agent {a} of `{}` starts off the road of path {}",
-                            e.name, start.ref_path
-                        ),
-                        span,
-                        "footprint leaves the road",
-                    )
-                    .with_help("start on the path (`arc_length`) or move the `pose` onto its lanes"),
-                );
-            }
-            let this = PlacedBox::from_pose(&vehicle, start.x_m, start.y_m, start.yaw_rad);
-            if let Some((other, _)) = placed.iter().find(|(_, b)| mtv_distance_m(b, &this) < 0.0) {
-                let span = ctx.span(&pointer);
-                ctx.push(
-                    Problem::error(
-                        "cpmx::map::overlap",
-                        format!(
-                            "agents {other} and {a} of `{}` start on top of each other",
-                            e.name
-                        ),
-                        span,
-                        "overlaps another start",
-                    )
-                    .with_help("move one of them along its path"),
-                );
-            }
-            placed.push((a, this));
-        }
-    }
-}
-
-/// Every draw of a `sample:` entry finds a place for every agent, as `cpmx run` will draw them
-/// (the same stream): the first draw that does not is an error at the entry.
-fn check_sampled_starts(
-    spec: &Spec,
-    entry: usize,
-    sample: &SampleSpec,
-    map: &Map,
-    vehicle: &VehicleParams,
-    ctx: &mut CheckContext<'_>,
-) {
-    let Some((index, reason)) = (0..sample.count).find_map(|index| {
-        sample_starts(sample, index, spec.agents as usize, map, vehicle)
-            .err()
-            .map(|reason| (index, reason))
-    }) else {
-        return;
-    };
-    let span = ctx.span(&format!("/initial_configurations/{entry}/sample"));
-    ctx.push(
-        Problem::error(
-            "cpmx::map::no-room",
-            format!(
-                "draw {} of {} of this sample cannot place {} agents: {reason}",
-                index + 1,
-                sample.count,
-                spec.agents
-            ),
-            span,
-            "no room on this map",
-        )
-        .with_help("lower `agents` or `min_gap`, or name a larger map"),
-    );
 }

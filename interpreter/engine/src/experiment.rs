@@ -17,7 +17,7 @@ use cpmx_vehicle::VehicleParams;
 use cpmx_world::Map;
 
 use crate::memo::Memo;
-use crate::starts::{InitialState, initial_states};
+use crate::starts::{ConfigurationStarts, InitialState, initial_states, start_of};
 
 /// Why an experiment could not be prepared.
 #[derive(Debug, thiserror::Error)]
@@ -42,6 +42,10 @@ pub enum PrepareError {
         policy: String,
         source: crate::onnx::OnnxLoadError,
     },
+    #[error(
+        "policy `{policy}`: its SigmaRL checkpoint was not found (run `cpmx validate` for where it was looked for)"
+    )]
+    Checkpoint { policy: String },
     #[error("initial configuration `{name}`: {reason}")]
     Start { name: String, reason: String },
     #[error(
@@ -92,13 +96,16 @@ pub struct Experiment {
     /// The spec with the run matrix's fidelities (one per point of a sweep).
     pub spec: Spec,
     pub map: Arc<Map>,
+    /// The vehicle the runs simulate and the policies observe.
     pub vehicle: VehicleParams,
+    /// The vehicle whose footprint the metrics score (`metrics.footprint`, else `vehicle`).
+    pub footprint: VehicleParams,
     pub metrics: MetricsConfig,
     /// The metrics of the points of a metric parameter's sweep, by matrix fidelity.
     pub metrics_by_fidelity: BTreeMap<String, MetricsConfig>,
     pub policies: Vec<(String, PreparedPolicy)>,
     /// Initial states by configuration name, in matrix order.
-    pub starts: Vec<(String, Vec<InitialState>)>,
+    pub starts: Vec<(String, ConfigurationStarts)>,
 }
 
 /// What scoring recorded runs needs: the spec, its map, vehicle and metric parameters. No
@@ -107,7 +114,10 @@ pub struct Experiment {
 pub struct Scoring {
     pub spec: Spec,
     pub map: Arc<Map>,
+    /// The vehicle the runs simulated.
     pub vehicle: VehicleParams,
+    /// The vehicle whose footprint the metrics score (`metrics.footprint`, else `vehicle`).
+    pub footprint: VehicleParams,
     pub metrics: MetricsConfig,
     /// The metrics of the points of a metric parameter's sweep, by matrix fidelity.
     pub metrics_by_fidelity: BTreeMap<String, MetricsConfig>,
@@ -133,6 +143,7 @@ impl Scoring {
             spec: spec.clone(),
             map: Arc::new(load_map(spec, checked.resources.map_file.as_deref())?),
             vehicle: vehicle_params(&spec.vehicle),
+            footprint: footprint_params(spec),
             metrics: metrics_config(&spec.metrics, &spec.timing),
             metrics_by_fidelity: swept_metrics(checked),
         })
@@ -140,7 +151,7 @@ impl Scoring {
 
     /// The metrics of one recording with the spec's metric parameters.
     pub fn measure(&self, recording: &cpmx_recording::Recording) -> Result<cpmx_metrics::RunMetrics, String> {
-        crate::runner::measure_recording(&self.map, &self.vehicle, &self.metrics, recording)
+        crate::runner::measure_recording(&self.map, &self.footprint, &self.metrics, recording)
     }
 
     /// The metrics of a run of the matrix fidelity `fidelity` (its point's metric parameters).
@@ -150,7 +161,7 @@ impl Scoring {
         recording: &cpmx_recording::Recording,
     ) -> Result<cpmx_metrics::RunMetrics, String> {
         let metrics = self.metrics_by_fidelity.get(fidelity).unwrap_or(&self.metrics);
-        crate::runner::measure_recording(&self.map, &self.vehicle, metrics, recording)
+        crate::runner::measure_recording(&self.map, &self.footprint, metrics, recording)
     }
 }
 
@@ -161,6 +172,7 @@ impl Experiment {
             spec: self.spec.clone(),
             map: self.map.clone(),
             vehicle: self.vehicle,
+            footprint: self.footprint,
             metrics: self.metrics,
             metrics_by_fidelity: self.metrics_by_fidelity.clone(),
         }
@@ -188,6 +200,7 @@ impl Experiment {
             spec: spec.clone(),
             map,
             vehicle,
+            footprint: footprint_params(spec),
             metrics: metrics_config(&spec.metrics, &spec.timing),
             metrics_by_fidelity: swept_metrics(checked),
             policies,
@@ -255,11 +268,9 @@ impl Experiment {
         self.policies.iter().find(|(n, _)| n == name).map(|(_, p)| p)
     }
 
-    pub fn start(&self, configuration: &str) -> Option<&[InitialState]> {
-        self.starts
-            .iter()
-            .find(|(n, _)| n == configuration)
-            .map(|(_, s)| s.as_slice())
+    /// Where a planned run starts.
+    pub fn start(&self, plan: &cpmx_spec::RunPlan) -> Option<&[InitialState]> {
+        start_of(&self.starts, plan)
     }
 }
 
@@ -327,6 +338,11 @@ pub fn vehicle_params(v: &VehicleSpec) -> VehicleParams {
     }
 }
 
+/// The vehicle whose footprint the spec's metrics score: `metrics.footprint`, else `vehicle`.
+pub fn footprint_params(spec: &Spec) -> VehicleParams {
+    vehicle_params(spec.metrics.footprint.as_ref().unwrap_or(&spec.vehicle))
+}
+
 /// The spec's observation design as the policy crate's.
 pub fn observation(o: &ObservationSpec) -> SigmarlObservation {
     SigmarlObservation {
@@ -381,8 +397,15 @@ pub fn load_network(
         path: weights.to_owned(),
         source,
     })?;
+    // A SigmaRL checkpoint is torch.save's zip archive: read it as such (the spec names it
+    // with `sigmarl:`; a `weights:` file that is one is read the same way).
+    let checkpoint = mlp.sigmarl.is_some() || bytes.starts_with(b"PK\x03\x04");
     let actor = ACTORS.get_or_parse((activation, bytes), |(activation, bytes)| {
-        MlpActor::from_bytes_any(bytes, *activation)
+        if checkpoint {
+            MlpActor::load_checkpoint(weights, *activation)
+        } else {
+            MlpActor::from_bytes_any(bytes, *activation)
+        }
     })?;
     actor.check_fits(Some(observation.size()), output)?;
     Ok((actor, output))
@@ -435,6 +458,11 @@ pub fn prepare_policy(policy: &PolicySpec, weights: Option<&Path>) -> Result<Pre
             let path = match (found, &mlp.weights, &mlp.trained) {
                 (Some(path), _, _) => path,
                 (None, Some(weights), _) => Path::new(weights),
+                (None, None, None) if mlp.sigmarl.is_some() => {
+                    return Err(PrepareError::Checkpoint {
+                        policy: policy.name.clone(),
+                    });
+                }
                 (None, None, trained) => {
                     return Err(PrepareError::NotTrained {
                         policy: policy.name.clone(),

@@ -264,12 +264,18 @@ pub fn write_summaries_from(
     scoring: &Scoring,
     records: &[RunRecord],
 ) -> std::io::Result<Summary> {
-    let summary = summarize(
+    let mut summary = summarize(
         &scoring.spec.name,
         records,
         &scoring.spec.report,
         &cpmx_report::Origins::of_spec(&scoring.spec),
     );
+    if scoring.spec.metrics.footprint.is_some() {
+        summary.vehicles = Some(cpmx_report::VehicleNote {
+            vehicle_m: [scoring.vehicle.length_m, scoring.vehicle.width_m],
+            footprint_m: [scoring.footprint.length_m, scoring.footprint.width_m],
+        });
+    }
     write_files(|write| {
         write(out.join("per_run.csv"), per_run_csv(records).into_bytes());
         for format in Format::ALL {
@@ -292,7 +298,7 @@ pub fn write_summaries_from(
             summary: &summary,
             description: scoring.spec.description.as_deref(),
             map: &scoring.map,
-            vehicle: &scoring.vehicle,
+            vehicle: &scoring.footprint,
             runs: records
                 .iter()
                 .zip(&recordings)
@@ -384,7 +390,7 @@ fn write_plots(
         .zip(recordings)
         .for_each(|(record, recording)| {
             if let Some(recording) = recording {
-                let svg = drawing.trajectory_svg(recording, &record.metrics, &scoring.vehicle);
+                let svg = drawing.trajectory_svg(recording, &record.metrics, &scoring.footprint);
                 write(
                     plots.join(format!("{}.svg", record.plan.key.replace('/', "_"))),
                     svg.into_bytes(),

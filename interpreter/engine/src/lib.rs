@@ -3,6 +3,7 @@
 //! that executes a matrix in parallel, and the run folder it writes. Engines produce
 //! recordings; metrics are computed from recordings only.
 
+mod check_starts;
 mod checks;
 mod engine;
 mod experiment;
@@ -28,5 +29,5 @@ pub use experiment::{
 };
 pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, measure_recording, simulate};
 pub use sim::SimEngine;
-pub use starts::{InitialState, initial_states};
+pub use starts::{ConfigurationStarts, InitialState, initial_states};
 pub use twin::{TwinEngine, planner};

@@ -367,7 +367,7 @@ fn run_engine(
         .ok_or_else(|| format!("the spec has no fidelity `{}`", plan.fidelity))?;
     let engine = engine_for(&plan.fidelity, fidelity).map_err(|e| e.to_string())?;
     let starts = experiment
-        .start(&plan.initial_configuration)
+        .start(plan)
         .ok_or_else(|| RunError::UnknownConfiguration(plan.initial_configuration.clone()).to_string())?;
     Ok(engine.run(&RunInputs {
         experiment,
@@ -385,7 +385,7 @@ pub fn measure(experiment: &Experiment, fidelity: &str, recording: &Recording) -
         .metrics_by_fidelity
         .get(fidelity)
         .unwrap_or(&experiment.metrics);
-    measure_recording(&experiment.map, &experiment.vehicle, metrics, recording)
+    measure_recording(&experiment.map, &experiment.footprint, metrics, recording)
 }
 
 /// The metrics of a recording on `map` with the vehicle's footprint and the metric parameters.

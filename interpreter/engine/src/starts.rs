@@ -1,12 +1,16 @@
 //! Initial states of every named configuration: explicit starts (arc length or pose), starts
-//! sampled on the map from the configuration's own seed, and measured starts of recorded runs.
+//! sampled on the map from the configuration's own seed, measured starts of recorded runs, and
+//! measured starts per run from a poses file (each policy and repetition its own).
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use cpmx_recording::Recording;
 use cpmx_spec::Resources;
+use cpmx_spec::RunPlan;
 use cpmx_spec::matrix::{ConfigurationSource, NamedConfiguration, stream_key};
-use cpmx_spec::model::{AgentStart, InitialConfiguration, SampleSpec, Spec};
+use cpmx_spec::model::{AgentStart, FromPosesSpec, InitialConfiguration, SampleSpec, Spec};
+use cpmx_spec::poses::MeasuredPoses;
 use cpmx_vehicle::{VehicleParams, footprint_corners};
 use cpmx_world::Map;
 use rand::{RngExt, SeedableRng};
@@ -16,6 +20,59 @@ use crate::experiment::PrepareError;
 
 pub use cpmx_stack::InitialState;
 
+/// Where the runs of one configuration start.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ConfigurationStarts {
+    /// Every run starts here.
+    Shared(Vec<InitialState>),
+    /// Each run from its own measured start, by policy and repetition.
+    PerRun(BTreeMap<(String, u32), Vec<InitialState>>),
+}
+
+impl ConfigurationStarts {
+    /// The start of the run of `policy`'s `repetition`.
+    pub fn of_run(&self, policy: &str, repetition: u32) -> Option<&[InitialState]> {
+        match self {
+            ConfigurationStarts::Shared(states) => Some(states),
+            ConfigurationStarts::PerRun(runs) => {
+                runs.get(&(policy.to_owned(), repetition)).map(Vec::as_slice)
+            }
+        }
+    }
+
+    /// One start of the configuration (the first run's, for a measured one).
+    pub fn any(&self) -> Option<&[InitialState]> {
+        match self {
+            ConfigurationStarts::Shared(states) => Some(states),
+            ConfigurationStarts::PerRun(runs) => runs.values().next().map(Vec::as_slice),
+        }
+    }
+
+    /// Every start of the configuration, with the runs it is theirs (none for a shared one).
+    pub fn each(&self) -> Vec<(Option<(&str, u32)>, &[InitialState])> {
+        match self {
+            ConfigurationStarts::Shared(states) => vec![(None, states.as_slice())],
+            ConfigurationStarts::PerRun(runs) => runs
+                .iter()
+                .map(|((policy, repetition), states)| {
+                    (Some((policy.as_str(), *repetition)), states.as_slice())
+                })
+                .collect(),
+        }
+    }
+}
+
+/// The start of a planned run among the configurations' starts.
+pub fn start_of<'a>(
+    starts: &'a [(String, ConfigurationStarts)],
+    plan: &RunPlan,
+) -> Option<&'a [InitialState]> {
+    starts
+        .iter()
+        .find(|(name, _)| *name == plan.initial_configuration)
+        .and_then(|(_, s)| s.of_run(&plan.policy, plan.repetition))
+}
+
 /// Initial states of every configuration, by name, in order.
 pub fn initial_states(
     spec: &Spec,
@@ -23,7 +80,7 @@ pub fn initial_states(
     resources: &Resources,
     map: &Map,
     vehicle: &VehicleParams,
-) -> Result<Vec<(String, Vec<InitialState>)>, PrepareError> {
+) -> Result<Vec<(String, ConfigurationStarts)>, PrepareError> {
     configurations
         .iter()
         .map(|c| {
@@ -32,6 +89,17 @@ pub fn initial_states(
                 reason,
             };
             let states = match (&c.source, &spec.initial_configurations) {
+                (ConfigurationSource::Measured { entry }, entries) => match &entries[*entry] {
+                    InitialConfiguration::FromPoses(f) => {
+                        let poses = resources.poses.get(*entry).and_then(Option::as_ref);
+                        let poses = poses.ok_or_else(|| fail("the poses file was not read".into()))?;
+                        return Ok((
+                            c.name.clone(),
+                            measured_starts(spec, &f.from_poses, poses, &c.name).map_err(fail)?,
+                        ));
+                    }
+                    _ => return Err(fail("not a `from_poses` configuration".into())),
+                },
                 (ConfigurationSource::Explicit { entry }, entries) => match &entries[*entry] {
                     InitialConfiguration::Explicit(e) => e
                         .agents
@@ -52,9 +120,44 @@ pub fn initial_states(
                     recorded_start(dir, run_key).map_err(fail)?
                 }
             };
-            Ok((c.name.clone(), states))
+            Ok((c.name.clone(), ConfigurationStarts::Shared(states)))
         })
         .collect()
+}
+
+/// The measured start of every run of `configuration`: each policy's rows (by its label) for
+/// every repetition.
+fn measured_starts(
+    spec: &Spec,
+    from: &FromPosesSpec,
+    poses: &MeasuredPoses,
+    configuration: &str,
+) -> Result<ConfigurationStarts, String> {
+    let mut runs = BTreeMap::new();
+    for policy in &spec.policies {
+        let label = from.label_of(&policy.name);
+        for repetition in 1..=spec.repetitions {
+            let row = poses.row(label, configuration, repetition).ok_or_else(|| {
+                format!(
+                    "the poses file has no row for `{}` (label `{label}`), repetition {repetition}",
+                    policy.name
+                )
+            })?;
+            let states = row
+                .vehicles
+                .iter()
+                .map(|v| InitialState {
+                    ref_path: v.ref_path as usize,
+                    x_m: v.x_m,
+                    y_m: v.y_m,
+                    yaw_rad: v.yaw_rad,
+                    speed_mps: 0.0,
+                })
+                .collect();
+            runs.insert((policy.name.clone(), repetition), states);
+        }
+    }
+    Ok(ConfigurationStarts::PerRun(runs))
 }
 
 /// A start given in the spec.

@@ -13,6 +13,9 @@ use std::path::{Path, PathBuf};
 
 use safetensors::{Dtype, SafeTensors};
 
+use crate::layers::{Layer, mlp_layers};
+use crate::torch::NamedTensor;
+
 pub use cpmx_kernels::Activation;
 use cpmx_kernels::{Mat, PackedB, dense_layer_packed};
 
@@ -160,6 +163,9 @@ pub enum ActorError {
     /// A tensor is not float32.
     #[error("tensor `{name}` has dtype {found}, expected F32")]
     Dtype { name: String, found: String },
+    /// A PyTorch checkpoint that does not read.
+    #[error(transparent)]
+    Checkpoint(#[from] crate::torch::TorchError),
     /// A batch buffer does not fit the network.
     #[error("{what} holds {found} values, expected {expected}")]
     Buffer {
@@ -289,66 +295,39 @@ impl MlpActor {
     /// [`MlpActor::load_any`] from the bytes of a safetensors file.
     pub fn from_bytes_any(bytes: &[u8], activation: Activation) -> Result<Self, ActorError> {
         let tensors = SafeTensors::deserialize(bytes).map_err(|e| ActorError::Format(e.to_string()))?;
-        let mut names: Vec<String> = tensors.names().into_iter().map(str::to_owned).collect();
-        names.sort();
-        // Layers by prefix: `PREFIX.N.weight` with its bias.
-        let mut by_prefix: std::collections::BTreeMap<String, Vec<u64>> = Default::default();
-        for name in &names {
-            let Some(stem) = name.strip_suffix(".weight") else {
-                continue;
-            };
-            let Some((prefix, index)) = stem.rsplit_once('.') else {
-                continue;
-            };
-            if let Ok(n) = index.parse::<u64>() {
-                by_prefix.entry(prefix.to_owned()).or_default().push(n);
-            }
-        }
-        let prefix = match by_prefix.len() {
-            0 => return Err(ActorError::NoLayers { found: names }),
-            1 => by_prefix.keys().next().cloned().unwrap_or_default(),
-            _ if by_prefix.contains_key("actor") => "actor".to_owned(),
-            _ => {
-                return Err(ActorError::AmbiguousPrefix {
-                    prefixes: by_prefix.into_keys().collect(),
-                });
-            }
-        };
-        let mut indices = by_prefix.remove(&prefix).unwrap_or_default();
-        indices.sort_unstable();
+        Ok(Self::from_layers_found(&mlp_layers(&tensors)?, activation))
+    }
 
-        let mut layers = Vec::with_capacity(indices.len());
-        let mut weights: Vec<(String, [usize; 2])> = Vec::with_capacity(indices.len());
-        for (i, n) in indices.iter().enumerate() {
-            let name = format!("{prefix}.{n}.weight");
-            let view = tensors
-                .tensor(&name)
-                .map_err(|e| ActorError::Format(e.to_string()))?;
-            let shape = view.shape().to_vec();
-            let [outputs, inputs] = shape[..] else {
-                return Err(ActorError::Rank { name, found: shape });
-            };
-            if let Some((previous, [prev_out, _])) = weights.last()
-                && *prev_out != inputs
-            {
-                return Err(ActorError::Chain {
-                    name,
-                    expected: vec![outputs, *prev_out],
-                    found: shape,
-                    previous: previous.clone(),
-                });
-            }
-            let weight = read_f32(&tensors, &name, &[outputs, inputs])?;
-            let bias = read_f32(&tensors, &format!("{prefix}.{n}.bias"), &[outputs])?;
-            let act = if i + 1 < indices.len() {
-                activation
-            } else {
-                Activation::Identity
-            };
-            layers.push(Dense::new(&weight, &bias, inputs, outputs, act));
-            weights.push((name, [outputs, inputs]));
-        }
-        Ok(Self::assemble(layers, weights))
+    /// The actor of a PyTorch state dict (a SigmaRL checkpoint's tensors, read by
+    /// [`crate::torch::read_state_dict`]), by the same rule as [`MlpActor::from_bytes_any`].
+    pub fn from_state_dict(tensors: &[NamedTensor], activation: Activation) -> Result<Self, ActorError> {
+        Ok(Self::from_layers_found(&mlp_layers(tensors)?, activation))
+    }
+
+    /// The actor of a SigmaRL checkpoint (`*_policy.pth`, as `torch.save` writes it).
+    pub fn load_checkpoint(path: &Path, activation: Activation) -> Result<Self, ActorError> {
+        let tensors = crate::torch::read_state_dict(path)?;
+        Self::from_state_dict(&tensors, activation)
+    }
+
+    fn from_layers_found(found: &[Layer], activation: Activation) -> Self {
+        let layers = found
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                let act = if i + 1 < found.len() {
+                    activation
+                } else {
+                    Activation::Identity
+                };
+                Dense::new(&l.weight, &l.bias, l.inputs, l.outputs, act)
+            })
+            .collect();
+        let weights = found
+            .iter()
+            .map(|l| (l.name.clone(), [l.outputs, l.inputs]))
+            .collect();
+        Self::assemble(layers, weights)
     }
 
     /// Load an actor whose layout is read from the file itself (see

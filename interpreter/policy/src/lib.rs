@@ -1,5 +1,5 @@
 //! Policies for cpmx: SigmaRL's observation design, MLP actors of any layer sizes loaded from
-//! safetensors (SigmaRL's among them) with their output heads, policy processes in any
+//! safetensors or from SigmaRL's PyTorch checkpoints with their output heads, policy processes in any
 //! language (`process`), policies decided in the same process by another language (`external`:
 //! the Python package's callables), and built-in baselines.
 //!
@@ -34,10 +34,12 @@ pub mod actor;
 pub mod external;
 pub mod geometry;
 pub mod lane_follow;
+mod layers;
 mod memory;
 pub mod observation;
 pub mod policy;
 pub mod process;
+pub mod torch;
 
 pub use action::{ActionHead, ActionMode, ActionOutput, OutputHead};
 pub use actor::{Activation, ActorError, ActorWorkspace, MlpActor, MlpLayout};

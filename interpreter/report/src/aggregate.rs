@@ -41,6 +41,27 @@ pub struct Summary {
     pub comparison: Option<Comparison>,
     /// The transfer matrix, when the runs' policies were trained in two fidelities or more.
     pub transfer: Option<Transfer>,
+    /// The vehicle the runs drove and observed, and the footprint the metrics scored, when the
+    /// spec gives the metrics a footprint of their own (`metrics.footprint`).
+    pub vehicles: Option<VehicleNote>,
+}
+
+/// The run's vehicle and the metrics' footprint, length × width [m].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VehicleNote {
+    pub vehicle_m: [f64; 2],
+    pub footprint_m: [f64; 2],
+}
+
+impl std::fmt::Display for VehicleNote {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let [vl, vw] = self.vehicle_m;
+        let [fl, fw] = self.footprint_m;
+        write!(
+            f,
+            "Runs drive and observe a {vl} m × {vw} m vehicle; the metrics score a {fl} m × {fw} m footprint."
+        )
+    }
 }
 
 impl Summary {
@@ -188,6 +209,7 @@ pub fn summarize(experiment: &str, runs: &[RunRecord], report: &ReportSpec, orig
             report,
             units,
         ),
+        vehicles: None,
     }
 }
 

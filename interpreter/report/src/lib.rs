@@ -23,8 +23,8 @@ mod transfer;
 mod units;
 
 pub use aggregate::{
-    BootstrapIntervals, CONFIDENCE, Group, MetricSummary, Origins, Summary, axis_name, axis_value,
-    sort_by_matrix, summarize,
+    BootstrapIntervals, CONFIDENCE, Group, MetricSummary, Origins, Summary, VehicleNote, axis_name,
+    axis_value, sort_by_matrix, summarize,
 };
 pub use compare::{Comparison, FidelityComparison, PairedMetric, Signs};
 pub use metric::{Metric, Units};

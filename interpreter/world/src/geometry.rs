@@ -2,7 +2,7 @@
 //! path's road. Plain f64 geometry; no knowledge of vehicles beyond four corner points.
 
 use crate::ReferencePath;
-use crate::polyline::Point;
+use crate::polyline::{Point, point_segment_distance};
 
 /// A closed polygon as a ring of points (the last point joins the first implicitly).
 pub type Polygon = Vec<Point>;
@@ -53,6 +53,35 @@ impl ReferencePath {
             let edge = [corners[i], corners[(i + 1) % 4]];
             walls.iter().all(|w| !segments_cross(edge, *w))
         })
+    }
+
+    /// How far [m] the rectangle `corners` reaches beyond the road of this path: 0 when it lies
+    /// on the road ([`ReferencePath::footprint_on_road`]); otherwise the largest distance of a
+    /// corner outside the road from the road's outline, or of a boundary point inside the
+    /// rectangle from the rectangle's outline (at least the smallest positive number, so that
+    /// a footprint off the road is never 0 m off).
+    pub fn footprint_off_road_m(&self, corners: &[Point; 4]) -> f64 {
+        if self.footprint_on_road(corners) {
+            return 0.0;
+        }
+        let polygon = self.road_polygon();
+        let distance_to_ring = |p: Point, ring: &[Point]| {
+            (0..ring.len())
+                .map(|i| point_segment_distance(p, ring[i], ring[(i + 1) % ring.len()]).0)
+                .fold(f64::INFINITY, f64::min)
+        };
+        let corners_out = corners
+            .iter()
+            .filter(|&&c| !point_in_polygon(c, &polygon))
+            .map(|&c| distance_to_ring(c, &polygon[..]));
+        let walls_in = self
+            .left_boundary_shared
+            .points
+            .iter()
+            .chain(&self.right_boundary_shared.points)
+            .filter(|&&p| point_in_polygon(p, &corners[..]))
+            .map(|&p| distance_to_ring(p, &corners[..]));
+        corners_out.chain(walls_in).fold(f64::MIN_POSITIVE, f64::max)
     }
 }
 

@@ -535,6 +535,12 @@ impl Map {
     pub fn footprint_on_road(&self, path_id: usize, corners: &[Point; 4]) -> Option<bool> {
         Some(self.paths.get(&path_id)?.footprint_on_road(corners))
     }
+
+    /// How far [m] a footprint reaches beyond the road of reference path `path_id` (0 on the
+    /// road); `None` for an unknown path. See [`ReferencePath::footprint_off_road_m`].
+    pub fn footprint_off_road_m(&self, path_id: usize, corners: &[Point; 4]) -> Option<f64> {
+        Some(self.paths.get(&path_id)?.footprint_off_road_m(corners))
+    }
 }
 
 fn to_vecs(paths: &[&[LaneletId]]) -> Vec<Vec<LaneletId>> {

@@ -23,6 +23,13 @@ pub struct MetricsSpec {
     /// Average speed.
     #[serde(default, skip_serializing_if = "Option::is_none", rename = "as")]
     pub average_speed: Option<AsSpec>,
+    /// The vehicle whose footprint (length and width) the metrics score: collisions between
+    /// agents, lane violations. Default: the spec's `vehicle`. A run can observe and drive as
+    /// its actor was trained (`vehicle: stdlib:sigmarl-2025`) and be scored with the µCar of the
+    /// paper's Table 1 (`footprint: stdlib:mu-car`); the report's header names both.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(with = "Option<super::PresetOr<super::VehicleSpec>>")]
+    pub footprint: Option<super::VehicleSpec>,
 }
 
 /// CRA-A: agent-agent collision events per distance.

@@ -36,13 +36,13 @@ pub use parameter::{
     Distribution, DrawnFidelity, NamedParameter, NormalDistribution, Parameter, ParameterRange,
 };
 pub use policy::{
-    ActionMode, BuiltinPolicy, LaneFollowParams, MlpActivation, MlpSpec, ObservationDesign, ObservationSpec,
-    OnnxSpec, OutputHead, PolicySpec, ProcessSpec, TrainedActor, TrainedChoice,
+    ActionMode, BuiltinPolicy, CheckpointPick, LaneFollowParams, MlpActivation, MlpSpec, ObservationDesign,
+    ObservationSpec, OnnxSpec, OutputHead, PolicySpec, ProcessSpec, TrainedActor, TrainedChoice,
 };
 pub use preset::PresetOr;
 pub use start::{
-    AgentStart, ExplicitConfiguration, FromRuns, FromRunsSpec, InitialConfiguration, Pose, SampleSpec,
-    SampledStarts,
+    AgentStart, DEFAULT_OFF_ROAD_TOLERANCE_M, ExplicitConfiguration, FromPoses, FromPosesSpec, FromRuns,
+    FromRunsSpec, InitialConfiguration, Pose, SampleSpec, SampledStarts,
 };
 pub use training::{
     Activation, AlgorithmSpec, CentreLineSpec, Lookahead, MappoSpec, NearAgentsSpec, NearBoundarySpec,

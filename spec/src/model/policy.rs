@@ -49,9 +49,9 @@ pub struct PolicySpec {
     pub lane_follow: Option<LaneFollowParams>,
 }
 
-/// A multi-layer perceptron actor stored as safetensors, its layer sizes read from the file:
-/// a file (`weights`) or the actor this spec's `training:` section trains (`trained`).
-/// Exactly one of the two is given.
+/// A multi-layer perceptron actor, its layer sizes read from the file: a safetensors file
+/// (`weights`), the actor this spec's `training:` section trains (`trained`), or a SigmaRL
+/// checkpoint as SigmaRL writes it (`sigmarl`). Exactly one of the three is given.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MlpSpec {
@@ -68,6 +68,21 @@ pub struct MlpSpec {
     /// in the current directory, where `cpmx train` writes by default.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub trained: Option<TrainedActor>,
+    /// A SigmaRL checkpoint as SigmaRL writes it: a `*_policy.pth` file (PyTorch's
+    /// `torch.save` of the actor's state dict), or a folder of one training run, from which
+    /// `pick` takes the actor. Relative to the spec's folder or found on the data path (e.g.
+    /// `paper-at25/seed1` in SigmaRL's reference data). The observation the actor was trained
+    /// with comes from the checkpoint's `*_data.json` (its `parameters`); the policy gives no
+    /// `observation:` of its own. Read in Rust: no Python at run time.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(length(min = 1))]
+    pub sigmarl: Option<String>,
+    /// Which actor of a SigmaRL checkpoint folder (`sigmarl: DIR`): `best` (the default:
+    /// `reward<r>_policy.pth`, the actor SigmaRL saved at its best mean episode reward, the
+    /// highest `r` if there are several) or `final` (`final_policy.pth`, after the last
+    /// iteration). Not for a `.pth` file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pick: Option<CheckpointPick>,
     /// SHA-256 of the weight file's bytes (64 hex digits). When given, only a file with this
     /// content is taken: the data path is searched for one. `cpmx run` records it in the run
     /// folder's `spec.resolved.yaml`.
@@ -187,6 +202,27 @@ pub struct TrainedActor {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(length(min = 1))]
     pub point: Option<String>,
+}
+
+/// Which actor of a SigmaRL checkpoint folder.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum CheckpointPick {
+    /// `reward<r>_policy.pth`: the actor at the best mean episode reward (SigmaRL's rule).
+    #[default]
+    Best,
+    /// `final_policy.pth`: the actor after the last iteration.
+    Final,
+}
+
+impl CheckpointPick {
+    /// As the spec writes it.
+    pub fn label(self) -> &'static str {
+        match self {
+            CheckpointPick::Best => "best",
+            CheckpointPick::Final => "final",
+        }
+    }
 }
 
 /// Which of a training run's actors.

@@ -1,4 +1,5 @@
-//! Initial configurations: explicit starts, sampled starts, or measured starts of recorded runs.
+//! Initial configurations: explicit starts, sampled starts, measured starts of recorded runs, or
+//! measured start poses listed per run in a CSV file (the lab's, as the paper published them).
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -14,6 +15,20 @@ pub enum InitialConfiguration {
     Sampled(SampledStarts),
     /// Measured initial poses of recorded runs.
     FromRuns(FromRuns),
+    /// Measured start poses per run from a CSV file.
+    FromPoses(FromPoses),
+}
+
+/// The default of `off_road_tolerance_m`: how far a start's footprint may reach beyond the
+/// road and still be run (with a warning).
+pub const DEFAULT_OFF_ROAD_TOLERANCE_M: f64 = 0.02;
+
+fn default_off_road_tolerance_m() -> f64 {
+    DEFAULT_OFF_ROAD_TOLERANCE_M
+}
+
+fn is_default_off_road_tolerance(value: &f64) -> bool {
+    *value == DEFAULT_OFF_ROAD_TOLERANCE_M
 }
 
 /// Starts given agent by agent.
@@ -26,6 +41,15 @@ pub struct ExplicitConfiguration {
     /// One entry per agent; as many as `agents`.
     #[schemars(length(min = 1))]
     pub agents: Vec<AgentStart>,
+    /// How far [m] a start's footprint may reach beyond its path's road and still be run,
+    /// with a warning that gives the distance; farther is an error. Default: 0.02 (measured
+    /// poses of the lab's indoor positioning lie up to about a centimetre beside the truth).
+    #[serde(
+        default = "default_off_road_tolerance_m",
+        skip_serializing_if = "is_default_off_road_tolerance"
+    )]
+    #[schemars(range(min = 0.0, max = 1.0))]
+    pub off_road_tolerance_m: f64,
 }
 
 /// Where one agent starts. Either `arc_length` on its reference path, or a `pose`.
@@ -116,4 +140,48 @@ pub struct FromRunsSpec {
     pub dir: String,
     /// The fidelity of the runs to take (e.g. `lab`).
     pub fidelity: String,
+}
+
+/// `from_poses: {...}`: start poses measured per run, from a CSV file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FromPoses {
+    /// Which file, and how its rows name runs.
+    pub from_poses: FromPosesSpec,
+}
+
+/// A CSV file of measured start poses, a row per run: the row's policy label, initial
+/// configuration and repetition, then each vehicle's pose and reference path. Its header names
+/// the columns: either `policy`, `initial_configuration`, `repetition`, or (as the paper's
+/// `poses.csv`) a `file` column whose value ends in `<label>/<configuration>-<repetition>`
+/// plus an extension (`results/physical_lab/seed1/init2-3.td`: label `seed1`, configuration
+/// `init2`, repetition 3); `v<k>_x`, `v<k>_y` [m] and `v<k>_theta` (or `v<k>_yaw`) [rad] for
+/// vehicles `k = 1..agents` in the map's frame; `ref_path_ids`, the vehicles' reference paths
+/// separated by `|`. Each configuration the file names becomes an initial configuration of the
+/// matrix, and each run of it starts from its own row: the same in every fidelity (paired).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FromPosesSpec {
+    /// The CSV file, relative to the spec's folder or found on the data path (e.g.
+    /// `paper-at25/poses.csv` of SigmaRL's reference data).
+    #[schemars(length(min = 1))]
+    pub file: String,
+    /// SHA-256 of the file's bytes (64 hex digits). When given, only a file with this content
+    /// is taken: the data path is searched for one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(regex(pattern = r"^[0-9a-f]{64}$"))]
+    pub sha256: Option<String>,
+    /// The spec's policy that started from the rows of each label of the file, e.g. `{seed1:
+    /// paper-seed1}`. Default: a label is the name of a policy. Every policy of the spec
+    /// needs rows for every configuration and repetition; rows of other labels are left out.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub policies: std::collections::BTreeMap<String, String>,
+    /// How far [m] a start's footprint may reach beyond its path's road and still be run,
+    /// with a warning that gives the distance; farther is an error. Default: 0.02.
+    #[serde(
+        default = "default_off_road_tolerance_m",
+        skip_serializing_if = "is_default_off_road_tolerance"
+    )]
+    #[schemars(range(min = 0.0, max = 1.0))]
+    pub off_road_tolerance_m: f64,
 }

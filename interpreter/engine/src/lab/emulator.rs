@@ -312,7 +312,7 @@ impl<'a> Emulator<'a> {
                         .strip_prefix(self.lab_name.as_str())
                         .is_some_and(|point| point.starts_with('@'))
             })
-            .and_then(|p| Some((p, self.experiment.start(&p.initial_configuration)?)));
+            .and_then(|p| Some((p, self.experiment.start(p)?)));
         match found {
             Some((plan, starts)) => EmulatedRun {
                 name: plan.key.clone(),
@@ -324,7 +324,7 @@ impl<'a> Emulator<'a> {
                 EmulatedRun {
                     name: name.clone(),
                     seed: self.experiment.spec.seed,
-                    starts: starts.clone(),
+                    starts: starts.any().unwrap_or_default().to_vec(),
                 }
             }
         }

@@ -19,7 +19,7 @@ pub fn render(summary: &Summary) -> String {
         .iter()
         .map(|s| serde_json::to_value(s).unwrap_or(Value::Null))
         .collect();
-    let document = json!({
+    let mut document = json!({
         "experiment": summary.experiment,
         "units": super::units_note(summary),
         "group_by": summary.group_by.iter().map(|&a| axis_name(a)).collect::<Vec<_>>(),
@@ -42,6 +42,10 @@ pub fn render(summary: &Summary) -> String {
         "comparison": summary.comparison.as_ref().map(comparison),
         "transfer": summary.transfer.as_ref().map(transfer),
     });
+    if let Some(v) = &summary.vehicles {
+        document["vehicle_m"] = json!(v.vehicle_m);
+        document["footprint_m"] = json!(v.footprint_m);
+    }
     let mut text = serde_json::to_string_pretty(&document).unwrap_or_default();
     text.push('\n');
     text

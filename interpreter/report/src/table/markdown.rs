@@ -17,6 +17,9 @@ use crate::{Group, Summary};
 /// The whole Markdown summary.
 pub fn render(summary: &Summary) -> String {
     let mut out = format!("# {}\n\n", summary.experiment);
+    if let Some(vehicles) = &summary.vehicles {
+        let _ = writeln!(out, "{vehicles}\n");
+    }
     main_table(&mut out, summary);
     if summary.shows(Statistic::Ci95) || summary.shows(Statistic::Bootstrap) {
         interval_table(&mut out, summary);
