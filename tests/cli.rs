@@ -29,7 +29,7 @@ fn shipped_specs() -> Vec<String> {
 
 #[test]
 fn every_shipped_spec_validates_and_names_the_schema() {
-    reference(); // experiments/at25.yaml reads the CPM Lab map and SigmaRL's actors
+    reference(); // experiments/at25-cpmx.yaml reads the CPM Lab map and SigmaRL's actors
     let specs = shipped_specs();
     assert!(specs.len() >= 3);
     let mut args = vec!["validate"];
@@ -48,7 +48,7 @@ fn every_shipped_spec_validates_and_names_the_schema() {
 #[test]
 fn the_papers_design_plans_81_paired_runs() {
     reference();
-    let out = cpmx(&["plan", "experiments/at25.yaml", "--format", "json"]);
+    let out = cpmx(&["plan", "experiments/at25-cpmx.yaml", "--format", "json"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let plan: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let runs = plan["runs"].as_array().unwrap();

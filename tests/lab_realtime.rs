@@ -216,7 +216,7 @@ metrics: stdlib:at25
 
 /// at25 with a lab fidelity for its three cars, `repetitions` per configuration.
 fn at25_with_a_lab(repetitions: usize) -> String {
-    let at25 = common::read(&root().join("experiments/at25.yaml"));
+    let at25 = common::read(&root().join("experiments/at25-cpmx.yaml"));
     let at25 = at25
         .replace(
             "  sim:     {control: direct, dynamics: kinematic}",
@@ -230,7 +230,7 @@ fn at25_with_a_lab(repetitions: usize) -> String {
             "dir: policies/at25",
             &format!("dir: {}", root().join("experiments/policies/at25").display()),
         );
-    assert!(at25.contains("driver: cpm-dds"), "at25.yaml changed: {at25}");
+    assert!(at25.contains("driver: cpm-dds"), "at25-cpmx.yaml changed: {at25}");
     at25
 }
 
@@ -264,7 +264,7 @@ fn every_at25_lab_run_in_real_time_misses_no_lead_time() {
 
 fn at25(dir: &Path, deadline: Instant, repetitions: usize, only: &[&str]) {
     cpmx_testdata::reference();
-    let spec = dir.join("at25.yaml");
+    let spec = dir.join("at25-cpmx.yaml");
     std::fs::write(&spec, at25_with_a_lab(repetitions)).expect("spec");
     let runs = if only.is_empty() {
         9 * repetitions

@@ -24,7 +24,7 @@ fn export(weights: &Path, to: &Path, style: LinearStyle) {
 
 /// The at25 experiment's sim fidelity, with `policies` instead of its own.
 fn at25_sim(policies: &str) -> String {
-    let at25 = std::fs::read_to_string(root().join("experiments/at25.yaml")).unwrap();
+    let at25 = std::fs::read_to_string(root().join("experiments/at25-cpmx.yaml")).unwrap();
     let start = at25.find("policies:\n").unwrap();
     let end = at25.find("initial_configurations:\n").unwrap();
     let fidelities = at25.find("fidelities:\n").unwrap();

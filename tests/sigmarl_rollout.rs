@@ -49,7 +49,7 @@ fn cpmx_reproduces_sigmarls_rollout() {
     .unwrap_or_else(|d| panic!("{}", cpmx_spec::render(&d, false)));
     let experiment = Experiment::prepare(&checked).unwrap();
     let plan = &checked.plan()[0];
-    let starts = experiment.start("rollout").unwrap();
+    let starts = experiment.start(plan).unwrap();
     let recording = SimEngine
         .run(&RunInputs {
             experiment: &experiment,

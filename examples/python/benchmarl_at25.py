@@ -1,7 +1,7 @@
 """From a Python trainer to the paper's Table 2: BenchMARL's MAPPO on at25's scenario in the twin.
 
 1. trains BenchMARL's MAPPO (its default configuration) on the training scenario of
-   ``experiments/at25.yaml`` in the spec's ``twin`` fidelity, through ``cpmx.benchmarl``;
+   ``experiments/at25-cpmx.yaml`` in the spec's ``twin`` fidelity, through ``cpmx.benchmarl``;
 2. writes the trained actor as safetensors in the layout ``mlp: {weights}`` reads (BenchMARL's
    MLP with its TanhNormal head is SigmaRL's actor: 4 raw outputs, locations then pre-scales);
 3. evaluates it zero-shot with ``cpmx.run`` in at25's fidelities (sim, sim-mpc, twin) and
@@ -32,7 +32,7 @@ from benchmarl.models.mlp import MlpConfig
 from cpmx.benchmarl import CpmxTask
 
 REPOSITORY = Path(__file__).resolve().parents[2]
-AT25 = REPOSITORY / "experiments" / "at25.yaml"
+AT25 = REPOSITORY / "experiments" / "at25-cpmx.yaml"
 
 
 def train(data: str, frames: int, out: Path, quick: bool) -> Experiment:

@@ -4,7 +4,7 @@
 # the one training folder on the shared filesystem. The folder is then the folder one
 # unsharded `cpmx train` gives, and the spec's `mlp: {trained}` policies find their actors in it.
 #
-#   sbatch --array=1-6 examples/slurm/train-array-job.sh experiments/at25.yaml out/at25-train
+#   sbatch --array=1-6 examples/slurm/train-array-job.sh experiments/at25-cpmx.yaml out/at25-train
 #   # requeued or preempted tasks continue where they stopped (--resume); add
 #   # --open-mode=append to keep the log of the first attempt
 #

@@ -116,7 +116,7 @@ def benchmarl_collection(task: object, seconds: float) -> float:
 def main() -> None:
     """Measure and print the table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--spec", default="experiments/at25.yaml")
+    parser.add_argument("--spec", default="experiments/at25-cpmx.yaml")
     parser.add_argument("--data", required=True, help="the folder with maps/cpm.xml")
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--skip-benchmarl", action="store_true")

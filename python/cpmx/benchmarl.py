@@ -12,7 +12,7 @@ Example::
     from benchmarl.models.mlp import MlpConfig
     from cpmx.benchmarl import CpmxTask
 
-    task = CpmxTask.from_spec("experiments/at25.yaml", fidelity="twin", data="path/to/reference")
+    task = CpmxTask.from_spec("experiments/at25-cpmx.yaml", fidelity="twin", data="path/to/reference")
     experiment = Experiment(
         task=task,
         algorithm_config=MappoConfig.get_from_yaml(),

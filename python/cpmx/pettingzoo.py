@@ -9,7 +9,7 @@ Example::
 
     import cpmx.pettingzoo
 
-    env = cpmx.pettingzoo.parallel_env("experiments/at25.yaml", fidelity="twin",
+    env = cpmx.pettingzoo.parallel_env("experiments/at25-cpmx.yaml", fidelity="twin",
                                        render_mode="rgb_array")
     observations, infos = env.reset(seed=1)
     while env.agents:

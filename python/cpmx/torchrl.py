@@ -18,7 +18,7 @@ Example::
     from torchrl.envs.utils import check_env_specs
     from cpmx.torchrl import CpmxEnv
 
-    env = CpmxEnv("experiments/at25.yaml", fidelity="twin", num_envs=32, seed=0)
+    env = CpmxEnv("experiments/at25-cpmx.yaml", fidelity="twin", num_envs=32, seed=0)
     check_env_specs(env)
     rollout = env.rollout(100)
 """

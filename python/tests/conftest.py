@@ -28,4 +28,4 @@ def reference() -> Path:
 @pytest.fixture(scope="session")
 def at25() -> Path:
     """The paper's benchmark spec."""
-    return REPOSITORY / "experiments" / "at25.yaml"
+    return REPOSITORY / "experiments" / "at25-cpmx.yaml"

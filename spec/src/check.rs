@@ -162,7 +162,12 @@ fn fidelity_is_deterministic(fidelity: &Fidelity) -> bool {
 /// Warns when repetitions of a deterministic fidelity and policy would be copies of each
 /// other (they are counted once in the statistics, so running them only costs time).
 fn check_repetitions(spec: &Spec, ctx: &mut CheckContext<'_>) {
-    if spec.repetitions < 2 {
+    // Measured starts per run make every repetition start elsewhere.
+    let per_run_starts = spec
+        .initial_configurations
+        .iter()
+        .all(|c| matches!(c, InitialConfiguration::FromPoses(_)));
+    if spec.repetitions < 2 || per_run_starts {
         return;
     }
     let deterministic_policies: Vec<&str> = spec

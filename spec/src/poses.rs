@@ -313,6 +313,10 @@ mod tests {
             ),
             (
                 "file,v1_x,v1_y,ref_path_ids\n",
+                "line 1: vehicle 1 needs the columns `v1_x`, `v1_y` and `v1_theta`",
+            ),
+            (
+                "file,x,ref_path_ids\n",
                 "line 1: the header has no pose columns (`v1_x`, `v1_y`, `v1_theta`, ...)",
             ),
             (

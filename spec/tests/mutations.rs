@@ -16,7 +16,7 @@ impl InterpreterChecks for NoInterpreter {
     fn check(&self, _: &Spec, _: &Resources, _: &mut CheckContext<'_>) {}
 }
 
-const VALID: &str = include_str!("../../experiments/at25.yaml");
+const VALID: &str = include_str!("../../experiments/at25-cpmx.yaml");
 
 fn check(text: String) {
     let source = SpecSource {

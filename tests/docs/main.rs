@@ -549,7 +549,7 @@ fn placeholders_make_a_synopsis() {
     for word in [
         "--out",
         "seed=1,3",
-        "experiments/at25.yaml",
+        "experiments/at25-cpmx.yaml",
         "fidelity=sim-mpc",
         "run",
         "1",

@@ -3,7 +3,7 @@
 //!
 //! - `sim/paper_seed1_init1`: one run of the reference actor on the CPM Lab map, 3 agents,
 //!   180 steps; throughput in agent-steps (the target: 100,000 agent-steps/s on one core);
-//! - `sim/paper_27_runs`: all 27 `sim` runs of the paper's benchmark `experiments/at25.yaml`
+//! - `sim/paper_27_runs`: all 27 `sim` runs of the paper's benchmark `experiments/at25-cpmx.yaml`
 //!   (3 actors x 3 configurations x 3 repetitions), one after the other on one thread.
 //!
 //! Needs SigmaRL's reference data at `../shared/reference` next to the repository.
@@ -89,8 +89,8 @@ fn sim_throughput(c: &mut Criterion) {
 
     // The paper design's 27 sim runs, sequentially.
     let experiments = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../experiments");
-    let text = std::fs::read_to_string(experiments.join("at25.yaml")).expect("the paper's benchmark");
-    let checked = check("at25.yaml", &experiments, text);
+    let text = std::fs::read_to_string(experiments.join("at25-cpmx.yaml")).expect("the paper's benchmark");
+    let checked = check("at25-cpmx.yaml", &experiments, text);
     let experiment = Experiment::prepare(&checked).expect("the experiment");
     let plans: Vec<RunPlan> = checked
         .plan()

@@ -1,5 +1,5 @@
 //! Where the time of a run goes, stage by stage (`cargo bench -p cpmx-engine --bench stages`),
-//! on the first twin run and the first sim run of the paper's benchmark `experiments/at25.yaml`
+//! on the first twin run and the first sim run of the paper's benchmark `experiments/at25-cpmx.yaml`
 //! (3 agents x 18 s):
 //!
 //! - `stages/twin_run`, `stages/sim_run`: the engine alone (policy, planner, follower, plant,
@@ -24,9 +24,9 @@ use criterion::{Criterion, criterion_group, criterion_main};
 fn at25() -> CheckedSpec {
     let experiments = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../experiments");
     let source = SpecSource {
-        name: "at25.yaml".into(),
+        name: "at25-cpmx.yaml".into(),
         dir: experiments.clone(),
-        text: std::fs::read_to_string(experiments.join("at25.yaml")).expect("the paper's benchmark"),
+        text: std::fs::read_to_string(experiments.join("at25-cpmx.yaml")).expect("the paper's benchmark"),
     };
     // As `cpmx run --data ../shared/reference`: the spec's folder (its trained actors) first.
     let data = [cpmx_testdata::reference()];

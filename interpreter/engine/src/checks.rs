@@ -76,6 +76,11 @@ fn check_weights(spec: &Spec, resources: &Resources, ctx: &mut CheckContext<'_>)
         let Err(e) = load_network(mlp, &obs, path) else {
             continue;
         };
+        let file_key = match (&mlp.sigmarl, &mlp.trained) {
+            (Some(_), _) => "sigmarl",
+            (None, Some(_)) => "trained",
+            (None, None) => "weights",
+        };
         let (pointer, help) = match &e {
             ActorError::InputSize { observation, .. } => (
                 format!("/policies/{i}/observation"),
@@ -84,26 +89,30 @@ fn check_weights(spec: &Spec, resources: &Resources, ctx: &mut CheckContext<'_>)
                 ),
             ),
             ActorError::OutputSize { expected, .. } => (
-                format!("/policies/{i}/mlp/weights"),
+                format!("/policies/{i}/mlp/{file_key}"),
                 format!(
                     "declare the head the network was trained with: `output: sigmarl-tanh-normal` reads 4 outputs, \
                      `deterministic-tanh` and `deterministic-clip` read 2 (this one reads {expected})"
                 ),
             ),
             ActorError::Chain { .. } | ActorError::Rank { .. } => (
-                format!("/policies/{i}/mlp/weights"),
+                format!("/policies/{i}/mlp/{file_key}"),
                 "each `PREFIX.N.weight` must be [outputs, inputs] with inputs equal to the previous layer's outputs; export the actor's state_dict again".to_owned(),
             ),
             ActorError::NoLayers { .. } | ActorError::AmbiguousPrefix { .. } | ActorError::MissingTensor { .. } => (
-                format!("/policies/{i}/mlp/weights"),
+                format!("/policies/{i}/mlp/{file_key}"),
                 "name the layers `PREFIX.N.weight` and `PREFIX.N.bias` (the state_dict of a torch nn.Sequential), one network per file".to_owned(),
             ),
             ActorError::Dtype { .. } => (
-                format!("/policies/{i}/mlp/weights"),
+                format!("/policies/{i}/mlp/{file_key}"),
                 "store the tensors as float32".to_owned(),
             ),
+            ActorError::Checkpoint(_) => (
+                format!("/policies/{i}/mlp/{file_key}"),
+                "name the checkpoint as SigmaRL's training saved it (torch.save's archive); a truncated or re-packed copy does not read".to_owned(),
+            ),
             _ => (
-                format!("/policies/{i}/mlp/weights"),
+                format!("/policies/{i}/mlp/{file_key}"),
                 "is this a safetensors file? (`safetensors.torch.save_file(actor.state_dict(), ...)` writes one)".to_owned(),
             ),
         };
