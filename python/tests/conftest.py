@@ -21,11 +21,11 @@ SOURCE = (
 def reference() -> Path:
     """SigmaRL's reference data (the CPM Lab map, the reference actors)."""
     if not (REFERENCE / "maps").is_dir():
-        pytest.fail(f"needs SigmaRL's reference data at {REFERENCE} ({SOURCE}): not found")
+        pytest.fail(f"needs SigmaRL's reference data at {REFERENCE} ({SOURCE}): not found", pytrace=False)
     return REFERENCE
 
 
 @pytest.fixture(scope="session")
 def at25() -> Path:
-    """The paper's benchmark spec."""
+    """The paper's benchmark design with cpmx's own actors and training section."""
     return REPOSITORY / "experiments" / "at25-cpmx.yaml"

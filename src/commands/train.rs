@@ -253,12 +253,18 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
                 run.best_reward()
             );
             if bar.is_hidden() {
-                if record.iteration.is_multiple_of(10) || record.iteration == run.planned() {
+                // No terminal (a Slurm log, a pipe): a line per iteration once an iteration takes
+                // a second or more, else every tenth, so that no stretch is silent for long.
+                let iteration_s = record.collect_seconds + record.update_seconds;
+                if iteration_s >= 1.0
+                    || record.iteration.is_multiple_of(10)
+                    || record.iteration == run.planned()
+                {
                     eprintln!(
                         "  iteration {}/{}: {message}  ({:.2} s)",
                         record.iteration,
                         run.planned(),
-                        record.collect_seconds + record.update_seconds
+                        iteration_s
                     );
                 }
             } else {
