@@ -392,6 +392,9 @@ fn repaired_for_meaning(
                 .rsplit_once('/')
                 .is_some_and(|(p, _)| p.ends_with("/sweep")) => {}
             _ if schema::has_default(pointer) => move_member(&mut repaired, pointer, None),
+            // A wrong item of a list whose key has a default (`group_by: [fidelity, polcy]`):
+            // the default list stands in.
+            _ if schema::has_default(list_of(pointer)) => move_member(&mut repaired, list_of(pointer), None),
             _ => return None,
         }
     }
@@ -400,6 +403,15 @@ fn repaired_for_meaning(
         spans: Default::default(),
     };
     (!schema::validate(&clean).iter().any(|p| p.level == Level::Error)).then_some(clean.value)
+}
+
+/// The pointer of the list an item's pointer is in (`/report/group_by` of `/report/group_by/1`),
+/// or the pointer itself when it is not a list item.
+fn list_of(pointer: &str) -> &str {
+    match pointer.rsplit_once('/') {
+        Some((list, index)) if !index.is_empty() && index.bytes().all(|b| b.is_ascii_digit()) => list,
+        _ => pointer,
+    }
 }
 
 /// Moves the member at JSON pointer `pointer` to key `to` of the same mapping when that key is

@@ -378,12 +378,21 @@ fn constants_of_every_branch(
 ) -> Option<Vec<String>> {
     context
         .iter()
-        .map(|errors| match errors.as_slice() {
-            [e] if e.instance_path().as_str() == pointer => match e.kind() {
-                ValidationErrorKind::Constant { expected_value } => Some(plain(expected_value)),
-                _ => None,
-            },
-            _ => None,
+        .map(|errors| {
+            // A branch's constant, with or without its type's complaint (`on_collision: 5`
+            // is neither a text nor `continue`).
+            let mut constant = None;
+            for e in errors {
+                match e.kind() {
+                    _ if e.instance_path().as_str() != pointer => return None,
+                    ValidationErrorKind::Constant { expected_value } if constant.is_none() => {
+                        constant = Some(plain(expected_value));
+                    }
+                    ValidationErrorKind::Type { .. } => {}
+                    _ => return None,
+                }
+            }
+            constant
         })
         .collect::<Option<Vec<String>>>()
         .filter(|names| names.len() > 1)

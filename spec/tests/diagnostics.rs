@@ -394,6 +394,29 @@ fn a_wrong_value_of_a_key_with_a_default_does_not_hide_the_problems_of_meaning()
 }
 
 #[test]
+fn a_wrong_item_of_a_list_with_a_default_does_not_hide_the_problems_of_meaning() {
+    // A misspelt `group_by` entry: the default grouping stands in, and the unknown reference
+    // fidelity of `compare` is said in the same pass.
+    let text = format!(
+        "{VALID}report: {{group_by: [fidelity, polcy], compare: {{reference: simm, test: paired}}}}\n"
+    );
+    assert_eq!(
+        codes(&text),
+        ["cpmx::schema::choice", "cpmx::check::reference"]
+    );
+}
+
+#[test]
+fn a_number_where_a_choice_belongs_names_every_choice() {
+    let problems = check(&edit("seed: 5\n", "seed: 5\non_collision: 5\n")).unwrap_err();
+    let messages: Vec<&str> = problems.iter().map(|p| p.problem.message.as_str()).collect();
+    assert_eq!(
+        messages,
+        ["`on_collision` must be one of continue, reset-agent, end-run"]
+    );
+}
+
+#[test]
 fn a_wrong_value_without_a_default_stops_before_the_checks_of_meaning() {
     // Without the key the checks of meaning would say more about its absence than the spec's
     // other problems: the schema's error is said alone.
