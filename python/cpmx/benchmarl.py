@@ -12,7 +12,9 @@ Example::
     from benchmarl.models.mlp import MlpConfig
     from cpmx.benchmarl import CpmxTask
 
-    task = CpmxTask.from_spec("experiments/at25-cpmx.yaml", fidelity="twin", data="path/to/reference")
+    task = CpmxTask.from_spec(
+        "experiments/at25-cpmx.yaml", fidelity="twin", data="path/to/reference"
+    )
     experiment = Experiment(
         task=task,
         algorithm_config=MappoConfig.get_from_yaml(),
@@ -33,9 +35,14 @@ import os
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from benchmarl.environments.common import TaskClass
-from torchrl.data import Composite
-from torchrl.envs import EnvBase
+from cpmx._extras import missing_extra
+
+try:
+    from benchmarl.environments.common import TaskClass
+    from torchrl.data import Composite
+    from torchrl.envs import EnvBase
+except ModuleNotFoundError as error:  # the adapter's host library is an extra
+    raise missing_extra("cpmx.benchmarl", "benchmarl", error) from error
 
 from cpmx.torchrl import CpmxEnv
 

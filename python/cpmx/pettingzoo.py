@@ -25,8 +25,14 @@ from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
-from gymnasium import spaces
-from pettingzoo import ParallelEnv
+
+from cpmx._extras import missing_extra
+
+try:
+    from gymnasium import spaces
+    from pettingzoo import ParallelEnv
+except ModuleNotFoundError as error:  # the adapter's host library is an extra
+    raise missing_extra("cpmx.pettingzoo", "pettingzoo", error) from error
 
 from cpmx._cpmx import VecEnv
 

@@ -29,10 +29,16 @@ import os
 from collections.abc import Sequence
 
 import numpy as np
-import torch
-from tensordict import TensorDict, TensorDictBase
-from torchrl.data import Bounded, Categorical, Composite, Unbounded
-from torchrl.envs import EnvBase
+
+from cpmx._extras import missing_extra
+
+try:
+    import torch
+    from tensordict import TensorDict, TensorDictBase
+    from torchrl.data import Bounded, Categorical, Composite, Unbounded
+    from torchrl.envs import EnvBase
+except ModuleNotFoundError as error:  # the adapter's host library is an extra
+    raise missing_extra("cpmx.torchrl", "torchrl", error) from error
 
 from cpmx._cpmx import VecEnv
 

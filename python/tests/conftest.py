@@ -21,7 +21,9 @@ SOURCE = (
 def reference() -> Path:
     """SigmaRL's reference data (the CPM Lab map, the reference actors)."""
     if not (REFERENCE / "maps").is_dir():
-        pytest.fail(f"needs SigmaRL's reference data at {REFERENCE} ({SOURCE}): not found", pytrace=False)
+        pytest.fail(
+            f"needs SigmaRL's reference data at {REFERENCE} ({SOURCE}): not found", pytrace=False
+        )
     return REFERENCE
 
 

@@ -132,3 +132,33 @@ def test_bad_input_raises_with_the_diagnostic(tmp_path, at25, reference):
     assert "bad.yaml:" in text and "remove the quotes" in text
     with pytest.raises(cpmx.CpmxError, match="no such fidelity"):
         cpmx.VecEnv(at25, fidelity="nowhere", data=reference)
+
+
+def test_a_missing_map_says_how_python_adds_a_data_folder(tmp_path, monkeypatch, at25):
+    monkeypatch.delenv("CPMX_DATA", raising=False)
+    spec = tmp_path / "at25.yaml"
+    spec.write_text(at25.read_text())
+    with pytest.raises(cpmx.CpmxError) as error:
+        cpmx.VecEnv(spec)
+    message = str(error.value)
+    assert "map file `maps/cpm.xml` was not found" in message
+    assert "name its folder with `data=` or `CPMX_DATA`" in message
+    assert "--data" not in message
+
+
+@pytest.mark.parametrize(
+    ("adapter", "library"),
+    [("cpmx.torchrl", "torch"), ("cpmx.pettingzoo", "pettingzoo"), ("cpmx.benchmarl", "benchmarl")],
+)
+def test_an_adapter_without_its_library_says_which_extra_installs_it(monkeypatch, adapter, library):
+    import importlib
+    import sys
+
+    for name in [m for m in sys.modules if m == adapter or m.startswith("cpmx.torchrl")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, library, None)  # `import library` now fails
+    with pytest.raises(ModuleNotFoundError) as error:
+        importlib.import_module(adapter)
+    message = str(error.value)
+    assert f"{adapter} needs the module `{library}`, which is not installed" in message
+    assert f"pip install './python[{adapter.split('.')[1]}]'" in message

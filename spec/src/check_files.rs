@@ -10,7 +10,7 @@ use crate::model::{InitialConfiguration, MapSpec, Spec};
 use crate::paths::{DataPath, NotFound};
 
 /// A problem for a file that is on none of the data path's folders.
-pub(crate) fn missing_file(what: &str, file: &str, tried: &[PathBuf], span: ByteSpan) -> Problem {
+pub(crate) fn missing_file(what: &str, file: &str, tried: &[PathBuf], option: &str, span: ByteSpan) -> Problem {
     let places: Vec<String> = tried.iter().map(|p| format!("  {}", p.display())).collect();
     Problem::error(
         "cpmx::check::missing-file",
@@ -19,7 +19,7 @@ pub(crate) fn missing_file(what: &str, file: &str, tried: &[PathBuf], span: Byte
         "not found",
     )
     .with_help(format!(
-        "looked in:\n{}\nput it next to the spec, or name its folder with `--data DIR` or `CPMX_DATA`",
+        "looked in:\n{}\nput it next to the spec, or name its folder with {option} or `CPMX_DATA`",
         places.join("\n")
     ))
 }
@@ -30,10 +30,11 @@ pub(crate) fn missing_pinned(
     file: &str,
     sha256: Option<&str>,
     missing: &NotFound,
+    option: &str,
     span: ByteSpan,
 ) -> Problem {
     let Some(expected) = sha256.filter(|_| !missing.other_content.is_empty()) else {
-        let mut problem = missing_file(what, file, &missing.tried, span);
+        let mut problem = missing_file(what, file, &missing.tried, option, span);
         if let Some(expected) = sha256 {
             problem.message = format!("{what} `{file}` (sha256 {}…) was not found", &expected[..12]);
         }
@@ -51,7 +52,7 @@ pub(crate) fn missing_pinned(
         "pinned to other content",
     )
     .with_help(format!(
-        "found only other versions:\n{}\nname the folder of the pinned version with `--data DIR`, or remove \
+        "found only other versions:\n{}\nname the folder of the pinned version with {option}, or remove \
          `sha256` to take any",
         others.join("\n")
     ))
@@ -90,6 +91,7 @@ pub(crate) fn find_files(
                     &map.file,
                     map.sha256.as_deref(),
                     &missing,
+                    data.option,
                     span,
                 ));
             }
@@ -111,6 +113,7 @@ pub(crate) fn find_files(
                             weights,
                             mlp.sha256.as_deref(),
                             &missing,
+                            data.option,
                             span,
                         ));
                         None
@@ -136,6 +139,7 @@ pub(crate) fn find_files(
                             &onnx.file,
                             onnx.sha256.as_deref(),
                             &missing,
+                            data.option,
                             span,
                         ));
                         None
@@ -196,7 +200,7 @@ pub(crate) fn find_files(
                 }
                 Err(tried) => {
                     let span = ctx.span(&format!("/initial_configurations/{i}/from_runs/dir"));
-                    ctx.push(missing_file("run folder", &f.from_runs.dir, &tried, span));
+                    ctx.push(missing_file("run folder", &f.from_runs.dir, &tried, data.option, span));
                     None
                 }
             },

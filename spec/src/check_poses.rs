@@ -30,6 +30,7 @@ pub(crate) fn find_poses(
                 &from.file,
                 from.sha256.as_deref(),
                 &missing,
+                data.option,
                 span,
             ));
             return None;

@@ -37,6 +37,10 @@ pub use diagnostic::{ByteSpan, Level, Problem, SpecDiagnostic, render};
 pub use matrix::{ConfigurationSource, NamedConfiguration, RunPlan, TrainingPlan};
 pub use model::Spec;
 pub use paths::{DataPath, NotFound, sha256_hex};
+/// How callers add a data folder, as help lines name it.
+pub mod data_option {
+    pub use crate::paths::{COMMAND_LINE, PYTHON};
+}
 pub use resolve::STDLIB_PREFIX;
 pub use yaml::{NodeSpans, SpannedDocument};
 

@@ -10,9 +10,26 @@
 use std::path::{Path, PathBuf};
 
 /// The folders a relative file is looked up in, in order.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct DataPath {
     pub folders: Vec<PathBuf>,
+    /// How the caller adds a folder, as help lines name it: [`COMMAND_LINE`] (`--data DIR`) or
+    /// [`PYTHON`] (`data=`).
+    pub option: &'static str,
+}
+
+/// The command line's way to add a data folder.
+pub const COMMAND_LINE: &str = "`--data DIR`";
+/// Python's way (`cpmx.VecEnv(spec, data=...)`, `cpmx.run(spec, data=...)`).
+pub const PYTHON: &str = "`data=`";
+
+impl Default for DataPath {
+    fn default() -> Self {
+        Self {
+            folders: Vec::new(),
+            option: COMMAND_LINE,
+        }
+    }
 }
 
 impl DataPath {
@@ -23,7 +40,15 @@ impl DataPath {
         if let Some(var) = cpmx_data {
             folders.extend(var.split(':').filter(|s| !s.is_empty()).map(PathBuf::from));
         }
-        Self { folders }
+        Self {
+            folders,
+            option: COMMAND_LINE,
+        }
+    }
+
+    /// The same data path, its help lines naming `option` as the way to add a folder.
+    pub fn named(self, option: &'static str) -> Self {
+        Self { option, ..self }
     }
 
     /// The file, or the list of paths that were tried.

@@ -7,5 +7,5 @@
 mod load;
 mod run;
 
-pub use load::{LoadError, load};
+pub use load::{LoadError, load, load_from};
 pub use run::{MatrixRun, ONLY_AXES, Only, RunError, RunRequest, parse_only, run_matrix, selected_plans};

@@ -10,10 +10,21 @@ use cpmx_spec::{CheckScope, CheckedSpec, DataPath, Problem, SpecDiagnostic, Spec
 /// data path. The checked spec's `warnings` are every warning to show; `Err` holds every
 /// diagnostic (errors and warnings), or a single line when the file cannot be read.
 pub fn load(path: &Path, data: &[PathBuf], scope: CheckScope) -> Result<CheckedSpec, LoadError> {
+    load_from(path, data, scope, cpmx_spec::data_option::COMMAND_LINE)
+}
+
+/// [`load`] for a caller whose way to add a data folder is `option` (the help lines name it:
+/// `data=` from Python).
+pub fn load_from(
+    path: &Path,
+    data: &[PathBuf],
+    scope: CheckScope,
+    option: &'static str,
+) -> Result<CheckedSpec, LoadError> {
     let source = SpecSource::read(path)
         .map_err(|e| LoadError::Read(format!("cannot read spec `{}`: {e}", path.display())))?;
     let cpmx_data = std::env::var("CPMX_DATA").ok();
-    let data_path = DataPath::new(&source.dir, data, cpmx_data.as_deref());
+    let data_path = DataPath::new(&source.dir, data, cpmx_data.as_deref()).named(option);
     let mut checked = cpmx_spec::check_scoped(&source, &data_path, &cpmx_engine::BuildChecks, scope)
         .map_err(LoadError::Invalid)?;
     if scope == CheckScope::Run {
