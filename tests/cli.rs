@@ -71,6 +71,28 @@ fn the_papers_design_plans_81_paired_runs() {
 }
 
 #[test]
+fn a_shard_past_the_last_run_says_it_has_nothing_to_do() {
+    // An array job of more tasks than runs: the extra task says so, writes no folder, exits 0.
+    let out_dir = std::env::temp_dir().join(format!("cpmx-empty-shard-{}", std::process::id()));
+    let out = cpmx(&[
+        "run",
+        "experiments/quickstart.yaml",
+        "--shard",
+        "20/20",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("shard 20/20 holds none of the matrix's 12 runs: nothing to run here"),
+        "{stderr}"
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).is_empty(), "no empty table");
+    assert!(!out_dir.exists(), "no folder for an empty shard");
+}
+
+#[test]
 fn plan_of_the_quickstart() {
     let out = cpmx(&["plan", "experiments/quickstart.yaml", "--format", "csv"]);
     assert!(out.status.success());

@@ -63,7 +63,12 @@ impl Diagnostic {
 pub fn validate(py: Python<'_>, spec: PathBuf, data: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<Diagnostic>> {
     let data = crate::data_folders(data)?;
     let loaded = py.detach(|| {
-        cpmx_session::load_from(&spec, &data, cpmx_spec::CheckScope::Run, cpmx_spec::data_option::PYTHON)
+        cpmx_session::load_from(
+            &spec,
+            &data,
+            cpmx_spec::CheckScope::Run,
+            cpmx_spec::data_option::PYTHON,
+        )
     });
     match loaded {
         Ok(checked) => Ok(checked.warnings.iter().map(Diagnostic::of).collect()),

@@ -44,7 +44,12 @@ pub(crate) fn data_folders(data: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<Path
 /// Reads and checks a spec as the command line does; a spec with errors raises `CpmxError`
 /// with every diagnostic.
 pub(crate) fn load(spec: &std::path::Path, data: &[PathBuf]) -> PyResult<cpmx_spec::CheckedSpec> {
-    match cpmx_session::load_from(spec, data, cpmx_spec::CheckScope::Run, cpmx_spec::data_option::PYTHON) {
+    match cpmx_session::load_from(
+        spec,
+        data,
+        cpmx_spec::CheckScope::Run,
+        cpmx_spec::data_option::PYTHON,
+    ) {
         Ok(checked) => Ok(checked),
         Err(cpmx_session::LoadError::Read(message)) => Err(CpmxError::new_err(message)),
         Err(cpmx_session::LoadError::Invalid(diagnostics)) => {

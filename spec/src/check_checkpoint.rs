@@ -38,7 +38,13 @@ pub(crate) fn find_checkpoint(
         Err(_) if scope == CheckScope::Measure => return FoundCheckpoint::default(),
         Err(tried) => {
             let span = ctx.span(&pointer);
-            ctx.push(missing_file("SigmaRL checkpoint", name, &tried, data.option, span));
+            ctx.push(missing_file(
+                "SigmaRL checkpoint",
+                name,
+                &tried,
+                data.option,
+                span,
+            ));
             return FoundCheckpoint::default();
         }
     };

@@ -10,7 +10,13 @@ use crate::model::{InitialConfiguration, MapSpec, Spec};
 use crate::paths::{DataPath, NotFound};
 
 /// A problem for a file that is on none of the data path's folders.
-pub(crate) fn missing_file(what: &str, file: &str, tried: &[PathBuf], option: &str, span: ByteSpan) -> Problem {
+pub(crate) fn missing_file(
+    what: &str,
+    file: &str,
+    tried: &[PathBuf],
+    option: &str,
+    span: ByteSpan,
+) -> Problem {
     let places: Vec<String> = tried.iter().map(|p| format!("  {}", p.display())).collect();
     Problem::error(
         "cpmx::check::missing-file",
@@ -200,7 +206,13 @@ pub(crate) fn find_files(
                 }
                 Err(tried) => {
                     let span = ctx.span(&format!("/initial_configurations/{i}/from_runs/dir"));
-                    ctx.push(missing_file("run folder", &f.from_runs.dir, &tried, data.option, span));
+                    ctx.push(missing_file(
+                        "run folder",
+                        &f.from_runs.dir,
+                        &tried,
+                        data.option,
+                        span,
+                    ));
                     None
                 }
             },

@@ -400,10 +400,7 @@ fn a_wrong_item_of_a_list_with_a_default_does_not_hide_the_problems_of_meaning()
     let text = format!(
         "{VALID}report: {{group_by: [fidelity, polcy], compare: {{reference: simm, test: paired}}}}\n"
     );
-    assert_eq!(
-        codes(&text),
-        ["cpmx::schema::choice", "cpmx::check::reference"]
-    );
+    assert_eq!(codes(&text), ["cpmx::schema::choice", "cpmx::check::reference"]);
 }
 
 #[test]

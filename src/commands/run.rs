@@ -79,6 +79,19 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     // Policies bound from Python run only from Python.
     let plans = cpmx_session::selected_plans(&checked, &request).map_err(|e| session_failure(&e))?;
     refuse_python_policies(args, &checked, &plans)?;
+    let in_shard = |shard: &Shard| (0..plans.len()).any(|i| shard.contains(i));
+    if let Some(shard) = args.shard.filter(|shard| !in_shard(shard)) {
+        // More shards than runs (an array job of more tasks than the matrix has runs): say so,
+        // instead of a folder with an empty table.
+        eprintln!(
+            "shard {}/{} holds none of the matrix's {} runs: nothing to run here (the matrix has fewer \
+             runs than the array has tasks; `cpmx plan` lists them)",
+            shard.index,
+            shard.count,
+            checked.plan().len()
+        );
+        return Ok(());
+    }
 
     let on_total = |total: usize| {
         let _ = bar.set(progress_bar(total as u64));

@@ -177,6 +177,16 @@ pub fn run(args: &TrainArgs) -> Result<(), Failure> {
             }
         }
     }
+    if runs.is_empty() {
+        // More shards than training runs (an array job of more tasks than seeds): say so,
+        // instead of an empty table.
+        eprintln!(
+            "shard {}/{} holds none of the {index} training runs: nothing to train here (the spec \
+             has fewer training runs than the array has tasks; `cpmx plan` lists them)",
+            shard.index, shard.count
+        );
+        return Ok(());
+    }
     if let Ok(text) = std::fs::read(&args.spec) {
         let _ = cpmx_engine::store::write_atomic(&out.join("spec.yaml"), &text);
     }

@@ -501,6 +501,21 @@ fn a_policy_not_trained_yet_refuses_its_runs_and_lets_the_others_run() {
 }
 
 #[test]
+fn a_shard_past_the_last_training_run_says_it_has_nothing_to_do() {
+    // An array job of more tasks than seeds: the extra task says so and writes nothing.
+    let dir = scratch("train-empty-shard");
+    let spec = small_spec(&dir, 1);
+    let out = train(&dir, &spec, &["--shard", "4/4"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("shard 4/4 holds none of the 2 training runs: nothing to train here"),
+        "{stderr}"
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).is_empty(), "no empty table");
+}
+
+#[test]
 fn shards_of_a_swept_training_merge_into_the_unsharded_folder_byte_for_byte() {
     let (whole, sharded) = (scratch("train-unsharded"), scratch("train-sharded"));
     for dir in [&whole, &sharded] {
