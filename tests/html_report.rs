@@ -188,6 +188,10 @@ struct Figure {
 struct Layout {
     viewport: i64,
     overflow: i64,
+    /// How far the widest table reaches past its box (0: every column on screen).
+    table_overflow: i64,
+    /// The smallest text of any figure's SVG as drawn [CSS px].
+    smallest_figure_text_px: f64,
     canvas_scale: f64,
     figures: Vec<Figure>,
     /// The text of every figure's caption.
@@ -251,6 +255,8 @@ fn layout(browser: &Path, page: &Path, width_px: u32, scale: u32) -> Layout {
         captions,
         viewport: number("data-viewport-width") as i64,
         overflow: number("data-overflow-x") as i64,
+        table_overflow: number("data-table-overflow-x") as i64,
+        smallest_figure_text_px: number("data-smallest-figure-text-px"),
         canvas_scale: number("data-canvas-scale"),
         figures,
     }
@@ -344,6 +350,13 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
         wide.viewport
     );
 
+    // Figures' text is readable where they are drawn: none below 10 px.
+    assert!(
+        wide.smallest_figure_text_px >= 10.0,
+        "a figure's text drawn at {} px at 1,400 px",
+        wide.smallest_figure_text_px
+    );
+
     // Every figure says whose runs it shows: the folder's one policy, by name.
     assert_eq!(wide.captions.len(), wide.figures.len(), "{:?}", wide.captions);
     for caption in &wide.captions {
@@ -357,6 +370,10 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
     let narrow = layout(&browser, &page, 600, 1);
     assert_eq!(narrow.viewport, 600, "the window's width");
     assert_eq!(narrow.overflow, 0, "nothing wider than the window");
+    assert_eq!(
+        narrow.table_overflow, 0,
+        "a table scrolls sideways at 600 px (its last columns off screen)"
+    );
     assert!(narrow.canvas_scale >= 0.99, "{}", narrow.canvas_scale);
     assert_eq!(narrow.figures.len(), wide.figures.len());
     for f in &narrow.figures {

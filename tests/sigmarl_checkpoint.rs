@@ -25,7 +25,7 @@ agents: 3
 policies:
 {policies}
 initial_configurations:
-  - from_poses: {{file: paper-at25/poses.csv, policies: {{seed1: paper}}}}
+  - from_poses: {{file: paper-at25/poses.csv, policies: {{paper: seed1}}}}
 repetitions: 3
 seed: 1
 fidelities:
@@ -113,8 +113,8 @@ fn a_measured_start_just_off_the_road_is_warned_about_with_its_distance_not_refu
     );
     // A tolerance below it refuses the start, saying by how much.
     let strict = std::fs::read_to_string(&path).unwrap().replace(
-        "policies: {seed1: paper}}",
-        "policies: {seed1: paper}, off_road_tolerance_m: 0.005}",
+        "policies: {paper: seed1}}",
+        "policies: {paper: seed1}, off_road_tolerance_m: 0.005}",
     );
     std::fs::write(&path, strict).unwrap();
     let out = run_in(&dir, &["validate", path.to_str().unwrap(), &data[0], &data[1]]);

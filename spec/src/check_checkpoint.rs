@@ -94,25 +94,29 @@ pub(crate) fn find_checkpoint(
         }
     }
     let observation = match (&files.data, &policy.observation) {
-        (Some(data_file), Some(_)) => {
-            let spans = ctx.spans(&format!("/policies/{i}/observation"));
-            ctx.push(
-                Problem::error(
-                    "cpmx::check::policy-kind",
-                    format!(
-                        "policy `{}` gives an observation, but its checkpoint's comes from {}",
-                        policy.name,
-                        data_file.display()
-                    ),
-                    spans.key.unwrap_or(spans.value),
-                    "observation given twice",
-                )
-                .with_help(
-                    "remove `observation:`: the actor is run as its `*_data.json` says it was trained",
-                ),
-            );
-            None
-        }
+        // A resolved spec (a run folder's) writes the observation out: it must be the one the
+        // checkpoint's data.json describes.
+        (Some(data_file), Some(given)) => match observation_of(spec, i, data_file, ctx) {
+            Some(derived) if derived != *given => {
+                let spans = ctx.spans(&format!("/policies/{i}/observation"));
+                ctx.push(
+                    Problem::error(
+                        "cpmx::check::policy-kind",
+                        format!(
+                            "policy `{}` gives an observation other than the one its checkpoint was trained \
+                             with ({})",
+                            policy.name,
+                            data_file.display()
+                        ),
+                        spans.key.unwrap_or(spans.value),
+                        "observation given twice",
+                    )
+                    .with_help("remove `observation:`: the actor is run as its `*_data.json` says it was trained"),
+                );
+                None
+            }
+            derived => derived,
+        },
         (None, Some(given)) => Some(given.clone()),
         (None, None) => {
             let span = ctx.span(&pointer);

@@ -76,17 +76,17 @@ fn check_coverage(
     ctx: &mut CheckContext<'_>,
 ) {
     let base = format!("/initial_configurations/{entry}/from_poses");
-    for (label, policy) in &from.policies {
+    for (policy, label) in &from.policies {
         if !spec.policies.iter().any(|p| &p.name == policy) {
-            let span = ctx.span(&format!("{base}/policies/{}", crate::yaml::escape_pointer(label)));
+            let span = ctx.spans(&format!("{base}/policies/{}", crate::yaml::escape_pointer(policy)));
             ctx.push(
                 Problem::error(
                     "cpmx::check::poses",
-                    format!("`{label}` is mapped to `{policy}`, which is not a policy of the spec"),
-                    span,
+                    format!("`{policy}` (mapped to the file's `{label}`) is not a policy of the spec"),
+                    span.key.unwrap_or(span.value),
                     "unknown policy",
                 )
-                .with_help("map each label of the file to the name of a policy under `policies:`"),
+                .with_help("the keys of `policies:` are the spec's policies, the values the file's labels"),
             );
         }
     }
@@ -154,8 +154,8 @@ fn check_coverage(
                 "runs without a start",
             )
             .with_help(
-                "every policy needs a row for each configuration and repetition; map the file's labels to \
-                 policies with `policies: {LABEL: POLICY}`, or lower `repetitions`",
+                "every policy needs a row for each configuration and repetition; give a policy the file's \
+                 label of its rows with `policies: {POLICY: LABEL}`, or lower `repetitions`",
             ),
         );
     }

@@ -256,10 +256,7 @@ fn run_of_file(path: &str) -> Option<(String, String, u32)> {
 impl FromPosesSpec {
     /// The label of the file's rows that policy `policy` started from.
     pub fn label_of<'a>(&'a self, policy: &'a str) -> &'a str {
-        self.policies
-            .iter()
-            .find(|(_, p)| p.as_str() == policy)
-            .map_or(policy, |(label, _)| label.as_str())
+        self.policies.get(policy).map_or(policy, String::as_str)
     }
 }
 
@@ -347,7 +344,7 @@ mod tests {
         let spec = FromPosesSpec {
             file: "poses.csv".into(),
             sha256: None,
-            policies: [("seed1".to_owned(), "paper-seed1".to_owned())].into(),
+            policies: [("paper-seed1".to_owned(), "seed1".to_owned())].into(),
             off_road_tolerance_m: 0.02,
         };
         assert_eq!(spec.label_of("paper-seed1"), "seed1");

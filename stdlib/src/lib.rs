@@ -81,6 +81,11 @@ pub const PRESETS: &[Preset] = &[
         yaml: include_str!("../presets/observation/sigmarl.yaml"),
     },
     Preset {
+        kind: PresetKind::Observation,
+        name: "sigmarl-at25-paper",
+        yaml: include_str!("../presets/observation/sigmarl-at25-paper.yaml"),
+    },
+    Preset {
         kind: PresetKind::Metrics,
         name: "at25",
         yaml: include_str!("../presets/metrics/at25.yaml"),
@@ -106,6 +111,11 @@ pub const PRESETS: &[Preset] = &[
         yaml: include_str!("../presets/training/sigmarl-intersection-at25.yaml"),
     },
     Preset {
+        kind: PresetKind::TrainingScenario,
+        name: "sigmarl-at25-paper",
+        yaml: include_str!("../presets/training/sigmarl-at25-paper-scenario.yaml"),
+    },
+    Preset {
         kind: PresetKind::Reward,
         name: "sigmarl-reward",
         yaml: include_str!("../presets/training/sigmarl-reward.yaml"),
@@ -114,6 +124,11 @@ pub const PRESETS: &[Preset] = &[
         kind: PresetKind::Reward,
         name: "sigmarl-at25-reward",
         yaml: include_str!("../presets/training/sigmarl-at25-reward.yaml"),
+    },
+    Preset {
+        kind: PresetKind::Reward,
+        name: "sigmarl-at25-paper",
+        yaml: include_str!("../presets/training/sigmarl-at25-paper-reward.yaml"),
     },
     Preset {
         kind: PresetKind::Reward,

@@ -23,6 +23,9 @@
 //! - Inline `cpmx ...` code in the text is parsed the same way; written as a synopsis
 //!   (`[--flag]`, `a|b`, `DIR...`), its subcommand must exist and `cpmx SUB --help` must list
 //!   each of its flags.
+//! - A table below `<!-- figures: FILE... -->` quotes only numbers those files hold, as written
+//!   by the page's commands in its scratch copy (or SigmaRL's reference data,
+//!   `../shared/reference/...`): a figure that no longer matches its command fails (`quotes.rs`).
 //! - ```python blocks compile (`python/tests/test_docs.py` runs those not marked `not run`).
 //! - Relative links name files that exist and headings that they have.
 
@@ -31,6 +34,7 @@ mod support;
 
 mod fragments;
 mod markdown;
+mod quotes;
 mod scratch;
 mod shell;
 
@@ -244,6 +248,8 @@ fn every_command_in_the_docs_runs_or_parses() {
                 }
             }
         }
+        // The figures the page quotes, against what its commands wrote.
+        failures.extend(quotes::check(&page, &scratch.repo));
     }
     eprintln!(
         "docs: {ran} commands run, {parsed} cpmx commands parsed only, {cargo} cargo commands \

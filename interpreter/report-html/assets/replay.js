@@ -419,6 +419,18 @@
     const root = document.documentElement;
     document.body.dataset.viewportWidth = String(root.clientWidth);
     document.body.dataset.overflowX = String(Math.max(0, root.scrollWidth - root.clientWidth));
+    // How far the widest table reaches past its box (scrolled sideways to be read), and the
+    // smallest text of any figure's SVG as drawn (its font size times the drawing's scale).
+    const tables = [...document.querySelectorAll(".table-wrap")].map((w) => w.scrollWidth - w.clientWidth);
+    document.body.dataset.tableOverflowX = String(Math.max(0, ...tables));
+    const sizes = [...document.querySelectorAll("figure svg")].flatMap((svg) => {
+      const natural = svg.viewBox.baseVal && svg.viewBox.baseVal.width ? svg.viewBox.baseVal.width
+        : parseFloat(svg.getAttribute("width") || "0");
+      const drawn = svg.getBoundingClientRect().width;
+      if (!natural || !drawn) return [];
+      return [...svg.querySelectorAll("text")].map((t) => parseFloat(getComputedStyle(t).fontSize) * drawn / natural);
+    });
+    document.body.dataset.smallestFigureTextPx = sizes.length ? Math.min(...sizes).toFixed(1) : "0";
     const scales = [...redraws.keys()].filter((c) => c.clientWidth > 0).map((c) => c.width / c.clientWidth);
     document.body.dataset.canvasScale = scales.length ? Math.min(...scales).toFixed(2) : "0";
     document.body.dataset.figures = [...document.querySelectorAll("figure")].map((figure) => {

@@ -171,9 +171,10 @@ pub struct FromPosesSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(regex(pattern = r"^[0-9a-f]{64}$"))]
     pub sha256: Option<String>,
-    /// The spec's policy that started from the rows of each label of the file, e.g. `{seed1:
-    /// paper-seed1}`. Default: a label is the name of a policy. Every policy of the spec
-    /// needs rows for every configuration and repetition; rows of other labels are left out.
+    /// The label of the file's rows each policy starts from, by policy, e.g. `{paper-seed1:
+    /// seed1, cpmx-seed1: seed1}` (several policies may start from one label's rows). Default:
+    /// a policy's own name. Every policy of the spec needs rows for every configuration and
+    /// repetition; rows of other labels are left out.
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub policies: std::collections::BTreeMap<String, String>,
     /// How far [m] a start's footprint may reach beyond its path's road and still be run,
