@@ -78,6 +78,19 @@ fn the_papers_design_validates_from_the_data_path_with_every_measured_start() {
     ]);
     let text = ok(&out);
     assert!(text.contains("ok: experiments/at25.yaml: 81 runs"), "{text}");
+    // The lab measured µCars: the starts whose µCar reaches past the lane are warned about
+    // (vehicle 1 of every seed's init1, 3-13 mm; one other by less than 0.1 mm), though the
+    // 0.16 m car the actors drive stands on the road.
+    let stderr = flat(&out.stderr);
+    assert!(
+        stderr.contains(
+            "vehicle 1 of `seed1/init1-1` (line 2 of paper-at25/poses.csv): the metrics' footprint (0.22 m × 0.107 m) reaches 8.3 mm beyond the road of path 3"
+        ),
+        "{stderr}"
+    );
+    assert!(stderr.contains("vehicle 1 of `seed3/init1-1` (line 20 of paper-at25/poses.csv): the metrics' footprint (0.22 m × 0.107 m) reaches 12.5 mm"), "{stderr}");
+    assert!(stderr.contains("vehicle 3 of `seed1/init1-3` (line 4 of paper-at25/poses.csv): the metrics' footprint (0.22 m × 0.107 m) reaches less than 0.1 mm"), "{stderr}");
+    assert_eq!(stderr.matches("cpmx::map::near-road").count(), 10, "{stderr}");
     let plan = ok(&cpmx(&[
         "plan",
         "experiments/at25.yaml",
@@ -108,7 +121,9 @@ fn a_measured_start_just_off_the_road_is_warned_about_with_its_distance_not_refu
     let stderr = flat(&out.stderr);
     assert_eq!(out.status.code(), Some(0), "{stderr}");
     assert!(
-        stderr.contains("vehicle 1 of `seed1/init1-1` (line 2 of paper-at25/poses.csv) reaches 8.3 mm beyond the road of path 3"),
+        stderr.contains(
+            "vehicle 1 of `seed1/init1-1` (line 2 of paper-at25/poses.csv): its footprint reaches 8.3 mm beyond the road of path 3"
+        ),
         "{stderr}"
     );
     // A tolerance below it refuses the start, saying by how much.

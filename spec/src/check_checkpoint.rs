@@ -96,10 +96,11 @@ pub(crate) fn find_checkpoint(
     let observation = match (&files.data, &policy.observation) {
         // A resolved spec (a run folder's) writes the observation out: it must be the one the
         // checkpoint's data.json describes.
-        (Some(data_file), Some(given)) => match observation_of(spec, i, data_file, ctx) {
-            Some(derived) if derived != *given => {
-                let spans = ctx.spans(&format!("/policies/{i}/observation"));
-                ctx.push(
+        (Some(data_file), Some(given)) => {
+            match observation_of(spec, i, data_file, ctx) {
+                Some(derived) if derived != *given => {
+                    let spans = ctx.spans(&format!("/policies/{i}/observation"));
+                    ctx.push(
                     Problem::error(
                         "cpmx::check::policy-kind",
                         format!(
@@ -113,10 +114,11 @@ pub(crate) fn find_checkpoint(
                     )
                     .with_help("remove `observation:`: the actor is run as its `*_data.json` says it was trained"),
                 );
-                None
+                    None
+                }
+                derived => derived,
             }
-            derived => derived,
-        },
+        }
         (None, Some(given)) => Some(given.clone()),
         (None, None) => {
             let span = ctx.span(&pointer);

@@ -78,7 +78,10 @@ fn check_coverage(
     let base = format!("/initial_configurations/{entry}/from_poses");
     for (policy, label) in &from.policies {
         if !spec.policies.iter().any(|p| &p.name == policy) {
-            let span = ctx.spans(&format!("{base}/policies/{}", crate::yaml::escape_pointer(policy)));
+            let span = ctx.spans(&format!(
+                "{base}/policies/{}",
+                crate::yaml::escape_pointer(policy)
+            ));
             ctx.push(
                 Problem::error(
                     "cpmx::check::poses",

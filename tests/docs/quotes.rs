@@ -65,7 +65,11 @@ pub fn numbers(text: &str) -> Vec<String> {
         let token = text[i..end].trim_end_matches('.');
         let negative = i > 0 && bytes[i - 1] == b'-';
         if token.contains('.') {
-            out.push(if negative { format!("-{token}") } else { token.to_owned() });
+            out.push(if negative {
+                format!("-{token}")
+            } else {
+                token.to_owned()
+            });
         }
         i = end;
     }

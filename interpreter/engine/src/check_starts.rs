@@ -17,15 +17,24 @@ use crate::starts::{InitialState, explicit_start, sample_starts};
 /// Every start of the spec's configurations.
 pub(crate) fn check_starts(spec: &Spec, resources: &Resources, map: &Map, ctx: &mut CheckContext<'_>) {
     let vehicle = vehicle_params(&spec.vehicle);
+    // A start stands on the road with the car the runs simulate and, where the metrics score
+    // another (the lab's µCar, whose measured poses a spec may start from), with that one too.
+    let mut cars = vec![("", vehicle)];
+    if spec.metrics.footprint.is_some() {
+        let footprint = crate::experiment::footprint_params(spec);
+        if (footprint.length_m, footprint.width_m) != (vehicle.length_m, vehicle.width_m) {
+            cars.push(("the metrics' footprint", footprint));
+        }
+    }
     for (c, configuration) in spec.initial_configurations.iter().enumerate() {
         match configuration {
             InitialConfiguration::Sampled(sampled) => {
                 check_sampled_starts(spec, c, &sampled.sample, map, &vehicle, ctx);
             }
-            InitialConfiguration::Explicit(e) => check_explicit(c, e, map, &vehicle, ctx),
+            InitialConfiguration::Explicit(e) => check_explicit(c, e, map, &cars, ctx),
             InitialConfiguration::FromPoses(f) => {
                 if let Some(poses) = resources.poses.get(c).and_then(Option::as_ref) {
-                    check_measured(spec, c, &f.from_poses, poses, map, &vehicle, ctx);
+                    check_measured(spec, c, &f.from_poses, poses, map, &cars, ctx);
                 }
             }
             InitialConfiguration::FromRuns(_) => {}
@@ -42,20 +51,37 @@ fn path_range(map: &Map) -> String {
     }
 }
 
+/// The cars whose footprint a start must keep on the road: the simulated vehicle (no label),
+/// and the metrics' footprint where it is another car.
+type Cars<'a> = [(&'a str, VehicleParams)];
+
 /// What is wrong with where one start stands: off the road beyond the tolerance (an error),
-/// off it within the tolerance (a warning), or on it.
+/// off it within the tolerance (a warning), or on it; with the car that reaches farthest.
 enum Footing {
     OnRoad,
-    Tolerated(f64),
-    OffRoad(f64),
+    Tolerated(f64, String),
+    OffRoad(f64, String),
 }
 
-fn footing(start: &InitialState, map: &Map, vehicle: &VehicleParams, tolerance_m: f64) -> Footing {
-    let corners = footprint_corners(vehicle, start.x_m, start.y_m, start.yaw_rad);
-    match map.footprint_off_road_m(start.ref_path, &corners) {
-        None | Some(0.0) => Footing::OnRoad,
-        Some(off_m) if off_m <= tolerance_m => Footing::Tolerated(off_m),
-        Some(off_m) => Footing::OffRoad(off_m),
+fn footing(start: &InitialState, map: &Map, cars: &Cars<'_>, tolerance_m: f64) -> Footing {
+    let worst = cars
+        .iter()
+        .filter_map(|(label, car)| {
+            let corners = footprint_corners(car, start.x_m, start.y_m, start.yaw_rad);
+            let off_m = map.footprint_off_road_m(start.ref_path, &corners)?;
+            let whose = if label.is_empty() {
+                "its footprint".to_owned()
+            } else {
+                format!("{label} ({} m × {} m)", car.length_m, car.width_m)
+            };
+            Some((off_m, whose))
+        })
+        .max_by(|a, b| a.0.total_cmp(&b.0));
+    match worst {
+        None => Footing::OnRoad,
+        Some((off_m, _)) if off_m == 0.0 => Footing::OnRoad,
+        Some((off_m, whose)) if off_m <= tolerance_m => Footing::Tolerated(off_m, whose),
+        Some((off_m, whose)) => Footing::OffRoad(off_m, whose),
     }
 }
 
@@ -68,26 +94,26 @@ fn footing_problem(
 ) -> Option<Problem> {
     match footing {
         Footing::OnRoad => None,
-        Footing::Tolerated(off_m) => Some(
+        Footing::Tolerated(off_m, whose) => Some(
             Problem::warning(
                 "cpmx::map::near-road",
                 format!(
-                    "{what} reaches {:.1} mm beyond the road of path {ref_path}; it runs, as it is within \
-                     `off_road_tolerance_m: {tolerance_m}`",
-                    off_m * 1e3
+                    "{what}: {whose} reaches {} beyond the road of path {ref_path}; it runs, as it is \
+                     within `off_road_tolerance_m: {tolerance_m}`",
+                    millimetres(off_m)
                 ),
                 span,
                 "just off the road",
             )
             .with_help("a measured start a little beside the road (positioning noise) is run as measured"),
         ),
-        Footing::OffRoad(off_m) => Some(
+        Footing::OffRoad(off_m, whose) => Some(
             Problem::error(
                 "cpmx::map::off-road",
                 format!(
-                    "{what} starts off the road of path {ref_path}: its footprint reaches {:.1} mm beyond it, \
-                     more than `off_road_tolerance_m: {tolerance_m}`",
-                    off_m * 1e3
+                    "{what} starts off the road of path {ref_path}: {whose} reaches {} beyond it, more \
+                     than `off_road_tolerance_m: {tolerance_m}`",
+                    millimetres(off_m)
                 ),
                 span,
                 "footprint leaves the road",
@@ -100,14 +126,25 @@ fn footing_problem(
     }
 }
 
+/// A distance beyond the road as a message says it: to a tenth of a millimetre, and a
+/// footprint that only touches past it (floating-point dust) as such.
+fn millimetres(off_m: f64) -> String {
+    if off_m < 0.5e-4 {
+        "less than 0.1 mm".to_owned()
+    } else {
+        format!("{:.1} mm", off_m * 1e3)
+    }
+}
+
 /// An explicit configuration's starts.
 fn check_explicit(
     c: usize,
     e: &cpmx_spec::model::ExplicitConfiguration,
     map: &Map,
-    vehicle: &VehicleParams,
+    cars: &Cars<'_>,
     ctx: &mut CheckContext<'_>,
 ) {
+    let vehicle = &cars[0].1;
     let mut placed: Vec<(usize, PlacedBox)> = Vec::new();
     for (a, agent) in e.agents.iter().enumerate() {
         let pointer = format!("/initial_configurations/{c}/agents/{a}");
@@ -149,7 +186,7 @@ fn check_explicit(
         };
         let what = format!("agent {a} of `{}`", e.name);
         let span = ctx.span(&pointer);
-        let on = footing(&start, map, vehicle, e.off_road_tolerance_m);
+        let on = footing(&start, map, cars, e.off_road_tolerance_m);
         if let Some(problem) = footing_problem(on, &what, start.ref_path, e.off_road_tolerance_m, span) {
             ctx.push(problem);
         }
@@ -181,9 +218,10 @@ fn check_measured(
     from: &FromPosesSpec,
     poses: &MeasuredPoses,
     map: &Map,
-    vehicle: &VehicleParams,
+    cars: &Cars<'_>,
     ctx: &mut CheckContext<'_>,
 ) {
+    let vehicle = &cars[0].1;
     let span = ctx.span(&format!("/initial_configurations/{c}/from_poses/file"));
     let tolerance_m = from.off_road_tolerance_m;
     let labels: Vec<&str> = spec.policies.iter().map(|p| from.label_of(&p.name)).collect();
@@ -218,7 +256,7 @@ fn check_measured(
                 speed_mps: 0.0,
             };
             if let Some(problem) = footing_problem(
-                footing(&start, map, vehicle, tolerance_m),
+                footing(&start, map, cars, tolerance_m),
                 &what,
                 ref_path,
                 tolerance_m,
