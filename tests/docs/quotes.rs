@@ -88,9 +88,8 @@ fn holds(text: &str, number: &str) -> bool {
         let after = bytes.get(at + number.len()).copied();
         let digit_or_point = |b: Option<u8>| b.is_some_and(|b| b.is_ascii_digit() || b == b'.');
         // `0.38` is not `-0.38`'s: a sign before a positive quote is another number.
-        !digit_or_point(before)
-            && !(before == Some(b'-') && !number.starts_with('-'))
-            && !digit_or_point(after)
+        let signed_other = before == Some(b'-') && !number.starts_with('-');
+        !(digit_or_point(before) || signed_other || digit_or_point(after))
     })
 }
 

@@ -79,7 +79,7 @@ fn footing(start: &InitialState, map: &Map, cars: &Cars<'_>, tolerance_m: f64) -
         .max_by(|a, b| a.0.total_cmp(&b.0));
     match worst {
         None => Footing::OnRoad,
-        Some((off_m, _)) if off_m == 0.0 => Footing::OnRoad,
+        Some((0.0, _)) => Footing::OnRoad,
         Some((off_m, whose)) if off_m <= tolerance_m => Footing::Tolerated(off_m, whose),
         Some((off_m, whose)) => Footing::OffRoad(off_m, whose),
     }

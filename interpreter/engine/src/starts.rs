@@ -20,6 +20,9 @@ use crate::experiment::PrepareError;
 
 pub use cpmx_stack::InitialState;
 
+/// A run of a configuration: its policy and repetition.
+pub type RunOf<'a> = (&'a str, u32);
+
 /// Where the runs of one configuration start.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ConfigurationStarts {
@@ -48,8 +51,9 @@ impl ConfigurationStarts {
         }
     }
 
-    /// Every start of the configuration, with the runs it is theirs (none for a shared one).
-    pub fn each(&self) -> Vec<(Option<(&str, u32)>, &[InitialState])> {
+    /// Every start of the configuration, with the run it is that run's (`None` for a shared
+    /// one).
+    pub fn each(&self) -> Vec<(Option<RunOf<'_>>, &[InitialState])> {
         match self {
             ConfigurationStarts::Shared(states) => vec![(None, states.as_slice())],
             ConfigurationStarts::PerRun(runs) => runs
