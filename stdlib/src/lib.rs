@@ -112,7 +112,7 @@ pub const PRESETS: &[Preset] = &[
     },
     Preset {
         kind: PresetKind::TrainingScenario,
-        name: "sigmarl-at25-paper",
+        name: "sigmarl-intersection-at25-paper",
         yaml: include_str!("../presets/training/sigmarl-at25-paper-scenario.yaml"),
     },
     Preset {
@@ -127,7 +127,7 @@ pub const PRESETS: &[Preset] = &[
     },
     Preset {
         kind: PresetKind::Reward,
-        name: "sigmarl-at25-paper",
+        name: "sigmarl-at25-paper-reward",
         yaml: include_str!("../presets/training/sigmarl-at25-paper-reward.yaml"),
     },
     Preset {
