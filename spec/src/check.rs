@@ -28,6 +28,8 @@ pub struct Resources {
     pub observations: Vec<Option<crate::model::ObservationSpec>>,
     /// The folder of each `from_runs` entry, by initial-configuration index.
     pub from_runs: Vec<Option<PathBuf>>,
+    /// The actor a training starts from (`training.initial_actor`), when found.
+    pub initial_actor: Option<PathBuf>,
     /// The poses of each `from_poses` entry, read, by initial-configuration index.
     pub poses: Vec<Option<crate::poses::MeasuredPoses>>,
     /// The spec's folder (where policy processes run).

@@ -155,6 +155,17 @@ pub(crate) fn find_files(
         resources.weights.push(found);
     }
     resources.observations = observations;
+    if let Some(file) = spec.training.as_ref().and_then(|t| t.initial_actor.as_ref()) {
+        match data.find(file) {
+            Ok(path) => resources.initial_actor = Some(path),
+            // `cpmx train` reads files as scoring does; it says a missing one when it trains.
+            Err(_) if scope == CheckScope::Measure => {}
+            Err(tried) => {
+                let span = ctx.span("/training/initial_actor");
+                ctx.push(missing_file("initial actor", file, &tried, data.option, span));
+            }
+        }
+    }
     for (i, c) in spec.initial_configurations.iter().enumerate() {
         resources.poses.push(match c {
             InitialConfiguration::FromPoses(f) => {

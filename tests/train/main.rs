@@ -501,6 +501,59 @@ fn a_policy_not_trained_yet_refuses_its_runs_and_lets_the_others_run() {
 }
 
 #[test]
+fn a_training_starts_from_the_actor_it_names() {
+    // A curriculum: seed 7 trained one iteration, then continued by a training that starts from
+    // its actor. The file's content is part of the fingerprint; a missing one is located.
+    let (first, second) = (scratch("train-initial-first"), scratch("train-initial-second"));
+    let spec = small_spec(&first, 1);
+    ok(&train(&first, &spec, &["--only", "seed=7"]));
+    let actor = first.join("out/7/actor.last.safetensors");
+    assert!(actor.is_file());
+    let continued = small_spec(&second, 1);
+    let text = edited(
+        &continued,
+        "  iterations: 1\n",
+        &format!("  initial_actor: {}\n  iterations: 1\n", actor.display()),
+    );
+    std::fs::write(&continued, text).unwrap();
+    ok(&train(&second, &continued, &["--only", "seed=7"]));
+    let fingerprint = |dir: &Path| -> String {
+        let run: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("out/7/run.json")).unwrap()).unwrap();
+        run["fingerprint"].as_str().unwrap().to_owned()
+    };
+    assert_ne!(
+        fingerprint(&first),
+        fingerprint(&second),
+        "the start is part of the fingerprint"
+    );
+    let missing = edited(
+        &continued,
+        &actor.display().to_string(),
+        "no-such-actor.safetensors",
+    );
+    std::fs::write(&continued, missing).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .args(["validate", continued.to_str().unwrap(), "--data"])
+        .arg(reference())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("initial actor `no-such-actor.safetensors` was not found"),
+        "{stderr}"
+    );
+    let out = train(&second, &continued, &["--only", "seed=8"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("`initial_actor: no-such-actor.safetensors`: not found"),
+        "{stderr}"
+    );
+}
+
+#[test]
 fn a_shard_past_the_last_training_run_says_it_has_nothing_to_do() {
     // An array job of more tasks than seeds: the extra task says so and writes nothing.
     let dir = scratch("train-empty-shard");

@@ -248,6 +248,28 @@ impl<E: Environment> Trainer<E> {
     }
 
     /// The current actor.
+    /// Starts from `actor` instead of the random actor [`Trainer::new`] drew: a warm start,
+    /// e.g. a curriculum that continues in one fidelity an actor trained in another. Its layer
+    /// sizes must be this trainer's actor's; the critic and the optimiser start fresh, as in a
+    /// new training. Only before the first iteration.
+    pub fn start_from(&mut self, actor: Mlp) -> Result<(), TrainError> {
+        if self.iteration > 0 {
+            return Err(TrainError::Hyperparameters(
+                "a training starts from another actor only before its first iteration".to_owned(),
+            ));
+        }
+        if actor.sizes() != self.actor.sizes() {
+            return Err(TrainError::Hyperparameters(format!(
+                "the actor to start from has layers {:?}, the network trained here {:?}",
+                actor.sizes(),
+                self.actor.sizes()
+            )));
+        }
+        self.best_actor = actor.clone();
+        self.actor = actor;
+        Ok(())
+    }
+
     pub fn actor(&self) -> &Mlp {
         &self.actor
     }

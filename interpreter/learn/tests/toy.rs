@@ -236,3 +236,48 @@ fn bad_hyperparameters_are_rejected() {
     };
     assert!(Trainer::new(Line::new(8), bad, 1).is_err());
 }
+
+#[test]
+fn a_training_started_from_a_trained_actor_starts_where_it_left_off() {
+    // Ten iterations learn the toy task; a new training started from that actor (another seed,
+    // so another random actor it replaces) earns from its first iteration what the first
+    // earned at its end, while a random start earns what the first did at its start.
+    let mut first = Trainer::new(Line::new(8), hyperparameters(), 1).unwrap();
+    let rewards: Vec<f64> = (0..10)
+        .map(|_| first.iterate().unwrap().episode_reward_mean)
+        .collect();
+    let trained = first.actor().clone();
+    let mut warm = Trainer::new(Line::new(8), hyperparameters(), 2).unwrap();
+    warm.start_from(trained.clone()).unwrap();
+    assert_eq!(warm.actor(), &trained);
+    let warm_first = warm.iterate().unwrap().episode_reward_mean;
+    let cold_first = Trainer::new(Line::new(8), hyperparameters(), 2)
+        .unwrap()
+        .iterate()
+        .unwrap()
+        .episode_reward_mean;
+    assert!(
+        warm_first > cold_first + 1.0 && warm_first > rewards[0] + 1.0,
+        "warm {warm_first}, cold {cold_first}, the first training {rewards:?}"
+    );
+    // Only before the first iteration, and only an actor of the same layout.
+    let error = warm.start_from(trained).unwrap_err().to_string();
+    assert!(error.contains("only before its first iteration"), "{error}");
+    let mut other = Trainer::new(Line::new(8), hyperparameters(), 3).unwrap();
+    let wrong = Trainer::new(
+        Line::new(8),
+        Hyperparameters {
+            actor_hidden: vec![16],
+            ..hyperparameters()
+        },
+        3,
+    )
+    .unwrap()
+    .actor()
+    .clone();
+    let error = other.start_from(wrong).unwrap_err().to_string();
+    assert!(
+        error.contains("has layers [2, 16, 4], the network trained here [2, 32, 32, 4]"),
+        "{error}"
+    );
+}

@@ -226,7 +226,10 @@ impl SeedRun {
             write_atomic(&run.dir.join("learning_curve.csv"), run.curve_text.as_bytes())?;
             return Ok((run, Start::Resumed { done }));
         }
-        let trainer = Trainer::new(env, setup.hyperparameters.clone(), seed)?;
+        let mut trainer = Trainer::new(env, setup.hyperparameters.clone(), seed)?;
+        if let Some(actor) = &setup.initial_actor {
+            trainer.start_from(actor.clone())?;
+        }
         let mut info = new_info(setup, seed);
         info.made_by.push(made_by.to_owned());
         let run = SeedRun {

@@ -31,6 +31,9 @@ pub enum SetupError {
     /// The environment or the hyperparameters do not fit together.
     #[error("{0}")]
     Invalid(String),
+    /// `initial_actor` names a file that is not there or not an actor.
+    #[error("`initial_actor: {file}`: {reason}")]
+    InitialActor { file: String, reason: String },
 }
 
 /// Everything a training run of one spec needs, for any of its seeds.
@@ -51,6 +54,8 @@ pub struct TrainingSetup {
     pub fingerprint: String,
     /// The resolved `training:` section (presets expanded), as JSON.
     pub resolved: serde_json::Value,
+    /// The actor a training starts from (`initial_actor`), read; none for a random start.
+    pub initial_actor: Option<cpmx_learn::Mlp>,
 }
 
 impl TrainingSetup {
@@ -139,7 +144,28 @@ impl TrainingSetup {
         if let Some(object) = resolved.as_object_mut() {
             object.insert("fidelity".to_owned(), serde_json::Value::from(fidelity));
         }
-        let fingerprint = fingerprint(checked, &resolved, &env.plant)?;
+        let initial_actor = match &training.initial_actor {
+            None => None,
+            Some(file) => {
+                let fail = |reason: String| SetupError::InitialActor {
+                    file: file.clone(),
+                    reason,
+                };
+                let path = checked.resources.initial_actor.as_ref().ok_or_else(|| {
+                    fail("not found next to the spec or on the data path (`cpmx validate` says where it looked)".into())
+                })?;
+                let bytes = std::fs::read(path).map_err(|e| fail(format!("{}: {e}", path.display())))?;
+                let actor =
+                    cpmx_learn::Mlp::from_safetensors(&bytes, "actor").map_err(|e| fail(e.to_string()))?;
+                Some((actor, bytes))
+            }
+        };
+        let fingerprint = fingerprint(
+            checked,
+            &resolved,
+            &env.plant,
+            initial_actor.as_ref().map(|(_, bytes)| bytes.as_slice()),
+        )?;
         Ok(TrainingSetup {
             spec_name: spec.name.clone(),
             env,
@@ -148,6 +174,7 @@ impl TrainingSetup {
             seeds: training.seeds.clone(),
             fingerprint,
             resolved,
+            initial_actor: initial_actor.map(|(actor, _)| actor),
         })
     }
 }
@@ -238,11 +265,13 @@ fn describe_paths(training: &TrainingSpec) -> String {
     }
 }
 
-/// SHA-256 over the resolved training section, vehicle, dt and the map file's bytes.
+/// SHA-256 over the resolved training section, vehicle, dt, the map file's bytes and the
+/// bytes of the actor the training starts from (not its path: where it lies does not matter).
 fn fingerprint(
     checked: &CheckedSpec,
     training: &serde_json::Value,
     plant: &Plant,
+    initial_actor: Option<&[u8]>,
 ) -> Result<String, SetupError> {
     let mut hasher = Sha256::new();
     hasher.update(b"cpmx/training/v2\0");
@@ -258,7 +287,16 @@ fn fingerprint(
             object.shift_remove("lookahead");
         }
     }
+    let path_of_initial_actor = training
+        .as_object_mut()
+        .and_then(|o| o.shift_remove("initial_actor"));
     hasher.update(training.to_string().as_bytes());
+    // The actor started from, by content (written only when given: the fingerprints of
+    // trainings from a random start stay as they were).
+    if let (Some(_), Some(bytes)) = (path_of_initial_actor, initial_actor) {
+        hasher.update(b"\0initial_actor\0");
+        hasher.update(bytes);
+    }
     // The map by content: where its file lies and how it is pinned do not matter.
     let mut map = checked.resolved.get("map").cloned().unwrap_or_default();
     if let Some(object) = map.as_object_mut() {

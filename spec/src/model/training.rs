@@ -44,6 +44,15 @@ pub struct TrainingSpec {
     /// not concern them.
     #[serde(default, skip_serializing_if = "Lookahead::is_actor")]
     pub lookahead: Lookahead,
+    /// The actor the training starts from instead of a random one: a safetensors MLP with the
+    /// `network`'s layer sizes (layers `actor.N`, e.g. a `cpmx train` seed folder's
+    /// `actor.safetensors`), relative to the spec's folder or found on the data path. A warm
+    /// start, for a curriculum: an actor trained in sim-mpc continued in the twin. The critic
+    /// and the optimiser start fresh; the file's content is part of the training's
+    /// fingerprint. Default: none (SigmaRL's random start).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(length(min = 1))]
+    pub initial_actor: Option<String>,
     /// Training iterations per seed (SigmaRL: 1000).
     #[schemars(range(min = 1, max = 1000000))]
     pub iterations: u32,
