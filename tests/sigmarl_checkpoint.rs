@@ -39,12 +39,31 @@ report: {{group_by: [fidelity]}}
     path
 }
 
-fn data_args(reference: &Path) -> [String; 2] {
-    ["--data".to_owned(), reference.display().to_string()]
+/// `cpmx COMMAND SPEC --data REFERENCE` in `dir`: its exit code and its diagnostics with
+/// miette's wrapping undone.
+fn cpmx_spec(dir: &Path, command: &str, spec: &Path, reference: &Path) -> (Option<i32>, String) {
+    let out = cpmx_in(
+        dir,
+        &[
+            command,
+            spec.to_str().unwrap(),
+            "--data",
+            reference.to_str().unwrap(),
+        ],
+    );
+    (out.status.code(), flat(&out.stderr))
 }
 
-fn run_in(dir: &Path, args: &[&str]) -> std::process::Output {
-    cpmx_in(dir, args)
+/// `cpmx export CHECKPOINT --format safetensors --out OUT`, which must succeed.
+fn export_safetensors(checkpoint: &Path, out: &Path) {
+    ok(&cpmx(&[
+        "export",
+        checkpoint.to_str().unwrap(),
+        "--format",
+        "safetensors",
+        "--out",
+        out.to_str().unwrap(),
+    ]));
 }
 
 /// A diagnostic's text with miette's line wrapping undone (a message continues on lines that
@@ -116,10 +135,8 @@ fn a_measured_start_just_off_the_road_is_warned_about_with_its_distance_not_refu
     let policies = "  - {name: paper, mlp: {sigmarl: paper-at25/seed1}}";
     // The µCar is wider than the actors' car: one lab start reaches 8 mm past the lane.
     let path = spec(&dir, "poses", policies, "stdlib:mu-car");
-    let data = data_args(&reference);
-    let out = run_in(&dir, &["validate", path.to_str().unwrap(), &data[0], &data[1]]);
-    let stderr = flat(&out.stderr);
-    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    let (code, stderr) = cpmx_spec(&dir, "validate", &path, &reference);
+    assert_eq!(code, Some(0), "{stderr}");
     assert!(
         stderr.contains(
             "vehicle 1 of `seed1/init1-1` (line 2 of paper-at25/poses.csv): its footprint reaches 8.3 mm beyond the road of path 3"
@@ -132,9 +149,8 @@ fn a_measured_start_just_off_the_road_is_warned_about_with_its_distance_not_refu
         "policies: {paper: seed1}, off_road_tolerance_m: 0.005}",
     );
     std::fs::write(&path, strict).unwrap();
-    let out = run_in(&dir, &["validate", path.to_str().unwrap(), &data[0], &data[1]]);
-    let stderr = flat(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    let (code, stderr) = cpmx_spec(&dir, "validate", &path, &reference);
+    assert_eq!(code, Some(1), "{stderr}");
     assert!(
         stderr.contains("its footprint reaches 8.3 mm beyond it, more than `off_road_tolerance_m: 0.005`"),
         "{stderr}"
@@ -160,10 +176,8 @@ fn a_poses_file_without_a_runs_row_is_refused_naming_the_run() {
         "  - {name: paper, mlp: {sigmarl: paper-at25/seed1}}",
         "stdlib:sigmarl-2025",
     );
-    let data = data_args(&reference);
-    let out = run_in(&dir, &["validate", path.to_str().unwrap(), &data[0], &data[1]]);
-    let stderr = flat(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    let (code, stderr) = cpmx_spec(&dir, "validate", &path, &reference);
+    assert_eq!(code, Some(1), "{stderr}");
     assert!(
         stderr.contains("has no row for `paper` (label `seed1`), `init2`, repetition 3"),
         "{stderr}"
@@ -218,14 +232,7 @@ fn cpmx_export_gives_the_documented_conversions_bits() {
             .unwrap();
         documented_conversion(&python, &pth, &converted);
         let exported = dir.join(format!("{seed}-cpmx.safetensors"));
-        ok(&cpmx(&[
-            "export",
-            checkpoint.to_str().unwrap(),
-            "--format",
-            "safetensors",
-            "--out",
-            exported.to_str().unwrap(),
-        ]));
+        export_safetensors(&checkpoint, &exported);
         assert_eq!(
             std::fs::read(&exported).unwrap(),
             std::fs::read(&converted).unwrap(),
@@ -240,15 +247,7 @@ fn a_checkpoint_and_its_conversion_drive_the_same_trajectories_bit_for_bit() {
     let reference = reference();
     let dir = scratch("checkpoint-bits");
     let converted = dir.join("seed1.safetensors");
-    ok(&cpmx(&[
-        "export",
-        reference.join("paper-at25/seed1").to_str().unwrap(),
-        "--format",
-        "safetensors",
-        "--out",
-        converted.to_str().unwrap(),
-    ]));
-    let data = data_args(&reference);
+    export_safetensors(&reference.join("paper-at25/seed1"), &converted);
     let checkpoint = spec(
         &dir,
         "checkpoint",
@@ -266,13 +265,8 @@ fn a_checkpoint_and_its_conversion_drive_the_same_trajectories_bit_for_bit() {
         "stdlib:sigmarl-2025",
     );
     for path in [&checkpoint, &file] {
-        let out = run_in(&dir, &["run", path.to_str().unwrap(), &data[0], &data[1]]);
-        assert_eq!(
-            out.status.code(),
-            Some(0),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        let (code, stderr) = cpmx_spec(&dir, "run", path, &reference);
+        assert_eq!(code, Some(0), "{stderr}");
     }
     for configuration in ["init1", "init2", "init3"] {
         for rep in 1..=3 {
@@ -376,11 +370,9 @@ fn damaged_repacked_and_foreign_checkpoints_are_refused_naming_the_file() {
             "  - {name: paper, mlp: {sigmarl: paper-at25/seed1}}",
             "stdlib:sigmarl-2025",
         );
-        let data = data_args(&reference);
         for command in ["validate", "run"] {
-            let out = run_in(&dir, &[command, path.to_str().unwrap(), &data[0], &data[1]]);
-            let stderr = flat(&out.stderr);
-            assert_eq!(out.status.code(), Some(1), "{name}, {command}: {stderr}");
+            let (code, stderr) = cpmx_spec(&dir, command, &path, &reference);
+            assert_eq!(code, Some(1), "{name}, {command}: {stderr}");
             assert!(
                 stderr.contains("reward4.35_policy.pth") && stderr.contains(expected),
                 "{name}, {command}: {stderr}"
@@ -412,10 +404,8 @@ fn data_json_settings_cpmx_cannot_honour_are_refused_by_name_and_value() {
         "  - {name: paper, mlp: {sigmarl: paper-at25/seed1}}",
         "stdlib:sigmarl-2025",
     );
-    let data = data_args(&reference);
-    let out = run_in(&dir, &["validate", path.to_str().unwrap(), &data[0], &data[1]]);
-    let stderr = flat(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    let (code, stderr) = cpmx_spec(&dir, "validate", &path, &reference);
+    assert_eq!(code, Some(1), "{stderr}");
     for expected in [
         "policy `paper` was trained with `is_ego_view: false`: cpmx observes in the ego frame",
         "policy `paper` was trained with `is_obs_noise: true`: cpmx has no observation noise",

@@ -75,9 +75,15 @@ impl MeasuredPoses {
 
     /// Parses the text of a poses file.
     pub fn parse(text: &str) -> Result<MeasuredPoses, PosesError> {
-        let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
-        let (_, header) = lines.next().ok_or_else(|| error(0, "the file is empty"))?;
-        let header: Vec<&str> = header.split(',').map(str::trim).collect();
+        let mut reader = csv::ReaderBuilder::new()
+            .trim(csv::Trim::All)
+            .flexible(true)
+            .from_reader(text.as_bytes());
+        let header = reader.headers().map_err(|e| error(1, e.to_string()))?.clone();
+        if header.is_empty() {
+            return Err(error(0, "the file is empty"));
+        }
+        let header: Vec<&str> = header.iter().collect();
         let column = |name: &str| header.iter().position(|h| *h == name);
         let keys = match (
             column("policy"),
@@ -121,9 +127,11 @@ impl MeasuredPoses {
             ));
         }
         let mut rows: Vec<PoseRow> = Vec::new();
-        for (index, text) in lines {
-            let line = index + 1;
-            let cells: Vec<&str> = text.split(',').map(str::trim).collect();
+        for record in reader.records() {
+            let record =
+                record.map_err(|e| error(e.position().map_or(0, |p| p.line() as usize), e.to_string()))?;
+            let line = record.position().map_or(0, |p| p.line() as usize);
+            let cells: Vec<&str> = record.iter().collect();
             if cells.len() != header.len() {
                 return Err(error(
                     line,

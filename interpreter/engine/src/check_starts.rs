@@ -85,14 +85,17 @@ fn footing(start: &InitialState, map: &Map, cars: &Cars<'_>, tolerance_m: f64) -
     }
 }
 
+/// The problem of a start beside or off the road (`what` names it), if any.
 fn footing_problem(
-    footing: Footing,
-    what: &str,
-    ref_path: usize,
+    start: &InitialState,
+    map: &Map,
+    cars: &Cars<'_>,
     tolerance_m: f64,
+    what: &str,
     span: cpmx_spec::ByteSpan,
 ) -> Option<Problem> {
-    match footing {
+    let ref_path = start.ref_path;
+    match footing(start, map, cars, tolerance_m) {
         Footing::OnRoad => None,
         Footing::Tolerated(off_m, whose) => Some(
             Problem::warning(
@@ -186,8 +189,7 @@ fn check_explicit(
         };
         let what = format!("agent {a} of `{}`", e.name);
         let span = ctx.span(&pointer);
-        let on = footing(&start, map, cars, e.off_road_tolerance_m);
-        if let Some(problem) = footing_problem(on, &what, start.ref_path, e.off_road_tolerance_m, span) {
+        if let Some(problem) = footing_problem(&start, map, cars, e.off_road_tolerance_m, &what, span) {
             ctx.push(problem);
         }
         let this = PlacedBox::from_pose(vehicle, start.x_m, start.y_m, start.yaw_rad);
@@ -255,13 +257,7 @@ fn check_measured(
                 yaw_rad: pose.yaw_rad,
                 speed_mps: 0.0,
             };
-            if let Some(problem) = footing_problem(
-                footing(&start, map, cars, tolerance_m),
-                &what,
-                ref_path,
-                tolerance_m,
-                span,
-            ) {
+            if let Some(problem) = footing_problem(&start, map, cars, tolerance_m, &what, span) {
                 ctx.push(problem);
             }
             let this = PlacedBox::from_pose(vehicle, start.x_m, start.y_m, start.yaw_rad);

@@ -11,9 +11,9 @@
 
 use std::path::{Path, PathBuf};
 
-use safetensors::{Dtype, SafeTensors};
+use safetensors::SafeTensors;
 
-use crate::layers::{Layer, mlp_layers};
+use crate::layers::{Layer, Tensors, mlp_layers};
 use crate::torch::NamedTensor;
 
 pub use cpmx_kernels::Activation;
@@ -258,12 +258,8 @@ impl MlpActor {
         let mut layers = Vec::with_capacity(n_layers);
         for (i, pair) in sizes.windows(2).enumerate() {
             let (inputs, outputs) = (pair[0], pair[1]);
-            let weight = read_f32(
-                &tensors,
-                &format!("{}.{i}.weight", layout.prefix),
-                &[outputs, inputs],
-            )?;
-            let bias = read_f32(&tensors, &format!("{}.{i}.bias", layout.prefix), &[outputs])?;
+            let weight = tensors.f32(&format!("{}.{i}.weight", layout.prefix), &[outputs, inputs])?;
+            let bias = tensors.f32(&format!("{}.{i}.bias", layout.prefix), &[outputs])?;
             let activation = if i + 1 < n_layers {
                 layout.activation
             } else {
@@ -507,30 +503,4 @@ impl MlpActor {
         }
         Ok(())
     }
-}
-
-/// A float32 tensor with the expected shape, as a flat vector.
-fn read_f32(tensors: &SafeTensors<'_>, name: &str, expected: &[usize]) -> Result<Vec<f32>, ActorError> {
-    let view = tensors.tensor(name).map_err(|_| ActorError::MissingTensor {
-        name: name.to_owned(),
-        expected: expected.to_vec(),
-    })?;
-    if view.dtype() != Dtype::F32 {
-        return Err(ActorError::Dtype {
-            name: name.to_owned(),
-            found: view.dtype().to_string(),
-        });
-    }
-    if view.shape() != expected {
-        return Err(ActorError::Shape {
-            name: name.to_owned(),
-            expected: expected.to_vec(),
-            found: view.shape().to_vec(),
-        });
-    }
-    Ok(view
-        .data()
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect())
 }
