@@ -128,9 +128,8 @@ impl MeasuredPoses {
         }
         let mut rows: Vec<PoseRow> = Vec::new();
         for record in reader.records() {
-            let record =
-                record.map_err(|e| error(e.position().map_or(0, |p| p.line() as usize), e.to_string()))?;
-            let line = record.position().map_or(0, |p| p.line() as usize);
+            let record = record.map_err(|e| error(line_at(text, e.position()), e.to_string()))?;
+            let line = line_at(text, record.position());
             let cells: Vec<&str> = record.iter().collect();
             if cells.len() != header.len() {
                 return Err(error(
@@ -268,6 +267,20 @@ impl FromPosesSpec {
     }
 }
 
+/// The 1-based line of a record at `position` in `text`, counted from its byte offset: on
+/// `\r\n` endings (the paper's poses.csv has them) the csv crate places a record at the `\n`
+/// that ends the line before it, and counts its lines one short.
+fn line_at(text: &str, position: Option<&csv::Position>) -> usize {
+    position.map_or(0, |p| {
+        let bytes = text.as_bytes();
+        let mut start = (p.byte() as usize).min(bytes.len());
+        while start < bytes.len() && matches!(bytes[start], b'\r' | b'\n') {
+            start += 1;
+        }
+        bytes[..start].iter().filter(|&&b| b == b'\n').count() + 1
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -284,6 +297,10 @@ mod tests {
         assert_eq!(poses.configurations(), ["init1", "init2"]);
         let row = poses.row("seed1", "init1", 2).unwrap();
         assert_eq!(row.line, 3);
+        // Windows line endings (as the paper's file has them) count the same lines.
+        let crlf = MeasuredPoses::parse(&PAPER_LAYOUT.replace('\n', "\r\n")).unwrap();
+        assert_eq!(crlf.row("seed1", "init1", 1).unwrap().line, 2);
+        assert_eq!(crlf.row("seed2", "init2", 1).unwrap().line, 4);
         assert_eq!(row.vehicles.len(), 2);
         assert_eq!(row.vehicles[1].yaw_rad, -0.01);
         assert_eq!(row.vehicles[1].ref_path, 5);
