@@ -46,7 +46,8 @@ fn check_shipped(spec: &str) -> usize {
         let run: serde_json::Value =
             serde_json::from_slice(&std::fs::read(dir.join("run.json")).unwrap()).unwrap();
         assert_eq!(
-            run["fingerprint"], setup.fingerprint,
+            run["fingerprint"],
+            setup.fingerprint(trained.seed).unwrap(),
             "{what}: trained by other inputs than the spec's (training section, vehicle, dt, map)"
         );
         assert_eq!(run["seed"], trained.seed, "{what}");
@@ -115,7 +116,13 @@ fn the_lookahead_changes_only_a_planning_fidelitys_fingerprint() {
         let data = DataPath::new(path.parent().unwrap(), &[reference()], None);
         let checked = cpmx_spec::check(&source, &data, &cpmx_engine::BuildChecks).unwrap();
         ["sim", "sim-mpc", "twin-random"]
-            .map(|f| TrainingSetup::prepare(&checked, f).unwrap().fingerprint)
+            .map(|f| {
+                TrainingSetup::prepare(&checked, f)
+                    .unwrap()
+                    .fingerprint(1)
+                    .unwrap()
+                    .to_owned()
+            })
             .to_vec()
     };
     let held = fingerprints("\n  lookahead: hold\n");

@@ -28,8 +28,9 @@ pub struct Resources {
     pub observations: Vec<Option<crate::model::ObservationSpec>>,
     /// The folder of each `from_runs` entry, by initial-configuration index.
     pub from_runs: Vec<Option<PathBuf>>,
-    /// The actor a training starts from (`training.initial_actor`), when found.
-    pub initial_actor: Option<PathBuf>,
+    /// The actor each seed of the training starts from (`training.initial_actor`, `{seed}`
+    /// replaced), when found, by seed.
+    pub initial_actors: std::collections::BTreeMap<u64, PathBuf>,
     /// The poses of each `from_poses` entry, read, by initial-configuration index.
     pub poses: Vec<Option<crate::poses::MeasuredPoses>>,
     /// The spec's folder (where policy processes run).

@@ -155,14 +155,24 @@ pub(crate) fn find_files(
         resources.weights.push(found);
     }
     resources.observations = observations;
-    if let Some(file) = spec.training.as_ref().and_then(|t| t.initial_actor.as_ref()) {
-        match data.find(file) {
-            Ok(path) => resources.initial_actor = Some(path),
-            // `cpmx train` reads files as scoring does; it says a missing one when it trains.
-            Err(_) if scope == CheckScope::Measure => {}
-            Err(tried) => {
-                let span = ctx.span("/training/initial_actor");
-                ctx.push(missing_file("initial actor", file, &tried, data.option, span));
+    if let Some(training) = &spec.training {
+        let mut missing = std::collections::BTreeSet::new();
+        for &seed in &training.seeds {
+            let Some(file) = training.initial_actor_of(seed) else {
+                break;
+            };
+            match data.find(&file) {
+                Ok(path) => {
+                    resources.initial_actors.insert(seed, path);
+                }
+                // `cpmx train` reads files as scoring does; it says a missing one when it trains.
+                Err(_) if scope == CheckScope::Measure => {}
+                Err(tried) => {
+                    if missing.insert(file.clone()) {
+                        let span = ctx.span("/training/initial_actor");
+                        ctx.push(missing_file("initial actor", &file, &tried, data.option, span));
+                    }
+                }
             }
         }
     }

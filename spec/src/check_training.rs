@@ -451,6 +451,21 @@ fn check_algorithm(training: &TrainingSpec, ctx: &mut CheckContext<'_>) {
             .with_help("minibatches are drawn from one iteration's batch: minibatch ≤ frames_per_iteration"),
         );
     }
+    if m.critic_warmup_iterations >= training.iterations {
+        let span = ctx.span("/training/algorithm/mappo/critic_warmup_iterations");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::range",
+                format!(
+                    "a critic warm-up of {} iterations leaves none of the {} `iterations` to the actor",
+                    m.critic_warmup_iterations, training.iterations
+                ),
+                span,
+                "not fewer than `iterations`",
+            )
+            .with_help("the actor learns after the warm-up: critic_warmup_iterations < iterations"),
+        );
+    }
     let envs = training.scenario.envs;
     if envs > 0 && !m.frames_per_iteration.is_multiple_of(envs) {
         let span = ctx.span("/training/algorithm/mappo/frames_per_iteration");

@@ -554,6 +554,64 @@ fn a_training_starts_from_the_actor_it_names() {
 }
 
 #[test]
+fn each_seed_starts_from_its_own_actor_with_the_seed_in_the_path() {
+    // `{seed}` in `initial_actor`: seeds 7 and 8 continue the actors that seeds 7 and 8 of a
+    // first training made. Each seed's fingerprint is the one a spec naming its file gets.
+    let (first, second, single) = (
+        scratch("train-per-seed-first"),
+        scratch("train-per-seed-second"),
+        scratch("train-per-seed-single"),
+    );
+    ok(&train(&first, &small_spec(&first, 1), &[]));
+    let template = first.join("out/{seed}/actor.last.safetensors");
+    let continued = small_spec(&second, 1);
+    let text = edited(
+        &continued,
+        "  iterations: 1\n",
+        &format!("  initial_actor: {}\n  iterations: 1\n", template.display()),
+    );
+    std::fs::write(&continued, text).unwrap();
+    ok(&train(&second, &continued, &[]));
+    let fingerprint = |dir: &Path, seed: u64| -> String {
+        let run = std::fs::read_to_string(dir.join(format!("out/{seed}/run.json"))).unwrap();
+        let run: serde_json::Value = serde_json::from_str(&run).unwrap();
+        run["fingerprint"].as_str().unwrap().to_owned()
+    };
+    assert_ne!(
+        fingerprint(&second, 7),
+        fingerprint(&second, 8),
+        "two starts, two fingerprints"
+    );
+    let named = small_spec(&single, 1);
+    let eight = first.join("out/8/actor.last.safetensors");
+    let text = edited(
+        &named,
+        "  iterations: 1\n",
+        &format!("  initial_actor: {}\n  iterations: 1\n", eight.display()),
+    );
+    std::fs::write(&named, text).unwrap();
+    ok(&train(&single, &named, &["--only", "seed=8"]));
+    assert_eq!(fingerprint(&single, 8), fingerprint(&second, 8));
+    // A seed whose file is missing is named with its own path.
+    std::fs::remove_file(first.join("out/8/actor.last.safetensors")).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .args(["validate", continued.to_str().unwrap(), "--data"])
+        .arg(reference())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("out/8/actor.last.safetensors` was not found"),
+        "{stderr}"
+    );
+    assert!(
+        !stderr.contains("out/7/actor.last.safetensors` was not found"),
+        "{stderr}"
+    );
+}
+
+#[test]
 fn a_shard_past_the_last_training_run_says_it_has_nothing_to_do() {
     // An array job of more tasks than seeds: the extra task says so and writes nothing.
     let dir = scratch("train-empty-shard");

@@ -38,6 +38,10 @@ pub struct Hyperparameters {
     pub critic_hidden: Vec<usize>,
     /// Action half-ranges `[speed m/s, steering rad]`.
     pub action_high: [f32; 2],
+    /// The first iterations that update the critic only: the actor collects but does not
+    /// learn, so that a fresh critic beside a warm-started actor has learnt its values before
+    /// its advantages move it (0: SigmaRL, both from the first iteration).
+    pub critic_warmup_iterations: u64,
 }
 
 impl Hyperparameters {
@@ -60,6 +64,7 @@ impl Hyperparameters {
             actor_hidden: vec![256, 256, 256],
             critic_hidden: vec![256, 256, 256],
             action_high: [1.0, 0.541_052_04],
+            critic_warmup_iterations: 0,
         }
     }
 
@@ -101,6 +106,12 @@ impl Hyperparameters {
         }
         if !(self.lr_min >= 0.0 && self.lr_min <= self.lr) || self.clip_epsilon >= 1.0 || self.n_iters == 0 {
             return bad("need 0 <= lr_min <= lr, clip_epsilon < 1 and n_iters > 0".into());
+        }
+        if self.critic_warmup_iterations >= self.n_iters {
+            return bad(format!(
+                "critic_warmup_iterations {} leaves none of the {} iterations to the actor",
+                self.critic_warmup_iterations, self.n_iters
+            ));
         }
         if self.actor_hidden.contains(&0) || self.critic_hidden.contains(&0) {
             return bad("hidden layers need at least one unit".into());

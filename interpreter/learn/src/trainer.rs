@@ -302,7 +302,7 @@ impl<E: Environment> Trainer<E> {
         let mut record = self.collect()?;
         let collected = Instant::now();
         self.compute_gae();
-        let sums = self.update(lr);
+        let sums = self.update(lr, k > self.hp.critic_warmup_iterations);
         record.iteration = k;
         record.samples = k * self.hp.frames_per_batch as u64;
         record.lr = lr;
@@ -466,7 +466,9 @@ impl<E: Environment> Trainer<E> {
     }
 
     /// Step 3: the epochs of minibatch steps; returns the summed losses and gradient norms.
-    fn update(&mut self, lr: f64) -> (Losses, f64) {
+    /// Without `actor_learns` (the critic's warm-up) only the critic's gradient is clipped
+    /// and stepped.
+    fn update(&mut self, lr: f64, actor_learns: bool) -> (Losses, f64) {
         let (envs, agents, d) = (self.env.num_envs(), self.env.num_agents(), self.env.obs_dim());
         let steps = self.hp.frames_per_batch / envs;
         let (nd, mb) = (agents * d, self.hp.minibatch_size);
@@ -477,6 +479,8 @@ impl<E: Environment> Trainer<E> {
             high: self.hp.action_high,
         };
         let mut sums = (Losses::default(), 0.0);
+        let steps_per_iteration = (self.hp.num_epochs * (envs * steps / mb)) as u64;
+        let warmup_steps = self.hp.critic_warmup_iterations * steps_per_iteration;
         let mut order: Vec<usize> = (0..envs * steps).collect();
         let w = &mut self.work;
         w.actor_grad.resize(self.actor.params.len(), 0.0);
@@ -539,14 +543,27 @@ impl<E: Environment> Trainer<E> {
                     || actor.backward(actor_tape, d_raw, actor_grad),
                     || critic.backward(critic_tape, d_value, critic_grad),
                 );
-                let norm = clip_grad_norm(
-                    &mut [&mut w.actor_grad, &mut w.critic_grad],
-                    self.hp.max_grad_norm,
-                );
+                let norm = if actor_learns {
+                    clip_grad_norm(
+                        &mut [&mut w.actor_grad, &mut w.critic_grad],
+                        self.hp.max_grad_norm,
+                    )
+                } else {
+                    clip_grad_norm(&mut [&mut w.critic_grad], self.hp.max_grad_norm)
+                };
                 self.adam_steps += 1;
                 let step = self.adam_steps;
-                self.adam_actor
-                    .step(&self.hp.adam, step, lr, &mut self.actor.params, &w.actor_grad);
+                if actor_learns {
+                    // The actor's Adam counts its own steps from its first (bias correction).
+                    let actor_step = step - warmup_steps;
+                    self.adam_actor.step(
+                        &self.hp.adam,
+                        actor_step,
+                        lr,
+                        &mut self.actor.params,
+                        &w.actor_grad,
+                    );
+                }
                 self.adam_critic
                     .step(&self.hp.adam, step, lr, &mut self.critic.params, &w.critic_grad);
                 sums.0.objective += losses.objective;

@@ -281,3 +281,38 @@ fn a_training_started_from_a_trained_actor_starts_where_it_left_off() {
         "{error}"
     );
 }
+
+#[test]
+fn a_critic_warm_up_trains_the_critic_while_the_actor_only_collects() {
+    let warmup = Hyperparameters {
+        critic_warmup_iterations: 2,
+        ..hyperparameters()
+    };
+    let mut trainer = Trainer::new(Line::new(8), warmup.clone(), 1).unwrap();
+    let (actor, critic) = (trainer.actor().clone(), trainer.critic().clone());
+    for _ in 0..2 {
+        trainer.iterate().unwrap();
+    }
+    assert_eq!(trainer.actor(), &actor, "the actor moved during the warm-up");
+    assert_ne!(
+        trainer.critic(),
+        &critic,
+        "the critic did not learn during the warm-up"
+    );
+    trainer.iterate().unwrap();
+    assert_ne!(
+        trainer.actor(),
+        &actor,
+        "the actor does not learn after the warm-up"
+    );
+    // A warm-up as long as the training leaves the actor nothing: refused.
+    let whole = Hyperparameters {
+        critic_warmup_iterations: 20,
+        ..hyperparameters()
+    };
+    let error = Trainer::new(Line::new(8), whole, 1).err().unwrap().to_string();
+    assert!(
+        error.contains("critic_warmup_iterations 20 leaves none of the 20 iterations"),
+        "{error}"
+    );
+}

@@ -34,7 +34,7 @@ pub fn trained_actors(checked: &CheckedSpec) -> Vec<(usize, Provenance)> {
     let Some(training) = &checked.spec.training else {
         return Vec::new();
     };
-    let mut fingerprints: HashMap<(String, String), Option<String>> = HashMap::new();
+    let mut setups: HashMap<(String, String), Option<TrainingSetup>> = HashMap::new();
     let mut out = Vec::new();
     for (i, policy) in checked.spec.policies.iter().enumerate() {
         let Some(trained) = policy.mlp.as_ref().and_then(|m| m.trained.as_ref()) else {
@@ -48,14 +48,10 @@ pub fn trained_actors(checked: &CheckedSpec) -> Vec<(usize, Provenance)> {
             .clone()
             .unwrap_or_else(|| training.fidelity.names()[0].clone());
         let point = trained.point.clone().unwrap_or_default();
-        let expected = fingerprints
+        let setup = setups
             .entry((fidelity.clone(), point.clone()))
-            .or_insert_with(|| {
-                TrainingSetup::prepare_at(checked, &fidelity, &point)
-                    .ok()
-                    .map(|s| s.fingerprint)
-            });
-        let Some(expected) = expected else {
+            .or_insert_with(|| TrainingSetup::prepare_at(checked, &fidelity, &point).ok());
+        let Some(expected) = setup.as_ref().and_then(|s| s.fingerprint(trained.seed)) else {
             continue;
         };
         out.push((i, provenance_of(actor, expected)));

@@ -175,11 +175,12 @@ impl SeedRun {
             let Some(mut info) = previous else {
                 return Err(RunError::Unknown { dir });
             };
-            if info.fingerprint != setup.fingerprint {
+            let expected = setup.fingerprint(seed).unwrap_or_default();
+            if info.fingerprint != expected {
                 return Err(RunError::Changed {
                     dir,
                     found: info.fingerprint.clone(),
-                    expected: setup.fingerprint.clone(),
+                    expected: expected.to_owned(),
                 });
             }
             let bytes = read(&checkpoint_path)?;
@@ -227,7 +228,7 @@ impl SeedRun {
             return Ok((run, Start::Resumed { done }));
         }
         let mut trainer = Trainer::new(env, setup.hyperparameters.clone(), seed)?;
-        if let Some(actor) = &setup.initial_actor {
+        if let Some(actor) = setup.initial_actors.get(&seed) {
             trainer.start_from(actor.clone())?;
         }
         let mut info = new_info(setup, seed);
@@ -347,7 +348,7 @@ fn new_info(setup: &TrainingSetup, seed: u64) -> RunInfo {
     RunInfo {
         spec: setup.spec_name.clone(),
         seed,
-        fingerprint: setup.fingerprint.clone(),
+        fingerprint: setup.fingerprint(seed).unwrap_or_default().to_owned(),
         iterations_done: 0,
         iterations_planned: setup.hyperparameters.n_iters,
         best_episode_reward_mean: None,

@@ -3,6 +3,8 @@
 //! hyperparameters (`cpmx-learn`), the seeds, and a fingerprint of everything that shapes the
 //! weights, so that `--resume` never continues a run with changed inputs.
 
+use std::collections::BTreeMap;
+
 use cpmx_env::{EnvConfig, Plant, StackPlant, config_from_training, training_paths};
 use cpmx_learn::Hyperparameters;
 use cpmx_spec::CheckedSpec;
@@ -49,16 +51,37 @@ pub struct TrainingSetup {
     pub hyperparameters: Hyperparameters,
     /// The seeds, in the spec's order.
     pub seeds: Vec<u64>,
-    /// SHA-256 (hex) of what shapes the weights: the resolved `training:` section, the
-    /// vehicle, `timing.dt` and the map's content.
-    pub fingerprint: String,
+    /// What shapes each seed's weights ([`TrainingSetup::fingerprint`]).
+    fingerprints: Fingerprints,
     /// The resolved `training:` section (presets expanded), as JSON.
     pub resolved: serde_json::Value,
-    /// The actor a training starts from (`initial_actor`), read; none for a random start.
-    pub initial_actor: Option<cpmx_learn::Mlp>,
+    /// The actor each seed starts from (`initial_actor`), read, by seed; empty for a random
+    /// start.
+    pub initial_actors: BTreeMap<u64, cpmx_learn::Mlp>,
+}
+
+/// The fingerprints of a training's seeds: one for every seed, unless each seed starts from
+/// its own actor (`initial_actor` with `{seed}`).
+#[derive(Debug, Clone)]
+enum Fingerprints {
+    /// The same inputs for every seed, listed or not.
+    Shared(String),
+    /// By seed: only the listed seeds have one.
+    PerSeed(BTreeMap<u64, String>),
 }
 
 impl TrainingSetup {
+    /// SHA-256 (hex) of what shapes the weights of `seed`: the resolved `training:` section,
+    /// the vehicle, `timing.dt`, the map's content and the content of the actor the seed
+    /// starts from. None for a seed the spec does not list when each seed starts from its
+    /// own actor.
+    pub fn fingerprint(&self, seed: u64) -> Option<&str> {
+        match &self.fingerprints {
+            Fingerprints::Shared(f) => Some(f),
+            Fingerprints::PerSeed(by_seed) => by_seed.get(&seed).map(String::as_str),
+        }
+    }
+
     /// Names of the fidelity parameters drawn per episode (the learning curve's `drawn_`
     /// columns); none unless the fidelity to train in is randomised.
     pub fn randomised_parameters(&self) -> Vec<String> {
@@ -144,37 +167,32 @@ impl TrainingSetup {
         if let Some(object) = resolved.as_object_mut() {
             object.insert("fidelity".to_owned(), serde_json::Value::from(fidelity));
         }
-        let initial_actor = match &training.initial_actor {
-            None => None,
-            Some(file) => {
-                let fail = |reason: String| SetupError::InitialActor {
-                    file: file.clone(),
-                    reason,
-                };
-                let path = checked.resources.initial_actor.as_ref().ok_or_else(|| {
-                    fail("not found next to the spec or on the data path (`cpmx validate` says where it looked)".into())
-                })?;
-                let bytes = std::fs::read(path).map_err(|e| fail(format!("{}: {e}", path.display())))?;
-                let actor =
-                    cpmx_learn::Mlp::from_safetensors(&bytes, "actor").map_err(|e| fail(e.to_string()))?;
-                Some((actor, bytes))
+        let mut initial_actors = BTreeMap::new();
+        let fingerprints = if training.initial_actor.is_none() {
+            Fingerprints::Shared(fingerprint(checked, &resolved, &env.plant, None)?)
+        } else {
+            let mut by_seed = BTreeMap::new();
+            for &seed in &training.seeds {
+                let (actor, bytes) = read_initial_actor(checked, training, seed)?;
+                by_seed.insert(seed, fingerprint(checked, &resolved, &env.plant, Some(&bytes))?);
+                initial_actors.insert(seed, actor);
+            }
+            match training.initial_actor.as_deref() {
+                Some(file) if !file.contains("{seed}") => {
+                    Fingerprints::Shared(by_seed.into_values().next().unwrap_or_default())
+                }
+                _ => Fingerprints::PerSeed(by_seed),
             }
         };
-        let fingerprint = fingerprint(
-            checked,
-            &resolved,
-            &env.plant,
-            initial_actor.as_ref().map(|(_, bytes)| bytes.as_slice()),
-        )?;
         Ok(TrainingSetup {
             spec_name: spec.name.clone(),
             env,
             paths,
             hyperparameters,
             seeds: training.seeds.clone(),
-            fingerprint,
+            fingerprints,
             resolved,
-            initial_actor: initial_actor.map(|(actor, _)| actor),
+            initial_actors,
         })
     }
 }
@@ -196,6 +214,7 @@ fn hyperparameters(training: &TrainingSpec, vehicle: &cpmx_vehicle::VehicleParam
         gamma: m.gamma,
         lmbda: m.lambda,
         entropy_eps: m.entropy,
+        critic_warmup_iterations: u64::from(m.critic_warmup_iterations),
         actor_hidden: hidden.clone(),
         critic_hidden: hidden,
         action_high: [vehicle.max_speed_mps as f32, vehicle.max_steering_rad as f32],
@@ -263,6 +282,26 @@ fn describe_paths(training: &TrainingSpec) -> String {
         (None, None, Some(ids)) if ids.is_empty() => "`ref_paths` is empty".into(),
         (None, None, _) => "the map has no reference paths".into(),
     }
+}
+
+/// The actor `seed` starts from (`initial_actor` with `{seed}` replaced) and its bytes.
+fn read_initial_actor(
+    checked: &CheckedSpec,
+    training: &TrainingSpec,
+    seed: u64,
+) -> Result<(cpmx_learn::Mlp, Vec<u8>), SetupError> {
+    let file = training.initial_actor_of(seed).unwrap_or_default();
+    let path = checked.resources.initial_actors.get(&seed).cloned();
+    let fail = |reason: String| SetupError::InitialActor {
+        file: file.clone(),
+        reason,
+    };
+    let path = path.ok_or_else(|| {
+        fail("not found next to the spec or on the data path (`cpmx validate` says where it looked)".into())
+    })?;
+    let bytes = std::fs::read(&path).map_err(|e| fail(format!("{}: {e}", path.display())))?;
+    let actor = cpmx_learn::Mlp::from_safetensors(&bytes, "actor").map_err(|e| fail(e.to_string()))?;
+    Ok((actor, bytes))
 }
 
 /// SHA-256 over the resolved training section, vehicle, dt, the map file's bytes and the

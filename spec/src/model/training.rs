@@ -47,9 +47,11 @@ pub struct TrainingSpec {
     /// The actor the training starts from instead of a random one: a safetensors MLP with the
     /// `network`'s layer sizes (layers `actor.N`, e.g. a `cpmx train` seed folder's
     /// `actor.safetensors`), relative to the spec's folder or found on the data path. A warm
-    /// start, for a curriculum: an actor trained in sim-mpc continued in the twin. The critic
-    /// and the optimiser start fresh; the file's content is part of the training's
-    /// fingerprint. Default: none (SigmaRL's random start).
+    /// start, for a curriculum: an actor trained in sim-mpc continued in the twin. `{seed}` in
+    /// the path stands for the seed trained, so that each seed continues its own actor (e.g.
+    /// `policies/transfer/sim-mpc/{seed}/actor.safetensors`). The critic and the optimiser
+    /// start fresh; the file's content is part of the seed's fingerprint. Default: none
+    /// (SigmaRL's random start).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(length(min = 1))]
     pub initial_actor: Option<String>,
@@ -64,6 +66,15 @@ pub struct TrainingSpec {
 
 /// What fills the control horizon after the learner's action when training through the
 /// planner (`training.lookahead`).
+impl TrainingSpec {
+    /// The `initial_actor` file of `seed`: the path with `{seed}` replaced by the seed.
+    pub fn initial_actor_of(&self, seed: u64) -> Option<String> {
+        self.initial_actor
+            .as_ref()
+            .map(|file| file.replace("{seed}", &seed.to_string()))
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "kebab-case")]
 pub enum Lookahead {
@@ -486,6 +497,16 @@ pub struct MappoSpec {
     pub max_grad_norm: f64,
     /// The critic's loss (SigmaRL: `smooth-l1`).
     pub value_loss: ValueLoss,
+    /// The first iterations that train the critic only: the actor collects but does not
+    /// learn. With `initial_actor`, the fresh critic first learns the warm actor's values, so
+    /// that its first advantages are not noise that undoes the warm start. Fewer than
+    /// `iterations`. Default: 0 (SigmaRL).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub critic_warmup_iterations: u32,
+}
+
+fn is_zero(n: &u32) -> bool {
+    *n == 0
 }
 
 /// The critic's loss.
