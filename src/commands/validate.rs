@@ -115,6 +115,7 @@ fn summary(spec: &Path, name: &str, map: &Map) -> String {
     let numbering = match map.kind() {
         MapKind::CpmLab => "SigmaRL's numbering of the CPM Lab map (cpm_entire: 40 loops)".to_owned(),
         MapKind::Builtin(name) => format!("the built-in map `{name}`'s own numbering"),
+        MapKind::SigmarlScenario => "SigmaRL's scenario table (paths by their position in it)".to_owned(),
         MapKind::Generic => format!(
             "generic numbering: first every chain of successors from a lanelet without \
              predecessors (starts by ascending id, branches by ascending id), then every loop from \

@@ -26,6 +26,7 @@ pub mod osm;
 mod paths;
 pub mod polyline;
 mod segment_boxes;
+pub mod sigmarl_osm;
 mod xml;
 
 pub use error::{LineIndex, MapError, PathError, SourceLocation};
@@ -37,6 +38,7 @@ pub use numerics::Numerics;
 pub use paths::{CentreRule, PathBuilder, SharedRule};
 pub use polyline::{Point, Polyline, SegmentDistance};
 pub use segment_boxes::SegmentBoxes;
+pub use sigmarl_osm::{ScenarioTable, SigmarlScenario};
 
 /// A reference path: the lane an agent follows, with its own-lane and shared (road) boundaries.
 #[derive(Debug, Clone, PartialEq)]

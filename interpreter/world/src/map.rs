@@ -52,6 +52,9 @@ pub enum MapKind {
     Generic,
     /// A map written by this project (`stdlib:NAME`).
     Builtin(&'static str),
+    /// One of SigmaRL's scenario maps (`map: {sigmarl: NAME}`): its paths are the scenario
+    /// table's.
+    SigmarlScenario,
 }
 
 /// Axis-aligned bounds of a map [m].
@@ -323,7 +326,7 @@ impl Map {
             (MapKind::CpmLab, PathSet::Intersection) => to_vecs(&cpm_lab::INTERSECTION_PATHS),
             (MapKind::CpmLab, PathSet::MergeIn) => to_vecs(&cpm_lab::MERGE_IN_PATHS),
             (MapKind::CpmLab, PathSet::MergeOut) => to_vecs(&cpm_lab::MERGE_OUT_PATHS),
-            (MapKind::Builtin(_), PathSet::Entire) => {
+            (MapKind::Builtin(_) | MapKind::SigmarlScenario, PathSet::Entire) => {
                 return Ok(self.fixed_paths.clone().unwrap_or_default());
             }
             (_, PathSet::Entire) => generic::generic_path_lanelets(&self.all_lanelets).sequences,

@@ -29,7 +29,7 @@
 //!   ways, else their `type`; the lanelet type is the relation's `subtype`.
 
 mod centerline;
-mod nodes;
+pub(crate) mod nodes;
 mod orientation;
 mod projection;
 mod routing;
