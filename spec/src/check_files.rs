@@ -87,6 +87,25 @@ pub(crate) fn find_files(
             .unwrap_or_else(|| PathBuf::from(".")),
         ..Resources::default()
     };
+    if let MapSpec::Sigmarl(map) = &spec.map {
+        match data.find(map.table_file()) {
+            Ok(path) => resources.map_file = Some(path),
+            Err(tried) => {
+                let span = ctx.span(if map.table.is_some() {
+                    "/map/table"
+                } else {
+                    "/map/sigmarl"
+                });
+                ctx.push(missing_file(
+                    "SigmaRL's scenario table",
+                    map.table_file(),
+                    &tried,
+                    data.option,
+                    span,
+                ));
+            }
+        }
+    }
     if let MapSpec::File(map) = &spec.map {
         match data.find_pinned(&map.file, map.sha256.as_deref()) {
             Ok(path) => resources.map_file = Some(path),

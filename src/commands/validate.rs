@@ -63,12 +63,24 @@ fn map_only(path: &Path, data: &DataArgs) -> Option<Result<String, String>> {
                 )));
             }
         },
+        MapSpec::Sigmarl(m) => match data_path.find(m.table_file()) {
+            Ok(found) => Some(found),
+            Err(tried) => {
+                let tried: Vec<String> = tried.iter().map(|p| p.display().to_string()).collect();
+                return Some(Err(format!(
+                    "SigmaRL's scenario table `{}` not found (looked in: {})",
+                    m.table_file(),
+                    tried.join(", ")
+                )));
+            }
+        },
         MapSpec::Builtin(_) => None,
     };
     Some(
         cpmx_engine::load_map_spec(&map_spec, file.as_deref())
             .map(|map| {
                 let name = match (&map_spec, &file) {
+                    (MapSpec::Sigmarl(m), _) => format!("SigmaRL's scenario `{}`", m.sigmarl),
                     (_, Some(file)) => file.display().to_string(),
                     (MapSpec::Builtin(name), None) => name.clone(),
                     (MapSpec::File(f), None) => f.file.clone(),

@@ -21,7 +21,7 @@ impl InterpreterChecks for BuildChecks {
         check_weights(spec, resources, ctx);
         check_onnx(spec, resources, ctx);
         check_processes(spec, resources, ctx);
-        if matches!(spec.map, MapSpec::File(_)) && resources.map_file.is_none() {
+        if matches!(spec.map, MapSpec::File(_) | MapSpec::Sigmarl(_)) && resources.map_file.is_none() {
             // The data path did not find the file: the spec's checks said so.
             return;
         }
@@ -35,6 +35,7 @@ impl InterpreterChecks for BuildChecks {
                     (MapSpec::File(_), PrepareError::RefPath { .. }) => "/map/ref_paths",
                     (MapSpec::File(_), _) => "/map/file",
                     (MapSpec::Builtin(_), _) => "/map",
+                    (MapSpec::Sigmarl(_), _) => "/map/sigmarl",
                 };
                 let span = ctx.span(pointer);
                 ctx.push(

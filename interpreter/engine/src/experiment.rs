@@ -315,6 +315,43 @@ pub fn load_map_spec(map: &MapSpec, map_file: Option<&Path>) -> Result<Map, Prep
             }
             Ok(map)
         }
+        MapSpec::Sigmarl(scenario) => {
+            let table_path = map_file.unwrap_or(Path::new(scenario.table_file()));
+            let read = |path: &Path| {
+                std::fs::read_to_string(path).map_err(|source| PrepareError::MapFile {
+                    path: path.to_owned(),
+                    source: cpmx_world::MapError::Io {
+                        path: path.to_owned(),
+                        source,
+                    },
+                })
+            };
+            let table = cpmx_world::ScenarioTable::parse(&read(table_path)?).map_err(|source| {
+                PrepareError::MapFile {
+                    path: table_path.to_owned(),
+                    source,
+                }
+            })?;
+            let Some(entry) = table
+                .scenarios
+                .get(&scenario.sigmarl)
+                .filter(|e| e.map_path.ends_with(".osm"))
+            else {
+                let known: Vec<&str> = table.osm_scenarios().map(|(name, _)| name).collect();
+                return Err(PrepareError::Map(cpmx_world::MapError::UnknownScenario {
+                    name: scenario.sigmarl.clone(),
+                    known: known.join(", "),
+                }));
+            };
+            let path = table_path
+                .parent()
+                .unwrap_or(Path::new("."))
+                .join(&entry.map_path);
+            let text = read(&path)?;
+            let lane_width_m = scenario.lane_width_m.unwrap_or(entry.lane_width);
+            Map::from_sigmarl_osm(&text, entry, lane_width_m)
+                .map_err(|source| PrepareError::MapFile { path, source })
+        }
     }
 }
 

@@ -151,6 +151,14 @@ pub enum MapError {
     /// The map has no lanelets.
     #[error("the map has no lanelets")]
     NoLanelets,
+    /// SigmaRL's scenario table has no scenario of that name.
+    #[error("SigmaRL's scenario table has no scenario `{name}`; it has {known}")]
+    UnknownScenario {
+        /// The name asked for.
+        name: String,
+        /// The names it has (of JOSM maps), comma-separated.
+        known: String,
+    },
     /// A region name the map does not define.
     #[error("unknown region `{name}`; the map defines: {available}")]
     UnknownRegion {

@@ -103,6 +103,42 @@ pub enum MapSpec {
     Builtin(#[schemars(regex(pattern = r"^stdlib:[a-z0-9][a-z0-9-]*$"))] String),
     /// A map file.
     File(MapFile),
+    /// One of SigmaRL's scenarios, e.g. `{sigmarl: intersection_2}`.
+    Sigmarl(SigmarlMap),
+}
+
+/// Where SigmaRL's scenario table is looked for on the data path when the spec names none
+/// (`sigmarl-published/maps/scenarios.json` of the reference data).
+pub const SIGMARL_SCENARIO_TABLE: &str = "sigmarl-published/maps/scenarios.json";
+
+/// One of SigmaRL's scenarios (its JOSM centre-line map, scale, lane width and reference paths),
+/// read as SigmaRL reads it; `ref_path` numbers are the scenario's (positions in its table).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SigmarlMap {
+    /// The scenario's name in SigmaRL's table, e.g. `intersection_2`, `roundabout_1`,
+    /// `interchange_3`, `on_ramp_1` (`cpmx validate` lists them when the name is unknown).
+    #[schemars(length(min = 1))]
+    pub sigmarl: String,
+    /// Lane width [m]: the boundaries lie half of it either side of each centre line. Default:
+    /// the table's (what SigmaRL's parser uses when given none; its environment of later
+    /// versions passes its own `lane_width` parameter instead).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub lane_width_m: Option<f64>,
+    /// SigmaRL's scenario table (`scenarios.json`: its `constants.SCENARIOS`), relative to the
+    /// spec's folder or found on the data path; the map files lie beside it. Default:
+    /// `sigmarl-published/maps/scenarios.json`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(length(min = 1))]
+    pub table: Option<String>,
+}
+
+impl SigmarlMap {
+    /// The scenario table's path as the spec gives it (or the default).
+    pub fn table_file(&self) -> &str {
+        self.table.as_deref().unwrap_or(SIGMARL_SCENARIO_TABLE)
+    }
 }
 
 /// A map read from a file.
