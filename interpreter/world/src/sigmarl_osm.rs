@@ -176,11 +176,11 @@ impl Map {
     }
 }
 
+/// Each node's `(lat, lon)` [°] and where it is, by id.
+type Nodes = HashMap<i64, ((f64, f64), SourceLocation)>;
+
 /// Every node's `(lat, lon)` by id (all of them count, as in SigmaRL).
-fn read_nodes(
-    index: &LineIndex,
-    doc: &Document,
-) -> Result<HashMap<i64, ((f64, f64), SourceLocation)>, MapError> {
+fn read_nodes(index: &LineIndex, doc: &Document) -> Result<Nodes, MapError> {
     let mut nodes = HashMap::new();
     for node in doc.root_element().children().filter(|c| c.has_tag_name("node")) {
         let location = loc(index, node);
@@ -209,7 +209,7 @@ type CentreLines = BTreeMap<LaneletId, (Vec<[f32; 2]>, SourceLocation)>;
 fn read_ways(
     index: &LineIndex,
     doc: &Document,
-    nodes: &HashMap<i64, ((f64, f64), SourceLocation)>,
+    nodes: &Nodes,
     scale: f64,
     lane_width_m: f64,
 ) -> Result<CentreLines, MapError> {
