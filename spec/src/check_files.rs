@@ -88,18 +88,19 @@ pub(crate) fn find_files(
         ..Resources::default()
     };
     if let MapSpec::Sigmarl(map) = &spec.map {
-        match data.find(map.table_file()) {
+        match data.find_pinned(map.table_file(), map.sha256.as_deref()) {
             Ok(path) => resources.map_file = Some(path),
-            Err(tried) => {
+            Err(missing) => {
                 let span = ctx.span(if map.table.is_some() {
                     "/map/table"
                 } else {
                     "/map/sigmarl"
                 });
-                ctx.push(missing_file(
+                ctx.push(missing_pinned(
                     "SigmaRL's scenario table",
                     map.table_file(),
-                    &tried,
+                    map.sha256.as_deref(),
+                    &missing,
                     data.option,
                     span,
                 ));

@@ -132,6 +132,11 @@ pub struct SigmarlMap {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(length(min = 1))]
     pub table: Option<String>,
+    /// SHA-256 of the scenario table's bytes (64 hex digits): only a table with this content is
+    /// taken. `cpmx run` records it in the run folder's `spec.resolved.yaml`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(regex(pattern = r"^[0-9a-f]{64}$"))]
+    pub sha256: Option<String>,
 }
 
 impl SigmarlMap {
