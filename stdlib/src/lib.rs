@@ -140,6 +140,11 @@ pub const PRESETS: &[Preset] = &[
         name: "mappo-sigmarl",
         yaml: include_str!("../presets/training/mappo-sigmarl.yaml"),
     },
+    Preset {
+        kind: PresetKind::Algorithm,
+        name: "mappo-warm-start",
+        yaml: include_str!("../presets/training/mappo-warm-start.yaml"),
+    },
 ];
 
 /// Names presets had before every name became unique across kinds: `(kind, old, new)`. A
