@@ -1,0 +1,16 @@
+//! Safety filters: layers between a policy's action and the vehicle that change the action as
+//! little as they can to keep the vehicle safe. [`cbf`] is SigmaRL's control-barrier-function
+//! QP of the ITSC 2025 paper (one vehicle against its lane's boundaries, solved with
+//! clarabel), on the pseudo-distance of [`pseudo_distance`]. The crate computes what a filter
+//! does for one vehicle and step; the stacks that run it in a fidelity are the engine's.
+
+pub mod cbf;
+pub mod pseudo_distance;
+
+pub use cbf::{CbfOutcome, CbfParameters, CbfRow, CbfState, Fallback, Side, filter};
+pub use pseudo_distance::Boundary;
+
+/// `x` rounded to the nearest `float16` (ties to even), as NumPy and torch round.
+pub fn float16(x: f32) -> f32 {
+    f32::from(half::f16::from_f32(x))
+}

@@ -1,0 +1,96 @@
+//! The pseudo-distance of a point to a boundary polyline (SigmaRL's `PseudoDistance`, the
+//! ITSC 2025 paper's smooth distance): for each segment, the point is taken into the segment's
+//! frame, projected along the line that blends the tangents at the segment's two ends, and
+//! its distance to that projection is kept where the projection falls on the segment; the
+//! smallest over the segments, rounded to `float16` as SigmaRL returns it. Computed in `f32`
+//! in SigmaRL's order of operations (`sigmarl/pseudo_distance.py` at tag 1.4.0).
+
+/// What SigmaRL puts where no segment's projection falls on the segment.
+pub const NO_PROJECTION: f32 = 1000.0;
+
+/// A boundary polyline with SigmaRL's pseudo tangents (central differences inside,
+/// one-sided at the ends: `compute_pseudo_tangent_vector`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Boundary {
+    points: Vec<[f32; 2]>,
+    tangents: Vec<[f32; 2]>,
+}
+
+impl Boundary {
+    /// A boundary through `points` (in driving direction); `None` with fewer than two.
+    pub fn new(points: Vec<[f32; 2]>) -> Option<Boundary> {
+        let n = points.len();
+        if n < 2 {
+            return None;
+        }
+        let diff = |a: [f32; 2], b: [f32; 2]| [b[0] - a[0], b[1] - a[1]];
+        let tangents = (0..n)
+            .map(|i| match i {
+                0 => diff(points[0], points[1]),
+                _ if i == n - 1 => diff(points[n - 2], points[n - 1]),
+                _ => diff(points[i - 1], points[i + 1]),
+            })
+            .collect();
+        Some(Boundary { points, tangents })
+    }
+
+    /// The polyline's points.
+    pub fn points(&self) -> &[[f32; 2]] {
+        &self.points
+    }
+
+    /// The pseudo-distance of `q` [m], rounded to `float16` (exactly representable in `f32`);
+    /// [`NO_PROJECTION`] where no segment takes the point.
+    pub fn pseudo_distance(&self, q: [f32; 2]) -> f32 {
+        let mut best = NO_PROJECTION;
+        for (i, pair) in self.points.windows(2).enumerate() {
+            let (b, t) = (pair[0], pair[1]);
+            let bt = [t[0] - b[0], t[1] - b[1]];
+            let theta = bt[1].atan2(bt[0]);
+            let (sin, cos) = (theta.sin(), theta.cos());
+            // The rotation into the segment's frame: [[cos, sin], [-sin, cos]].
+            let rotate = |v: [f32; 2]| [cos * v[0] + sin * v[1], -sin * v[0] + cos * v[1]];
+            let [x, y] = rotate([q[0] - b[0], q[1] - b[1]]);
+            let tangent_base = rotate(self.tangents[i]);
+            let tangent_tip = rotate(self.tangents[i + 1]);
+            let slope = |t: [f32; 2]| if t[0] != 0.0 { t[1] / t[0] } else { 1e-8 };
+            let (m_tip, m_base) = (slope(tangent_tip), slope(tangent_base));
+            let length = bt[1].mul_add(bt[1], bt[0] * bt[0]).sqrt();
+            let lambda = (x + y * m_base) / (length - y * (m_tip - m_base));
+            if !(0.0..1.0).contains(&lambda) {
+                continue;
+            }
+            let n = [x - lambda * length, y];
+            let distance = crate::float16(n[1].mul_add(n[1], n[0] * n[0]).sqrt());
+            // torch.min keeps the first of equal values; a NaN never wins here.
+            if distance < best {
+                best = distance;
+            }
+        }
+        best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn straight(y: f32) -> Boundary {
+        Boundary::new((0..81).map(|i| [-2.0 + 0.05 * i as f32, y]).collect()).unwrap()
+    }
+
+    #[test]
+    fn on_a_straight_boundary_it_is_the_distance_to_the_line() {
+        let left = straight(0.15);
+        let d = left.pseudo_distance([0.013, 0.08]);
+        assert!((d - 0.07).abs() < 1e-4, "{d}");
+        // float16: the value is one of its numbers.
+        assert_eq!(crate::float16(d), d);
+    }
+
+    #[test]
+    fn past_the_polyline_no_segment_takes_the_point() {
+        assert_eq!(straight(0.15).pseudo_distance([3.0, 0.0]), NO_PROJECTION);
+        assert!(Boundary::new(vec![[0.0, 0.0]]).is_none());
+    }
+}
