@@ -38,6 +38,7 @@ fn preset_fields(doc: &Value) -> Vec<(String, PresetKind)> {
             let base = format!("/fidelities/{}", escape_pointer(name));
             fields.push((format!("{base}/dynamics"), PresetKind::Dynamics));
             fields.push((format!("{base}/sensing"), PresetKind::Sensing));
+            fields.push((format!("{base}/safety"), PresetKind::Safety));
         }
     }
     fields

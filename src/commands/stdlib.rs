@@ -16,6 +16,7 @@ fn field(kind: PresetKind) -> &'static str {
         PresetKind::TrainingScenario => "training.scenario",
         PresetKind::Reward => "training.reward",
         PresetKind::Algorithm => "training.algorithm",
+        PresetKind::Safety => "fidelities.*.safety",
     }
 }
 

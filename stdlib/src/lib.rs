@@ -26,6 +26,8 @@ pub enum PresetKind {
     Reward,
     /// `training.algorithm:`
     Algorithm,
+    /// `fidelities.*.safety:`
+    Safety,
 }
 
 impl PresetKind {
@@ -41,6 +43,7 @@ impl PresetKind {
             PresetKind::TrainingScenario => "training scenario",
             PresetKind::Reward => "reward",
             PresetKind::Algorithm => "training algorithm",
+            PresetKind::Safety => "safety filter",
         }
     }
 }
@@ -74,6 +77,11 @@ pub const PRESETS: &[Preset] = &[
         kind: PresetKind::Sensing,
         name: "cpm-ips",
         yaml: include_str!("../presets/sensing/cpm-ips.yaml"),
+    },
+    Preset {
+        kind: PresetKind::Safety,
+        name: "sigmarl-cbf",
+        yaml: include_str!("../presets/safety/sigmarl-cbf.yaml"),
     },
     Preset {
         kind: PresetKind::Observation,

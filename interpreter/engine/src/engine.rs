@@ -23,6 +23,8 @@ use crate::starts::InitialState;
 pub enum RunError {
     #[error("the map has no reference path {0}")]
     UnknownRefPath(usize),
+    #[error("the safety filter needs each agent's path to have two boundary points or more")]
+    SafetyLanes,
     #[error("the policy failed: {0}")]
     Policy(#[from] PolicyError),
     #[error("the spec has no policy `{0}`")]

@@ -14,6 +14,7 @@ mod onnx;
 mod pipeline;
 mod randomise;
 mod runner;
+mod safety;
 mod sim;
 mod starts;
 pub mod store;

@@ -35,6 +35,7 @@ mod tests {
             follower: None,
             communication: None,
             perception: None,
+            safety: None,
         }
     }
 

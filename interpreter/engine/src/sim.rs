@@ -1,5 +1,6 @@
 //! The sim engine (`control: direct, dynamics: kinematic`): SigmaRL's loop. Every `dt` the
-//! policy sees all agents' states and its command goes straight into the kinematic bicycle.
+//! policy sees all agents' states and its command goes straight into the kinematic bicycle
+//! (through the fidelity's `safety:` filter, when it has one).
 //!
 //! The recording holds the state *before* each action, t = 0 … (steps − 1)·dt, as SigmaRL's
 //! evaluation receives them; so the metrics of a run equal `cpmx evaluate` of its trajectory.
@@ -11,6 +12,7 @@ use cpmx_spec::model::OnCollision;
 use cpmx_vehicle::{BicycleState, Command, KinematicBicycle};
 
 use crate::engine::{Engine, RunError, RunInputs};
+use crate::safety::SafetyFilter;
 use crate::starts::InitialState;
 
 /// SigmaRL's simulation: direct control of the kinematic bicycle.
@@ -37,6 +39,19 @@ impl Engine for SimEngine {
             times_s: Vec::with_capacity(spec.timing.steps as usize),
             ref_paths: starts.iter().map(|s| s.ref_path).collect(),
             samples: Vec::with_capacity(spec.timing.steps as usize),
+        };
+        let mut safety = match inputs.fidelity.and_then(|f| f.safety.as_ref()) {
+            None => None,
+            Some(layer) => Some(
+                SafetyFilter::new(
+                    layer,
+                    &experiment.vehicle,
+                    dt_s,
+                    &experiment.map,
+                    &recording.ref_paths,
+                )
+                .ok_or(RunError::SafetyLanes)?,
+            ),
         };
         let mut knowledge = inputs.neighbour_knowledge();
         let mut agents = vec![AgentState::default(); states.len()];
@@ -71,6 +86,13 @@ impl Engine for SimEngine {
                 neighbours: active.then_some(views),
             };
             policy.act(&input, &mut commands)?;
+            if let Some(filter) = &mut safety {
+                for (agent, ((state, velocity), command)) in
+                    states.iter().zip(&velocities).zip(&mut commands).enumerate()
+                {
+                    filter.apply(agent, state, *velocity, command);
+                }
+            }
             for ((state, velocity), command) in states.iter_mut().zip(&mut velocities).zip(&commands) {
                 let out = model.step(state, *command, dt_s);
                 *state = out.state;
@@ -94,6 +116,9 @@ impl Engine for SimEngine {
                     }
                 }
             }
+        }
+        if let Some(filter) = &safety {
+            recording.notes.push(filter.note());
         }
         Ok(recording)
     }

@@ -34,6 +34,7 @@ fn sim_mpc() -> SimulatedFidelity {
         follower: None,
         communication: None,
         perception: None,
+        safety: None,
     }
 }
 
@@ -62,6 +63,7 @@ fn random_twin() -> SimulatedFidelity {
         follower: None,
         communication: None,
         perception: None,
+        safety: None,
     }
 }
 

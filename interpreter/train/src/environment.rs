@@ -176,6 +176,7 @@ mod tests {
                 follower: None,
                 communication: None,
                 perception: None,
+                safety: None,
             },
             planner: cpmx_planner::PlannerParams {
                 control_horizon: 4,

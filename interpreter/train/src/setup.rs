@@ -236,6 +236,10 @@ fn plant_of(checked: &CheckedSpec, name: &str, lookahead: Lookahead) -> Result<P
     match checked.spec.fidelities.get(name) {
         None => refuse("the spec defines no such fidelity"),
         Some(Fidelity::Lab(_)) => refuse("it drives the lab; policies train in simulation only"),
+        Some(Fidelity::Simulated(f)) if f.safety.is_some() => refuse(
+            "it filters the actions through a `safety:` layer, which training environments do not run yet: \
+             train in the fidelity without it",
+        ),
         Some(Fidelity::Simulated(f)) if f.control == Control::Trajectory => {
             let Some(planner) = &checked.spec.planner else {
                 return refuse(

@@ -51,6 +51,12 @@ pub struct SimulatedFidelity<P = Parameter> {
     /// global state). Ideal values (`perception: {}`) give the same runs as leaving it out.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub perception: Option<PerceptionLayer<P>>,
+    /// A safety filter between the policy's action and the vehicle (`stdlib:sigmarl-cbf`,
+    /// `control: direct`): each agent's action is filtered against its lane's boundaries
+    /// before it moves the car; the run folder's notes count what the filter did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(with = "Option<PresetOr<super::SafetyLayer>>")]
+    pub safety: Option<super::SafetyLayer>,
 }
 
 /// The communication layer: each agent broadcasts its state at policy steps (first at the

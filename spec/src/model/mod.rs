@@ -12,6 +12,7 @@ mod metrics;
 mod parameter;
 mod policy;
 mod preset;
+mod safety;
 mod start;
 mod training;
 
@@ -40,6 +41,7 @@ pub use policy::{
     ObservationSpec, OnnxSpec, OutputHead, PolicySpec, ProcessSpec, TrainedActor, TrainedChoice,
 };
 pub use preset::PresetOr;
+pub use safety::{CbfFilter, CbfWeights, SafetyLayer};
 pub use start::{
     AgentStart, DEFAULT_OFF_ROAD_TOLERANCE_M, ExplicitConfiguration, FromPoses, FromPosesSpec, FromRuns,
     FromRunsSpec, InitialConfiguration, Pose, SampleSpec, SampledStarts,

@@ -210,6 +210,7 @@ impl<P: Copy> SimulatedFidelity<P> {
             follower: self.follower,
             communication,
             perception,
+            safety: self.safety.clone(),
         }
     }
 }
@@ -399,6 +400,7 @@ mod tests {
                 noise_yaw_rad: Some(p),
                 detection_probability: Some(p),
             }),
+            safety: None,
         }
     }
 

@@ -17,6 +17,7 @@ fn twin_without_sensing() -> DrawnFidelity {
         follower: None,
         communication: None,
         perception: None,
+        safety: None,
     }
 }
 

@@ -1,0 +1,172 @@
+//! A fidelity's `safety:` layer (`stdlib:sigmarl-cbf`): the paper's actor driven through
+//! SigmaRL's CBF filter in sim, what the filter did kept in each run's notes; the layer
+//! refused where it does not run yet (a planning fidelity, training), at its key.
+
+mod support;
+
+use std::path::Path;
+
+use support::{cpmx_in, reference, scratch};
+
+/// A spec with the paper's seed-1 actor from the lab's starts, in `fidelities` (YAML lines).
+fn spec(dir: &Path, fidelities: &str, training: &str) -> std::path::PathBuf {
+    let text = format!(
+        "cpmx: 1
+name: safety
+map: {{file: maps/cpm.xml}}
+vehicle: stdlib:sigmarl-2025
+timing: {{dt: 0.1, steps: 40}}
+agents: 3
+policies:
+  - {{name: paper, mlp: {{sigmarl: paper-at25/seed1}}, action: mean}}
+initial_configurations:
+  - from_poses: {{file: paper-at25/poses.csv, policies: {{paper: seed1}}}}
+repetitions: 1
+seed: 1
+fidelities:
+{fidelities}
+planner:
+  control_horizon: 4
+  prediction_horizon: 12
+  after_control_horizon: {{speed: hold, steering: linear-to-zero}}
+metrics: {{extends: stdlib:at25, footprint: stdlib:mu-car}}
+{training}"
+    );
+    let path = dir.join("safety.yaml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn cpmx(dir: &Path, args: &[&str]) -> (Option<i32>, String) {
+    let out = cpmx_in(dir, args);
+    let mut text = String::from_utf8_lossy(&out.stdout).into_owned();
+    for line in String::from_utf8_lossy(&out.stderr).lines() {
+        match line.trim_start().strip_prefix('│') {
+            Some(rest) => {
+                text.push(' ');
+                text.push_str(rest.trim());
+            }
+            None => {
+                text.push('\n');
+                text.push_str(line);
+            }
+        }
+    }
+    (out.status.code(), text)
+}
+
+#[test]
+fn the_filter_runs_between_the_actor_and_the_car_and_says_what_it_did() {
+    let dir = scratch("safety-filter-run");
+    let reference = reference();
+    let path = spec(
+        &dir,
+        "  sim: {control: direct, dynamics: kinematic}\n  sim-cbf: {control: direct, dynamics: kinematic, safety: stdlib:sigmarl-cbf}",
+        "",
+    );
+    let out = dir.join("out");
+    let (code, text) = cpmx(
+        &dir,
+        &[
+            "run",
+            path.to_str().unwrap(),
+            "--data",
+            reference.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(code, Some(0), "{text}");
+    let run = |fidelity: &str| -> (String, String) {
+        let folder = out.join(format!("runs/{fidelity}/paper/init1/rep1"));
+        (
+            std::fs::read_to_string(folder.join("metrics.json")).unwrap(),
+            std::fs::read_to_string(folder.join("trajectory.csv")).unwrap(),
+        )
+    };
+    let (filtered_metrics, filtered) = run("sim-cbf");
+    let (plain_metrics, plain) = run("sim");
+    assert!(
+        filtered_metrics.contains("safety filter (CBF): "),
+        "{filtered_metrics}"
+    );
+    assert!(
+        filtered_metrics.contains("of 120 agent-steps changed"),
+        "{filtered_metrics}"
+    );
+    assert!(!plain_metrics.contains("safety filter"), "{plain_metrics}");
+    // The filter changes the actions, so the cars drive otherwise.
+    assert_ne!(filtered, plain);
+}
+
+#[test]
+fn a_planning_fidelity_or_a_training_through_the_filter_is_refused_at_its_key() {
+    let dir = scratch("safety-filter-refused");
+    let reference = reference();
+    let path = spec(
+        &dir,
+        "  sim-mpc: {control: trajectory, dynamics: kinematic, safety: stdlib:sigmarl-cbf}",
+        "",
+    );
+    let (code, text) = cpmx(
+        &dir,
+        &[
+            "validate",
+            path.to_str().unwrap(),
+            "--data",
+            reference.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(code, Some(1), "{text}");
+    assert!(text.contains("cpmx::check::safety-layer"), "{text}");
+    assert!(
+        text.contains("a safety filter runs between the action and the vehicle of `control: direct` so far"),
+        "{text}"
+    );
+    let path = spec(
+        &dir,
+        "  sim-cbf: {control: direct, dynamics: kinematic, safety: {cbf: {circles: 3, circle_radius_m: 0.05, \
+         difference_step_m: 0.02, gain: 0.1, weights: {acceleration: 30, steering_rate: 1}, \
+         acceleration_limit_mps2: 40, steering_rate_limit_radps: 40, speed_range_mps: [1.0, -0.5], max_steering_deg: 45}}}",
+        "",
+    );
+    let (code, text) = cpmx(
+        &dir,
+        &[
+            "validate",
+            path.to_str().unwrap(),
+            "--data",
+            reference.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(code, Some(1), "{text}");
+    assert!(text.contains("`speed_range_mps` is [1, -0.5]"), "{text}");
+    let training = "training:
+  fidelity: sim-cbf
+  scenario: stdlib:sigmarl-intersection-at25-paper
+  reward: stdlib:sigmarl-at25-paper-reward
+  algorithm: stdlib:mappo-sigmarl
+  observation: stdlib:sigmarl-at25-paper
+  iterations: 1
+  seeds: [1]
+";
+    let path = spec(
+        &dir,
+        "  sim-cbf: {control: direct, dynamics: kinematic, safety: stdlib:sigmarl-cbf}",
+        training,
+    );
+    let out = dir.join("train");
+    let (code, text) = cpmx(
+        &dir,
+        &[
+            "train",
+            path.to_str().unwrap(),
+            "--data",
+            reference.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert_ne!(code, Some(0), "{text}");
+    assert!(text.contains("training environments do not run yet"), "{text}");
+}
