@@ -599,14 +599,21 @@ fn each_seed_starts_from_its_own_actor_with_the_seed_in_the_path() {
         .arg(reference())
         .output()
         .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
+    // miette wraps long messages: continuation lines start with `│`.
+    let stderr: String = String::from_utf8_lossy(&out.stderr)
+        .lines()
+        .map(|l| match l.trim_start().strip_prefix('│') {
+            Some(rest) => format!(" {}", rest.trim()),
+            None => format!("\n{l}"),
+        })
+        .collect();
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(
-        stderr.contains("out/8/actor.last.safetensors` was not found"),
+        stderr.contains("/out/8/actor.last.safetensors` was not found"),
         "{stderr}"
     );
     assert!(
-        !stderr.contains("out/7/actor.last.safetensors` was not found"),
+        !stderr.contains("/out/7/actor.last.safetensors` was not found"),
         "{stderr}"
     );
 }
