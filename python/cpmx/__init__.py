@@ -10,7 +10,9 @@ the CPM Lab reproducible. This package gives Python the same things the command 
   TorchRL, BenchMARL and PettingZoo know environments;
 - :func:`run`: ``cpmx run`` with policies written in Python (``python: {}`` in a spec);
 - :func:`validate`: ``cpmx validate``'s diagnostics as objects; :func:`read_runs`: a run
-  folder's per-run metrics.
+  folder's per-run metrics;
+- :func:`cbf_filter`: SigmaRL's CBF safety filter (``safety: stdlib:sigmarl-cbf``) for one
+  vehicle and step.
 """
 
 from __future__ import annotations
@@ -25,16 +27,18 @@ from typing import Any
 
 import numpy as np
 
-from cpmx._cpmx import CpmxError, Diagnostic, VecEnv, __version__
+from cpmx._cpmx import CpmxError, Diagnostic, VecEnv, __version__, _cbf_filter
 from cpmx._cpmx import run as _run
 from cpmx._cpmx import validate as _validate
 
 __all__ = [
+    "CbfFiltered",
     "CpmxError",
     "Diagnostic",
     "RunResult",
     "VecEnv",
     "__version__",
+    "cbf_filter",
     "read_runs",
     "run",
     "validate",
@@ -214,3 +218,67 @@ def _data(data: PathLike | Sequence[PathLike] | None) -> list[str] | None:
     if isinstance(data, str | os.PathLike):
         return [os.fspath(data)]
     return [os.fspath(d) for d in data]
+
+
+@dataclass(frozen=True)
+class CbfFiltered:
+    """What :func:`cbf_filter` did.
+
+    Attributes:
+        action: The action to apply, ``(speed m/s, steering rad)``.
+        fallback: Why the (clamped) nominal action went through, or ``None``:
+            ``"infeasible"`` (no action satisfies every row), ``"not-finite"`` (the state or a
+            row is not a number), ``"unsolved"`` (the solver stopped without a solution).
+        active: Indices into ``rows`` of the rows the solution lies on.
+        rows: Each CBF row ``(circle, side, margin_m, coefficient_acceleration,
+            coefficient_steering_rate, constant)``: ``coefficients . (a, omega) + constant >= 0``.
+
+    """
+
+    action: tuple[float, float]
+    fallback: str | None
+    active: list[int]
+    rows: list[tuple[int, str, float, float, float, float]]
+
+
+def cbf_filter(
+    state: Sequence[float],
+    action: Sequence[float],
+    left: Sequence[Sequence[float]] | np.ndarray,
+    right: Sequence[Sequence[float]] | np.ndarray,
+    circles: int = 3,
+    dt_s: float = 0.05,
+) -> CbfFiltered:
+    """SigmaRL's CBF safety filter of the ITSC 2025 paper (its tag 1.4.0) for one vehicle and step.
+
+    The same filter as ``safety: stdlib:sigmarl-cbf`` in a spec, on ``float32`` inputs as
+    SigmaRL's ``CBFQP.solve_decentralized_cbf_qp`` takes them.
+
+    Args:
+        state: ``(x, y, yaw, speed, steering)`` of the vehicle's centre; the speed as the
+            velocity's norm.
+        action: The nominal action ``(speed m/s, steering rad)``.
+        left: The lane's left boundary, ``(x, y)`` points in driving direction.
+        right: Its right boundary.
+        circles: Circles along the vehicle's axis (SigmaRL: 3).
+        dt_s: The step the CBF looks ahead and the action converts over [s].
+
+    Returns:
+        The filtered action, the fallback, if any, and the rows.
+
+    Raises:
+        ValueError: A boundary with fewer than two points, ``circles`` < 1 or ``dt_s`` <= 0.
+
+    """
+    def points(boundary: Sequence[Sequence[float]] | np.ndarray) -> list[list[float]]:
+        return np.asarray(boundary, dtype=np.float32).reshape(-1, 2).tolist()
+
+    filtered, fallback, active, rows = _cbf_filter(
+        [float(v) for v in state],
+        [float(v) for v in action],
+        points(left),
+        points(right),
+        circles,
+        dt_s,
+    )
+    return CbfFiltered((filtered[0], filtered[1]), fallback, list(active), list(rows))

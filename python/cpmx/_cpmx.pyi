@@ -133,6 +133,21 @@ def validate(
 ) -> list[Diagnostic]:
     """Every diagnostic ``cpmx validate`` gives ``spec``."""
 
+def _cbf_filter(
+    state: Sequence[float],
+    action: Sequence[float],
+    left: Sequence[Sequence[float]],
+    right: Sequence[Sequence[float]],
+    circles: int = 3,
+    dt_s: float = 0.05,
+) -> tuple[
+    list[float],
+    str | None,
+    list[int],
+    list[tuple[int, str, float, float, float, float]],
+]:
+    """SigmaRL's CBF safety filter for one vehicle and step; see ``cpmx.cbf_filter``."""
+
 def run(
     spec: str | PathLike[str],
     out: str | PathLike[str] | None = None,

@@ -11,6 +11,7 @@
 mod check;
 mod env;
 mod run;
+mod safety;
 
 use std::path::PathBuf;
 
@@ -72,6 +73,7 @@ fn _cpmx(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<check::Diagnostic>()?;
     m.add_function(wrap_pyfunction!(check::validate, m)?)?;
     m.add_function(wrap_pyfunction!(run::run, m)?)?;
+    m.add_function(wrap_pyfunction!(safety::_cbf_filter, m)?)?;
     m.add_function(wrap_pyfunction!(env::_training_rollout, m)?)?;
     Ok(())
 }
