@@ -118,9 +118,18 @@ fn weights_and_curves(out: &Path) -> Vec<(PathBuf, Vec<u8>)> {
         .map(|(path, bytes)| {
             if path.extension().is_some_and(|e| e == "csv") {
                 let text = String::from_utf8(bytes).unwrap();
+                let header: Vec<&str> = text.lines().next().unwrap_or_default().split(',').collect();
+                let wall = |i: &usize| matches!(header.get(*i), Some(&"collect_s") | Some(&"update_s"));
                 let trimmed: Vec<String> = text
                     .lines()
-                    .map(|l| l.rsplitn(3, ',').nth(2).unwrap_or(l).to_owned())
+                    .map(|l| {
+                        let cells: Vec<&str> = l.split(',').collect();
+                        (0..cells.len())
+                            .filter(|i| !wall(i))
+                            .map(|i| cells[i])
+                            .collect::<Vec<_>>()
+                            .join(",")
+                    })
                     .collect();
                 (path, trimmed.join("\n").into_bytes())
             } else {

@@ -80,6 +80,10 @@ pub struct IterationRecord {
     pub collect_seconds: f64,
     /// Seconds updating (GAE and the epochs).
     pub update_seconds: f64,
+    /// The mean pre-tanh scale of the sampled actions over the batch, `[speed, steering]`:
+    /// the policy's noise, which grows when a training collapses (the one-sample entropy
+    /// estimate cannot show it).
+    pub action_scale_means: [f64; 2],
 }
 
 /// One iteration's collected batch, env-major.
@@ -355,6 +359,7 @@ impl<E: Environment> Trainer<E> {
             best: false,
             collect_seconds: 0.0,
             update_seconds: 0.0,
+            action_scale_means: [0.0; 2],
         };
         self.env.set_actor(&self.actor).map_err(TrainError::Environment)?;
         let (mut ended_sum, mut ended_count) = (0.0f64, 0u64);
@@ -369,6 +374,9 @@ impl<E: Environment> Trainer<E> {
             self.actor.forward(&self.observations, envs * agents, tape);
             for (i, raw) in tape.output().chunks_exact(4).enumerate() {
                 let p = tanh_normal::params(raw);
+                for (sum, scale) in record.action_scale_means.iter_mut().zip(p.scale) {
+                    *sum += f64::from(scale);
+                }
                 let eps: [f32; 2] = [
                     StandardNormal.sample(&mut self.rng_actions),
                     StandardNormal.sample(&mut self.rng_actions),
@@ -435,6 +443,9 @@ impl<E: Environment> Trainer<E> {
         }
         for mean in &mut record.drawn_parameter_means {
             *mean /= record.draws as f64;
+        }
+        for mean in &mut record.action_scale_means {
+            *mean /= (steps * envs * agents) as f64;
         }
         Ok(record)
     }

@@ -8,9 +8,11 @@
 //! randomised fidelity `draws` (episodes whose parameters were drawn in the batch) and
 //! `drawn_<parameter>` (the mean drawn value), the update's means over its minibatch steps
 //! (`policy_loss, value_loss, entropy_loss,
-//! grad_norm, clip_fraction`), `lr`, `best` (1 when the actor became the best one), and wall
-//! time `collect_s, update_s`. Everything but the last two columns is the same on any machine
-//! and thread count.
+//! grad_norm, clip_fraction`), `lr`, `best` (1 when the actor became the best one), wall
+//! time `collect_s, update_s`, and the mean pre-tanh scale of the sampled actions
+//! `action_scale_speed, action_scale_steering` (the policy's noise: it grows when a training
+//! collapses). Everything but the wall times is the same on any machine and thread count. A
+//! curve written before the scale columns existed gets them empty on a resume.
 
 use std::fmt::Write as _;
 
@@ -32,6 +34,7 @@ pub fn header(terms: &[&str], drawn: &[String]) -> String {
         }
     }
     h.push_str(",policy_loss,value_loss,entropy_loss,grad_norm,clip_fraction,lr,best,collect_s,update_s");
+    h.push_str(",action_scale_speed,action_scale_steering");
     h
 }
 
@@ -68,19 +71,26 @@ pub fn row(r: &IterationRecord) -> String {
         r.collect_seconds,
         r.update_seconds
     );
+    let _ = write!(s, ",{},{}", r.action_scale_means[0], r.action_scale_means[1]);
     s
 }
 
 /// The rows of a learning curve file up to and including iteration `last` (what a checkpoint
 /// of iteration `last` continues from), header first. Rows after it (written before a kill
 /// that came before their checkpoint) are dropped.
+/// A row with fewer columns than `header` (written before the last columns existed) gets them
+/// empty.
 pub fn rows_through(text: &str, last: u64, header: String) -> Vec<String> {
+    let columns = header.split(',').count();
     let mut lines = vec![header];
     lines.extend(
         text.lines()
             .skip(1)
             .filter(|line| iteration_of(line).is_some_and(|k| k <= last))
-            .map(str::to_owned),
+            .map(|line| {
+                let missing = columns.saturating_sub(line.split(',').count());
+                format!("{line}{}", ",".repeat(missing))
+            }),
     );
     lines
 }
@@ -301,6 +311,7 @@ mod tests {
             best: k == 1,
             collect_seconds: 0.25,
             update_seconds: 0.5,
+            action_scale_means: [0.75, 1.5],
         }
     }
 
@@ -328,6 +339,15 @@ mod tests {
         assert_eq!(last_best(&text), Some((1, -0.25)));
         assert_eq!(rows_through(&text, 1, header(&terms, &[])).len(), 2);
         assert_eq!(rows_through(&text, 5, header(&terms, &[])).len(), 3);
+        assert!(text.lines().nth(1).unwrap().ends_with(",0.75,1.5"));
+        // A curve written before the scale columns: resumed, its rows get them empty.
+        let old: String = text
+            .lines()
+            .map(|l| l.rsplitn(3, ',').last().unwrap().to_owned() + "\n")
+            .collect();
+        let resumed = rows_through(&old, 5, header(&terms, &[]));
+        assert!(resumed[1].ends_with(",,"), "{}", resumed[1]);
+        assert!(resumed.iter().all(|l| l.split(',').count() == columns));
         // A randomised fidelity adds the draws and a column per drawn parameter.
         let drawn = ["actuation.delay_ms".to_owned()];
         let randomised = IterationRecord {
