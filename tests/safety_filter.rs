@@ -97,6 +97,26 @@ fn the_filter_runs_between_the_actor_and_the_car_and_says_what_it_did() {
     assert!(!plain_metrics.contains("safety filter"), "{plain_metrics}");
     // The filter changes the actions, so the cars drive otherwise.
     assert_ne!(filtered, plain);
+    // per_run.csv counts it, for the filtered runs only.
+    let per_run = std::fs::read_to_string(out.join("per_run.csv")).unwrap();
+    let mut lines = per_run.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = |name: &str| {
+        header
+            .iter()
+            .position(|h| *h == name)
+            .unwrap_or_else(|| panic!("{per_run}"))
+    };
+    let (steps, changed) = (column("safety.agent_steps"), column("safety.changed"));
+    for line in lines {
+        let cells: Vec<&str> = line.split(',').collect();
+        if cells[1] == "sim-cbf" {
+            assert_eq!(cells[steps].parse::<f64>().unwrap(), 120.0, "{line}");
+            assert!(cells[changed].parse::<f64>().unwrap() > 0.0, "{line}");
+        } else {
+            assert_eq!(cells[steps], "", "{line}");
+        }
+    }
 }
 
 #[test]

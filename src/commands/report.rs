@@ -253,6 +253,7 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
             metrics,
             recording_sha256: folder::sha256_hex(&bytes),
             drawn_parameters: stored.drawn_parameters.clone(),
+            statistics: stored.statistics.clone(),
         });
     }
     if !missing.is_empty() {

@@ -450,6 +450,7 @@ pub fn read_records(dir: &Path, plans: &[RunPlan], context_hash: &str) -> Folder
                 metrics: stored.metrics,
                 recording_sha256: sha256_hex(&trajectory),
                 drawn_parameters: stored.drawn_parameters,
+                statistics: stored.statistics,
             }),
             _ => runs.missing.push(plan.key.clone()),
         }

@@ -226,6 +226,7 @@ fn execute_one(
                 notes: recording.notes.clone(),
                 drawn_parameters,
                 planning_latency_ms: milliseconds(&recording.latency_s),
+                statistics: recording.statistics.clone(),
                 metrics,
             };
             return Computed::Finished {

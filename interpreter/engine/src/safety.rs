@@ -1,6 +1,7 @@
 //! A fidelity's `safety:` layer in the sim engine: each agent's command goes through
 //! `cpmx-safety`'s CBF filter against its lane's boundaries before it moves the car, and what
-//! the filter did is counted for the run's notes (kept in the run folder's `metrics.json`).
+//! the filter did is counted for the run's statistics and notes (the run folder's
+//! `metrics.json`; `per_run.csv`'s `safety.*` columns).
 
 use std::collections::BTreeMap;
 
@@ -116,6 +117,23 @@ impl SafetyFilter {
             speed_mps: f64::from(outcome.action[0]),
             steering_rad: f64::from(outcome.action[1]),
         };
+    }
+
+    /// What the filter did, by name, for the run's `statistics` (`per_run.csv`'s columns).
+    pub(crate) fn statistics(&self) -> BTreeMap<String, f64> {
+        let c = &self.counts;
+        [
+            ("safety.agent_steps", c.agent_steps as f64),
+            ("safety.changed", c.changed as f64),
+            ("safety.infeasible", c.infeasible as f64),
+            ("safety.not_finite", c.not_finite as f64),
+            ("safety.unsolved", c.unsolved as f64),
+            ("safety.largest_speed_change_mps", c.largest_change[0]),
+            ("safety.largest_steering_change_rad", c.largest_change[1]),
+        ]
+        .into_iter()
+        .map(|(name, value)| (name.to_owned(), value))
+        .collect()
     }
 
     /// What the filter did, in a line.

@@ -36,6 +36,7 @@ impl Engine for SimEngine {
         let mut recording = Recording {
             notes: Vec::new(),
             latency_s: Vec::new(),
+            statistics: Default::default(),
             times_s: Vec::with_capacity(spec.timing.steps as usize),
             ref_paths: starts.iter().map(|s| s.ref_path).collect(),
             samples: Vec::with_capacity(spec.timing.steps as usize),
@@ -119,6 +120,7 @@ impl Engine for SimEngine {
         }
         if let Some(filter) = &safety {
             recording.notes.push(filter.note());
+            recording.statistics.extend(filter.statistics());
         }
         Ok(recording)
     }

@@ -28,6 +28,9 @@ pub struct StoredRun {
     /// A lab run's planning latency at each recorded tick [ms] (its notes summarise it).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub planning_latency_ms: Vec<f64>,
+    /// Numbers the fidelity's layers counted over the run, by name (`safety.changed`).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub statistics: BTreeMap<String, f64>,
     pub metrics: RunMetrics,
 }
 

@@ -65,6 +65,7 @@ impl Engine for TwinEngine {
         let mut recording = Recording {
             notes: Vec::new(),
             latency_s: Vec::new(),
+            statistics: Default::default(),
             times_s: Vec::with_capacity(spec.timing.steps as usize),
             ref_paths: starts.iter().map(|s| s.ref_path).collect(),
             samples: Vec::with_capacity(spec.timing.steps as usize),

@@ -297,6 +297,7 @@ mod tests {
         Recording {
             notes: Vec::new(),
             latency_s: Vec::new(),
+            statistics: Default::default(),
             times_s: (0..rows.len()).map(|k| k as f64 * 0.1).collect(),
             ref_paths: vec![0; rows.first().map_or(0, Vec::len)],
             samples: rows,

@@ -34,6 +34,7 @@ pub fn resample(recording: &Recording, period_s: f64) -> Cow<'_, Recording> {
     let mut out = Recording {
         notes: recording.notes.clone(),
         latency_s: recording.latency_s.clone(),
+        statistics: Default::default(),
         times_s: Vec::with_capacity(count),
         ref_paths: recording.ref_paths.clone(),
         samples: Vec::with_capacity(count),
@@ -95,6 +96,7 @@ mod tests {
         let r = Recording {
             notes: Vec::new(),
             latency_s: Vec::new(),
+            statistics: Default::default(),
             times_s: vec![0.0, 0.1, 0.2 + 1e-12],
             ref_paths: vec![0],
             samples: vec![
@@ -111,6 +113,7 @@ mod tests {
         let r = Recording {
             notes: Vec::new(),
             latency_s: Vec::new(),
+            statistics: Default::default(),
             times_s: vec![0.0, 0.2],
             ref_paths: vec![0],
             samples: vec![vec![sample(0.0, 3.0)], vec![sample(2.0, -3.0)]],

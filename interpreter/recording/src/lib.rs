@@ -33,6 +33,10 @@ pub struct Recording {
     /// arriving to its commands sent (empty for simulated runs). Not part of
     /// `trajectory.csv`; the run folder keeps it in `metrics.json` (or `failed.json`).
     pub latency_s: Vec<f64>,
+    /// Numbers a layer counted over the run, by name (`safety.changed`: agent-steps whose action
+    /// the safety filter changed, ...). Not part of `trajectory.csv`; the run folder keeps them
+    /// in `metrics.json` and `per_run.csv` has a column for each.
+    pub statistics: std::collections::BTreeMap<String, f64>,
 }
 
 /// Why a trajectory file could not be read.
@@ -242,6 +246,7 @@ mod tests {
         let recording = Recording {
             notes: Vec::new(),
             latency_s: Vec::new(),
+            statistics: Default::default(),
             times_s: vec![0.0, 0.1],
             ref_paths: vec![6, 1 << 40],
             samples: vec![

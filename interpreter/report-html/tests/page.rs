@@ -41,6 +41,7 @@ fn recording(map: &Map, offset_m: f64) -> Recording {
         samples,
         notes: vec![],
         latency_s: Vec::new(),
+        statistics: Default::default(),
     }
 }
 
@@ -69,6 +70,7 @@ fn record(map: &Map, fidelity: &str, recording: &Recording) -> RunRecord {
         metrics,
         recording_sha256: format!("digest of {fidelity}"),
         drawn_parameters: Default::default(),
+        statistics: Default::default(),
     }
 }
 

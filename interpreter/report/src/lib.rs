@@ -54,4 +54,7 @@ pub struct RunRecord {
     /// The fidelity's randomised parameters as drawn for the run, by name (empty when its
     /// fidelity has none).
     pub drawn_parameters: BTreeMap<String, f64>,
+    /// Numbers the fidelity's layers counted over the run, by name (`safety.changed`; empty
+    /// without such a layer).
+    pub statistics: BTreeMap<String, f64>,
 }

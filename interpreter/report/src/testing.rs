@@ -33,6 +33,7 @@ pub fn record(fidelity: &str, policy: &str, init: &str, repetition: u32, values:
         },
         recording_sha256: format!("recording of {fidelity}/{policy}/{init}/rep{repetition}"),
         drawn_parameters: Default::default(),
+        statistics: Default::default(),
     }
 }
 

@@ -30,6 +30,7 @@ fn scene() -> (Map, Recording, RunMetrics) {
     let mut recording = Recording {
         notes: Vec::new(),
         latency_s: Vec::new(),
+        statistics: Default::default(),
         times_s: vec![],
         ref_paths: vec![1, 1, 4],
         samples: vec![],

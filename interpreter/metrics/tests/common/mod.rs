@@ -94,6 +94,7 @@ pub fn recording(pos: &Value, rot: &Value, vel: &Value, ref_paths: Vec<usize>) -
     let mut r = Recording {
         notes: Vec::new(),
         latency_s: Vec::new(),
+        statistics: Default::default(),
         times_s: (0..pos.len()).map(|k| k as f64 * 0.1).collect(),
         ref_paths,
         samples: Vec::new(),

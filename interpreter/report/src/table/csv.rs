@@ -21,18 +21,24 @@ const RUN_COLUMNS: [&str; 6] = [
 
 /// `per_run.csv`: the run's matrix columns, then [`RunMetrics::CSV_COLUMNS`], then a column
 /// per randomised layer parameter of any run (`actuation.delay_ms`, by name; empty where a
-/// run's fidelity does not draw it), in run order.
+/// run's fidelity does not draw it), then a column per number a layer counted in any run
+/// (`safety.changed`, by name; empty where a run's fidelity has no such layer), in run order.
 pub fn per_run_csv(runs: &[RunRecord]) -> String {
     let mut out = String::new();
     let drawn: std::collections::BTreeSet<&str> = runs
         .iter()
         .flat_map(|r| r.drawn_parameters.keys().map(String::as_str))
         .collect();
+    let counted: std::collections::BTreeSet<&str> = runs
+        .iter()
+        .flat_map(|r| r.statistics.keys().map(String::as_str))
+        .collect();
     let header: Vec<&str> = RUN_COLUMNS
         .iter()
         .chain(&RunMetrics::CSV_COLUMNS)
         .copied()
         .chain(drawn.iter().copied())
+        .chain(counted.iter().copied())
         .collect();
     record(&mut out, &header);
     for run in runs {
@@ -48,6 +54,11 @@ pub fn per_run_csv(runs: &[RunRecord]) -> String {
         fields.extend(run.metrics.csv_row());
         fields.extend(drawn.iter().map(|name| {
             run.drawn_parameters
+                .get(*name)
+                .map_or(String::new(), |v| format_float(*v))
+        }));
+        fields.extend(counted.iter().map(|name| {
+            run.statistics
                 .get(*name)
                 .map_or(String::new(), |v| format_float(*v))
         }));

@@ -81,6 +81,7 @@ pub fn record(
         },
         recording_sha256: format!("recording of {fidelity}/{policy}/{init}/rep{repetition}"),
         drawn_parameters: Default::default(),
+        statistics: Default::default(),
     }
 }
 
