@@ -6,7 +6,7 @@ mod support;
 
 use std::path::Path;
 
-use support::{cpmx_in, reference, scratch};
+use support::{cpmx_in, reference, scratch, unwrapped};
 
 /// A spec with the paper's seed-1 actor from the lab's starts, in `fidelities` (YAML lines).
 fn spec(dir: &Path, fidelities: &str, training: &str) -> std::path::PathBuf {
@@ -37,45 +37,34 @@ metrics: {{extends: stdlib:at25, footprint: stdlib:mu-car}}
     path
 }
 
-fn cpmx(dir: &Path, args: &[&str]) -> (Option<i32>, String) {
-    let out = cpmx_in(dir, args);
-    let mut text = String::from_utf8_lossy(&out.stdout).into_owned();
-    for line in String::from_utf8_lossy(&out.stderr).lines() {
-        match line.trim_start().strip_prefix('│') {
-            Some(rest) => {
-                text.push(' ');
-                text.push_str(rest.trim());
-            }
-            None => {
-                text.push('\n');
-                text.push_str(line);
-            }
-        }
+/// `cpmx VERB SPEC --data REFERENCE [--out OUT]` in `dir`: its exit code, and its output with
+/// miette's wrapping undone.
+fn cpmx(dir: &Path, verb: &str, spec: &Path, out: Option<&Path>) -> (Option<i32>, String) {
+    let reference = reference();
+    let mut args = vec![
+        verb,
+        spec.to_str().unwrap(),
+        "--data",
+        reference.to_str().unwrap(),
+    ];
+    if let Some(out) = out {
+        args.extend(["--out", out.to_str().unwrap()]);
     }
+    let out = cpmx_in(dir, &args);
+    let text = String::from_utf8_lossy(&out.stdout).into_owned() + &unwrapped(&out.stderr);
     (out.status.code(), text)
 }
 
 #[test]
 fn the_filter_runs_between_the_actor_and_the_car_and_says_what_it_did() {
     let dir = scratch("safety-filter-run");
-    let reference = reference();
     let path = spec(
         &dir,
         "  sim: {control: direct, dynamics: kinematic}\n  sim-cbf: {control: direct, dynamics: kinematic, safety: stdlib:sigmarl-cbf}",
         "",
     );
     let out = dir.join("out");
-    let (code, text) = cpmx(
-        &dir,
-        &[
-            "run",
-            path.to_str().unwrap(),
-            "--data",
-            reference.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-    );
+    let (code, text) = cpmx(&dir, "run", &path, Some(&out));
     assert_eq!(code, Some(0), "{text}");
     let run = |fidelity: &str| -> (String, String) {
         let folder = out.join(format!("runs/{fidelity}/paper/init1/rep1"));
@@ -122,21 +111,12 @@ fn the_filter_runs_between_the_actor_and_the_car_and_says_what_it_did() {
 #[test]
 fn a_planning_fidelity_or_a_training_through_the_filter_is_refused_at_its_key() {
     let dir = scratch("safety-filter-refused");
-    let reference = reference();
     let path = spec(
         &dir,
         "  sim-mpc: {control: trajectory, dynamics: kinematic, safety: stdlib:sigmarl-cbf}",
         "",
     );
-    let (code, text) = cpmx(
-        &dir,
-        &[
-            "validate",
-            path.to_str().unwrap(),
-            "--data",
-            reference.to_str().unwrap(),
-        ],
-    );
+    let (code, text) = cpmx(&dir, "validate", &path, None);
     assert_eq!(code, Some(1), "{text}");
     assert!(text.contains("cpmx::check::safety-layer"), "{text}");
     assert!(
@@ -150,15 +130,7 @@ fn a_planning_fidelity_or_a_training_through_the_filter_is_refused_at_its_key() 
          acceleration_limit_mps2: 40, steering_rate_limit_radps: 40, speed_range_mps: [1.0, -0.5], max_steering_deg: 45}}}",
         "",
     );
-    let (code, text) = cpmx(
-        &dir,
-        &[
-            "validate",
-            path.to_str().unwrap(),
-            "--data",
-            reference.to_str().unwrap(),
-        ],
-    );
+    let (code, text) = cpmx(&dir, "validate", &path, None);
     assert_eq!(code, Some(1), "{text}");
     assert!(text.contains("`speed_range_mps` is [1, -0.5]"), "{text}");
     let training = "training:
@@ -176,17 +148,7 @@ fn a_planning_fidelity_or_a_training_through_the_filter_is_refused_at_its_key() 
         training,
     );
     let out = dir.join("train");
-    let (code, text) = cpmx(
-        &dir,
-        &[
-            "train",
-            path.to_str().unwrap(),
-            "--data",
-            reference.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-    );
+    let (code, text) = cpmx(&dir, "train", &path, Some(&out));
     assert_ne!(code, Some(0), "{text}");
     assert!(text.contains("training environments do not run yet"), "{text}");
 }

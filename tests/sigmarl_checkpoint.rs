@@ -10,7 +10,7 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use support::{cpmx, cpmx_in, ok, python, reference, root, scratch};
+use support::{cpmx, cpmx_in, ok, python, reference, root, scratch, unwrapped as flat};
 
 /// A spec in `dir` running the paper's design with `policies` (YAML list items) from the lab's
 /// poses, `runs` of them (`--only`), with `vehicle`.
@@ -64,26 +64,6 @@ fn export_safetensors(checkpoint: &Path, out: &Path) {
         "--out",
         out.to_str().unwrap(),
     ]));
-}
-
-/// A diagnostic's text with miette's line wrapping undone (a message continues on lines that
-/// start with `│`).
-fn flat(stderr: &[u8]) -> String {
-    let text = String::from_utf8_lossy(stderr);
-    let mut out = String::new();
-    for line in text.lines() {
-        match line.trim_start().strip_prefix('│') {
-            Some(rest) => {
-                out.push(' ');
-                out.push_str(rest.trim());
-            }
-            None => {
-                out.push('\n');
-                out.push_str(line);
-            }
-        }
-    }
-    out
 }
 
 #[test]

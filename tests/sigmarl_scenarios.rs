@@ -6,7 +6,7 @@ mod support;
 
 use std::path::Path;
 
-use support::{cpmx_in, reference, scratch};
+use support::{cpmx_in, reference, scratch, unwrapped};
 
 /// A spec on scenario `map` (a `map:` value): one agent on path 0, the paper's actor of seed 1.
 fn spec(dir: &Path, name: &str, map: &str) -> std::path::PathBuf {
@@ -42,20 +42,7 @@ fn run(dir: &Path, command: &str, spec: &Path, data: &Path) -> (Option<i32>, Str
         args.extend(["--out", out_dir.to_str().unwrap()]);
     }
     let out = cpmx_in(dir, &args);
-    // miette wraps long messages: continuation lines start with `│`.
-    let mut text = String::from_utf8_lossy(&out.stdout).into_owned();
-    for line in String::from_utf8_lossy(&out.stderr).lines() {
-        match line.trim_start().strip_prefix('│') {
-            Some(rest) => {
-                text.push(' ');
-                text.push_str(rest.trim());
-            }
-            None => {
-                text.push('\n');
-                text.push_str(line);
-            }
-        }
-    }
+    let text = String::from_utf8_lossy(&out.stdout).into_owned() + &unwrapped(&out.stderr);
     (out.status.code(), text)
 }
 

@@ -103,6 +103,26 @@ pub fn ok(out: &Output) -> String {
     String::from_utf8(out.stdout.clone()).unwrap()
 }
 
+/// Diagnostics with miette's line wrapping undone: a message continues on lines that start
+/// with `│`, which are joined to the line before with a space.
+pub fn unwrapped(stderr: &[u8]) -> String {
+    let text = String::from_utf8_lossy(stderr);
+    let mut out = String::new();
+    for line in text.lines() {
+        match line.trim_start().strip_prefix('│') {
+            Some(rest) => {
+                out.push(' ');
+                out.push_str(rest.trim());
+            }
+            None => {
+                out.push('\n');
+                out.push_str(line);
+            }
+        }
+    }
+    out
+}
+
 /// `cpmx ARGS` run in `dir` (relative files of a spec there resolve from it).
 pub fn cpmx_in(dir: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_cpmx"))

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use support::{files, ok, reference, scratch};
+use support::{files, ok, reference, scratch, unwrapped};
 
 /// A small training spec: SigmaRL's intersection scenario, reward and MAPPO with fewer and
 /// smaller pieces (`{iterations}`, `{extra}` replaced).
@@ -608,14 +608,7 @@ fn each_seed_starts_from_its_own_actor_with_the_seed_in_the_path() {
         .arg(reference())
         .output()
         .unwrap();
-    // miette wraps long messages: continuation lines start with `│`.
-    let stderr: String = String::from_utf8_lossy(&out.stderr)
-        .lines()
-        .map(|l| match l.trim_start().strip_prefix('│') {
-            Some(rest) => format!(" {}", rest.trim()),
-            None => format!("\n{l}"),
-        })
-        .collect();
+    let stderr = unwrapped(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(
         stderr.contains("/out/8/actor.last.safetensors` was not found"),
