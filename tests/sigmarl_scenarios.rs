@@ -124,3 +124,22 @@ fn a_damaged_scenario_map_is_reported_at_its_line() {
         "{text}"
     );
 }
+
+#[test]
+fn a_map_only_spec_lists_the_scenarios_paths() {
+    let reference = reference();
+    let dir = scratch("sigmarl-scenario-look");
+    let path = dir.join("look.yaml");
+    std::fs::write(&path, "cpmx: 1\nname: look\nmap: {sigmarl: roundabout_1}\n").unwrap();
+    let (code, text) = run(&dir, "validate", &path, &reference);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(text.contains("  lanelets: 9\n"), "{text}");
+    assert!(
+        text.contains("reference paths (ref_path): 5, by SigmaRL's scenario table"),
+        "{text}"
+    );
+    assert!(
+        text.contains("    1: 4.18 m, open, lanelets 1 -> 3 -> 7 -> 9"),
+        "{text}"
+    );
+}
