@@ -320,10 +320,7 @@ pub fn rows(p: &CbfParameters, s: CbfState, left: &Boundary, right: &Boundary) -
             [-step32, -step32],
         ];
         for (side, boundary) in [(Side::Left, left), (Side::Right, right)] {
-            let d: Vec<f32> = offsets
-                .iter()
-                .map(|o| boundary.pseudo_distance([centre[0] + o[0], centre[1] + o[1]]))
-                .collect();
+            let d = offsets.map(|o| boundary.pseudo_distance([centre[0] + o[0], centre[1] + o[1]]));
             // The finite differences, each operation rounded to float16.
             let gradient = [
                 float16(float16(d[1] - d[0]) / step16),

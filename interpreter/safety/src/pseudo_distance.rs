@@ -8,12 +8,26 @@
 /// What SigmaRL puts where no segment's projection falls on the segment.
 pub const NO_PROJECTION: f32 = 1000.0;
 
-/// A boundary polyline with SigmaRL's pseudo tangents (central differences inside,
-/// one-sided at the ends: `compute_pseudo_tangent_vector`).
+/// A boundary polyline with what SigmaRL computes of each segment for every query: its frame's
+/// rotation, its length, and the slopes of the pseudo tangents (central differences inside,
+/// one-sided at the ends: `compute_pseudo_tangent_vector`) at its ends in that frame. They
+/// depend on the points alone, so they are computed once; the values are the same `f32`
+/// operations SigmaRL repeats per query.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Boundary {
     points: Vec<[f32; 2]>,
-    tangents: Vec<[f32; 2]>,
+    segments: Vec<Segment>,
+}
+
+/// One segment in its own frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Segment {
+    base: [f32; 2],
+    cos: f32,
+    sin: f32,
+    length: f32,
+    slope_base: f32,
+    slope_tip: f32,
 }
 
 impl Boundary {
@@ -24,14 +38,35 @@ impl Boundary {
             return None;
         }
         let diff = |a: [f32; 2], b: [f32; 2]| [b[0] - a[0], b[1] - a[1]];
-        let tangents = (0..n)
+        let tangents: Vec<[f32; 2]> = (0..n)
             .map(|i| match i {
                 0 => diff(points[0], points[1]),
                 _ if i == n - 1 => diff(points[n - 2], points[n - 1]),
                 _ => diff(points[i - 1], points[i + 1]),
             })
             .collect();
-        Some(Boundary { points, tangents })
+        let segments = points
+            .windows(2)
+            .zip(tangents.windows(2))
+            .map(|(pair, tangent)| {
+                let (b, t) = (pair[0], pair[1]);
+                let bt = [t[0] - b[0], t[1] - b[1]];
+                let theta = bt[1].atan2(bt[0]);
+                let (sin, cos) = (theta.sin(), theta.cos());
+                // The rotation into the segment's frame: [[cos, sin], [-sin, cos]].
+                let rotate = |v: [f32; 2]| [cos * v[0] + sin * v[1], -sin * v[0] + cos * v[1]];
+                let slope = |t: [f32; 2]| if t[0] != 0.0 { t[1] / t[0] } else { 1e-8 };
+                Segment {
+                    base: b,
+                    cos,
+                    sin,
+                    length: bt[1].mul_add(bt[1], bt[0] * bt[0]).sqrt(),
+                    slope_base: slope(rotate(tangent[0])),
+                    slope_tip: slope(rotate(tangent[1])),
+                }
+            })
+            .collect();
+        Some(Boundary { points, segments })
     }
 
     /// The polyline's points.
@@ -43,24 +78,14 @@ impl Boundary {
     /// [`NO_PROJECTION`] where no segment takes the point.
     pub fn pseudo_distance(&self, q: [f32; 2]) -> f32 {
         let mut best = NO_PROJECTION;
-        for (i, pair) in self.points.windows(2).enumerate() {
-            let (b, t) = (pair[0], pair[1]);
-            let bt = [t[0] - b[0], t[1] - b[1]];
-            let theta = bt[1].atan2(bt[0]);
-            let (sin, cos) = (theta.sin(), theta.cos());
-            // The rotation into the segment's frame: [[cos, sin], [-sin, cos]].
-            let rotate = |v: [f32; 2]| [cos * v[0] + sin * v[1], -sin * v[0] + cos * v[1]];
-            let [x, y] = rotate([q[0] - b[0], q[1] - b[1]]);
-            let tangent_base = rotate(self.tangents[i]);
-            let tangent_tip = rotate(self.tangents[i + 1]);
-            let slope = |t: [f32; 2]| if t[0] != 0.0 { t[1] / t[0] } else { 1e-8 };
-            let (m_tip, m_base) = (slope(tangent_tip), slope(tangent_base));
-            let length = bt[1].mul_add(bt[1], bt[0] * bt[0]).sqrt();
-            let lambda = (x + y * m_base) / (length - y * (m_tip - m_base));
+        for s in &self.segments {
+            let v = [q[0] - s.base[0], q[1] - s.base[1]];
+            let (x, y) = (s.cos * v[0] + s.sin * v[1], -s.sin * v[0] + s.cos * v[1]);
+            let lambda = (x + y * s.slope_base) / (s.length - y * (s.slope_tip - s.slope_base));
             if !(0.0..1.0).contains(&lambda) {
                 continue;
             }
-            let n = [x - lambda * length, y];
+            let n = [x - lambda * s.length, y];
             let distance = crate::float16(n[1].mul_add(n[1], n[0] * n[0]).sqrt());
             // torch.min keeps the first of equal values; a NaN never wins here.
             if distance < best {
