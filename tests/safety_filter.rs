@@ -152,3 +152,54 @@ fn a_planning_fidelity_or_a_training_through_the_filter_is_refused_at_its_key() 
     assert_ne!(code, Some(0), "{text}");
     assert!(text.contains("training environments do not run yet"), "{text}");
 }
+
+#[test]
+fn the_papers_actors_that_collide_from_the_labs_starts_are_kept_apart_by_the_filter() {
+    let dir = scratch("safety-filter-agents");
+    let path = spec(
+        &dir,
+        "  sim: {control: direct, dynamics: kinematic}\n  sim-cbf: {control: direct, dynamics: kinematic, safety: stdlib:sigmarl-cbf}",
+        "",
+    );
+    // The paper's three actors, each from its own lab runs' starts, for the whole 18 s.
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace(
+            "  - {name: paper, mlp: {sigmarl: paper-at25/seed1}, action: mean}",
+            "  - {name: seed1, mlp: {sigmarl: paper-at25/seed1}, action: mean}\n  \
+             - {name: seed2, mlp: {sigmarl: paper-at25/seed2}, action: mean}\n  \
+             - {name: seed3, mlp: {sigmarl: paper-at25/seed3}, action: mean}",
+        )
+        .replace(
+            "from_poses: {file: paper-at25/poses.csv, policies: {paper: seed1}}",
+            "from_poses: {file: paper-at25/poses.csv}",
+        )
+        .replace("steps: 40", "steps: 180")
+        .replace("repetitions: 1", "repetitions: 3");
+    std::fs::write(&path, text).unwrap();
+    let out = dir.join("out");
+    let (code, text) = cpmx(&dir, "run", &path, Some(&out));
+    assert_eq!(code, Some(0), "{text}");
+    let per_run = std::fs::read_to_string(out.join("per_run.csv")).unwrap();
+    let mut lines = per_run.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (events, kept_apart) = (column("a2a_events"), column("safety.kept_apart"));
+    let (mut collisions, mut runs, mut kept) = (std::collections::BTreeMap::new(), 0, 0.0);
+    let mut colliding_sim_runs = 0;
+    for line in lines {
+        let cells: Vec<&str> = line.split(',').collect();
+        let run_events = cells[events].parse::<f64>().unwrap();
+        *collisions.entry(cells[1].to_owned()).or_insert(0.0) += run_events;
+        colliding_sim_runs += usize::from(cells[1] == "sim" && run_events > 0.0);
+        if cells[1] == "sim-cbf" {
+            runs += 1;
+            kept += cells[kept_apart].parse::<f64>().unwrap();
+        }
+    }
+    assert_eq!(runs, 27);
+    assert!(kept > 0.0, "the rows between the cars never held");
+    // docs/specs.md: "collide in 4 of their 27 sim runs".
+    assert_eq!(colliding_sim_runs, 4, "{per_run}");
+    assert_eq!(collisions["sim-cbf"], 0.0, "{collisions:?}");
+}

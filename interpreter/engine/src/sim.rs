@@ -47,6 +47,7 @@ impl Engine for SimEngine {
                 SafetyFilter::new(
                     layer,
                     &experiment.vehicle,
+                    &experiment.footprint,
                     dt_s,
                     &experiment.map,
                     &recording.ref_paths,
@@ -88,11 +89,7 @@ impl Engine for SimEngine {
             };
             policy.act(&input, &mut commands)?;
             if let Some(filter) = &mut safety {
-                for (agent, ((state, velocity), command)) in
-                    states.iter().zip(&velocities).zip(&mut commands).enumerate()
-                {
-                    filter.apply(agent, state, *velocity, command);
-                }
+                filter.apply(&states, &velocities, &mut commands);
             }
             for ((state, velocity), command) in states.iter_mut().zip(&mut velocities).zip(&commands) {
                 let out = model.step(state, *command, dt_s);

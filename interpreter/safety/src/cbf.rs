@@ -9,11 +9,10 @@
 //! Where the QP has no solution, or a row is not finite, the nominal action goes through
 //! (clamped), as in SigmaRL, and the outcome says why.
 
-use clarabel::algebra::CscMatrix;
-use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus};
-
+use crate::agents::AgentRows;
 use crate::float16;
 use crate::pseudo_distance::Boundary;
+use crate::qp::{self, QpRow};
 
 /// The filter's parameters; [`CbfParameters::sigmarl`] gives SigmaRL's (tag 1.4.0).
 #[derive(Debug, Clone, PartialEq)]
@@ -45,6 +44,12 @@ pub struct CbfParameters {
     pub speed_range_mps: [f32; 2],
     /// The steering command's bound [rad] (SigmaRL: π/4).
     pub max_steering_rad: f32,
+    /// Rows that keep the vehicles' circles apart (not in SigmaRL 1.4.0, which filters one
+    /// vehicle; its later centralised QP has them).
+    pub agents: Option<AgentRows>,
+    /// Where the QP has no solution: the weight of each row's squared slack in a relaxed QP
+    /// (SigmaRL's later QP: 1e9); `None`: the clamped nominal command goes through (1.4.0).
+    pub slack_weight: Option<f64>,
 }
 
 impl CbfParameters {
@@ -65,6 +70,8 @@ impl CbfParameters {
             steering_rate_limit_radps: 40.0,
             speed_range_mps: [-0.5, 1.0],
             max_steering_rad: std::f64::consts::FRAC_PI_4 as f32,
+            agents: None,
+            slack_weight: None,
         }
     }
 
@@ -142,8 +149,11 @@ pub struct CbfOutcome {
     pub input: Option<[f64; 2]>,
     /// The rows (by circle, left before right).
     pub rows: Vec<CbfRow>,
-    /// Indices into `rows` of the rows the solution lies on (slack below 1e-7).
+    /// Indices into `rows` of the rows the solution lies on (slack below 1e-7) or, relaxed,
+    /// violates.
     pub active: Vec<usize>,
+    /// Whether the QP had no solution and its rows were relaxed (`slack_weight`).
+    pub relaxed: bool,
     /// Why the nominal action went through, if it did.
     pub fallback: Option<Fallback>,
 }
@@ -165,126 +175,135 @@ pub fn filter(
     right: &Boundary,
 ) -> CbfOutcome {
     let p = parameters;
-    // `rl_action_to_u` (f32): clamp, then the rates over one step, clamped.
-    let speed = nominal[0].clamp(p.speed_range_mps[0], p.speed_range_mps[1]);
-    let steering = nominal[1].clamp(-p.max_steering_rad, p.max_steering_rad);
-    let dt32 = p.step_s as f32;
-    let nominal_input = [
-        ((speed - state.speed_mps) / dt32).clamp(
-            -p.acceleration_limit_mps2 as f32,
-            p.acceleration_limit_mps2 as f32,
-        ),
-        ((steering - state.steering_rad) / dt32).clamp(
-            -p.steering_rate_limit_radps as f32,
-            p.steering_rate_limit_radps as f32,
-        ),
-    ];
+    let command = Command::of(p, state, nominal);
     let rows = rows(p, state, left, right);
-    let clamped = [speed, steering];
-    let fallback = |why: Fallback, rows: Vec<CbfRow>| CbfOutcome {
-        action: clamped,
-        nominal: clamped,
-        nominal_input,
-        input: None,
-        rows,
-        active: Vec::new(),
-        fallback: Some(why),
-    };
-    let state_finite = [
-        state.x_m,
-        state.y_m,
-        state.yaw_rad,
-        state.speed_mps,
-        state.steering_rad,
-    ]
-    .iter()
-    .all(|v| v.is_finite());
-    if !state_finite
-        || rows
-            .iter()
-            .any(|r| !(r.constant.is_finite() && r.coefficients.iter().all(|c| c.is_finite())))
-    {
-        return fallback(Fallback::NotFinite, rows);
+    if !state.is_finite() || !rows.iter().all(CbfRow::is_finite) {
+        return command.fallback(Fallback::NotFinite, rows);
     }
-    let input = match solve(
-        p,
-        [f64::from(nominal_input[0]), f64::from(nominal_input[1])],
-        &rows,
-    ) {
-        Ok(u) => u,
-        Err(why) => return fallback(why, rows),
+    let qp_rows: Vec<QpRow> = rows.iter().map(|r| QpRow::own(0, r)).collect();
+    let (input, relaxed) = match qp::solve_relaxing(p, &[command.input64()], &qp_rows) {
+        Ok((inputs, relaxed)) => (inputs[0], relaxed),
+        Err(why) => return command.fallback(why, rows),
     };
-    let active = rows
-        .iter()
+    let active = active_rows(&rows, input);
+    command.filtered(p, state, input, rows, active, relaxed)
+}
+
+/// Indices of the `rows` that `input` lies on (slack below 1e-7), or violates.
+pub(crate) fn active_rows(rows: &[CbfRow], input: [f64; 2]) -> Vec<usize> {
+    rows.iter()
         .enumerate()
         .filter(|(_, r)| r.coefficients[0] * input[0] + r.coefficients[1] * input[1] + r.constant < 1e-7)
         .map(|(i, _)| i)
-        .collect();
-    // `u_to_rl_action` (f64): one step of the rates, the steering wrapped to [−π, π), both
-    // clamped; written back into SigmaRL's f32 action.
-    let pi = std::f64::consts::PI;
-    let v = f64::from(state.speed_mps) + input[0] * p.step_s;
-    let delta = f64::from(state.steering_rad) + input[1] * p.step_s;
-    let delta = (delta + pi).rem_euclid(2.0 * pi) - pi;
-    let action = [
-        v.clamp(f64::from(p.speed_range_mps[0]), f64::from(p.speed_range_mps[1])) as f32,
-        delta.clamp(-f64::from(p.max_steering_rad), f64::from(p.max_steering_rad)) as f32,
-    ];
-    CbfOutcome {
-        action,
-        nominal: clamped,
-        nominal_input,
-        input: Some(input),
-        rows,
-        active,
-        fallback: None,
+        .collect()
+}
+
+impl CbfState {
+    /// Whether every component is a number.
+    pub fn is_finite(&self) -> bool {
+        [
+            self.x_m,
+            self.y_m,
+            self.yaw_rad,
+            self.speed_mps,
+            self.steering_rad,
+        ]
+        .iter()
+        .all(|v| v.is_finite())
+    }
+}
+
+impl CbfRow {
+    /// Whether the row's coefficients and constant are numbers.
+    pub fn is_finite(&self) -> bool {
+        self.constant.is_finite() && self.coefficients.iter().all(|c| c.is_finite())
+    }
+}
+
+/// A nominal command as the QP sees it: clamped to the command ranges, and as the
+/// acceleration and steering rate that reach it over one step (`rl_action_to_u`, `f32`).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Command {
+    clamped: [f32; 2],
+    input: [f32; 2],
+}
+
+impl Command {
+    pub(crate) fn of(p: &CbfParameters, state: CbfState, nominal: [f32; 2]) -> Command {
+        let speed = nominal[0].clamp(p.speed_range_mps[0], p.speed_range_mps[1]);
+        let steering = nominal[1].clamp(-p.max_steering_rad, p.max_steering_rad);
+        let dt32 = p.step_s as f32;
+        let input = [
+            ((speed - state.speed_mps) / dt32).clamp(
+                -p.acceleration_limit_mps2 as f32,
+                p.acceleration_limit_mps2 as f32,
+            ),
+            ((steering - state.steering_rad) / dt32).clamp(
+                -p.steering_rate_limit_radps as f32,
+                p.steering_rate_limit_radps as f32,
+            ),
+        ];
+        Command {
+            clamped: [speed, steering],
+            input,
+        }
+    }
+
+    pub(crate) fn input64(&self) -> [f64; 2] {
+        self.input.map(f64::from)
+    }
+
+    /// The clamped nominal command goes through, for the reason `why`.
+    pub(crate) fn fallback(&self, why: Fallback, rows: Vec<CbfRow>) -> CbfOutcome {
+        CbfOutcome {
+            action: self.clamped,
+            nominal: self.clamped,
+            nominal_input: self.input,
+            input: None,
+            rows,
+            active: Vec::new(),
+            relaxed: false,
+            fallback: Some(why),
+        }
+    }
+
+    /// The QP's `input` as a command (`u_to_rl_action`, `f64`): one step of the rates, the
+    /// steering wrapped to [−π, π), both clamped; written back into SigmaRL's `f32` action.
+    pub(crate) fn filtered(
+        &self,
+        p: &CbfParameters,
+        state: CbfState,
+        input: [f64; 2],
+        rows: Vec<CbfRow>,
+        active: Vec<usize>,
+        relaxed: bool,
+    ) -> CbfOutcome {
+        let pi = std::f64::consts::PI;
+        let v = f64::from(state.speed_mps) + input[0] * p.step_s;
+        let delta = f64::from(state.steering_rad) + input[1] * p.step_s;
+        let delta = (delta + pi).rem_euclid(2.0 * pi) - pi;
+        let action = [
+            v.clamp(f64::from(p.speed_range_mps[0]), f64::from(p.speed_range_mps[1])) as f32,
+            delta.clamp(-f64::from(p.max_steering_rad), f64::from(p.max_steering_rad)) as f32,
+        ];
+        CbfOutcome {
+            action,
+            nominal: self.clamped,
+            nominal_input: self.input,
+            input: Some(input),
+            rows,
+            active,
+            relaxed,
+            fallback: None,
+        }
     }
 }
 
 /// The CBF rows for every circle and boundary (SigmaRL's order: by circle, left then right).
 pub fn rows(p: &CbfParameters, s: CbfState, left: &Boundary, right: &Boundary) -> Vec<CbfRow> {
-    // The bicycle's first derivatives (`KinematicBicycleModel.ode`, f32).
-    let ratio = (p.rear_axle_m / p.wheelbase_m) as f32;
-    let beta = (ratio * s.steering_rad.tan()).atan();
-    let dx = s.speed_mps * (s.yaw_rad + beta).cos();
-    let dy = s.speed_mps * (s.yaw_rad + beta).sin();
-    let dyaw = (s.speed_mps / p.wheelbase_m as f32) * s.steering_rad.tan() * beta.cos();
-    let (dx, dy, dyaw) = (f64::from(dx), f64::from(dy), f64::from(dyaw));
-    // The second derivatives (`compute_dstate_2nd_time`, f64), affine in u = [a, ω]:
-    // each as [constant, ∂/∂a, ∂/∂ω].
-    let (yaw, v, delta) = (
-        f64::from(s.yaw_rad),
-        f64::from(s.speed_mps),
-        f64::from(s.steering_rad),
-    );
-    let k = p.rear_axle_m / p.wheelbase_m;
-    let tan_delta = delta.tan();
-    let beta64 = (k * tan_delta).atan();
-    let sec_sq = 1.0 / delta.cos().powi(2);
-    let tan_beta = k * tan_delta;
-    let cos_beta = 1.0 / (1.0 + tan_beta.powi(2)).sqrt();
-    let sin_beta = tan_beta * cos_beta;
-    let dbeta_domega = (k * sec_sq) / (1.0 + (k * tan_delta).powi(2));
-    let (sin_course, cos_course) = (yaw + beta64).sin_cos();
-    let ddx = [
-        -(v * sin_course) * dyaw,
-        cos_course,
-        -(v * sin_course) * dbeta_domega,
-    ];
-    let ddy = [
-        (v * cos_course) * dyaw,
-        sin_course,
-        (v * cos_course) * dbeta_domega,
-    ];
-    let per_wheelbase = v / p.wheelbase_m;
-    let ddyaw = [
-        0.0,
-        (1.0 / p.wheelbase_m) * cos_beta * tan_delta,
-        per_wheelbase * cos_beta * sec_sq - per_wheelbase * sin_beta * tan_delta * dbeta_domega,
-    ];
+    let motion = Motion::of(p, s);
     // The circles' centres (`get_circle_centers`, f32).
     let (sin32, cos32) = (s.yaw_rad.sin(), s.yaw_rad.cos());
-    let (sin_yaw, cos_yaw) = yaw.sin_cos();
     // NumPy's float16 arithmetic: Python numbers become float16 first (`constant`), every
     // result is rounded to float16 (`float16`).
     let constant = |x: f64| f32::from(half::f16::from_f64(x));
@@ -298,16 +317,7 @@ pub fn rows(p: &CbfParameters, s: CbfState, left: &Boundary, right: &Boundary) -
     for (circle, offset) in p.circle_offsets_m().into_iter().enumerate() {
         let offset32 = offset as f32;
         let centre = [cos32 * offset32 + s.x_m, sin32 * offset32 + s.y_m];
-        // The centre's velocity and acceleration (`compute_center_state_time_derivatives`).
-        let velocity = [dx - offset * sin_yaw * dyaw, dy + offset * cos_yaw * dyaw];
-        let acceleration: [[f64; 3]; 2] = [
-            std::array::from_fn(|j| {
-                ddx[j] - offset * (sin_yaw * ddyaw[j] + if j == 0 { cos_yaw * dyaw * dyaw } else { 0.0 })
-            }),
-            std::array::from_fn(|j| {
-                ddy[j] + offset * (cos_yaw * ddyaw[j] - if j == 0 { sin_yaw * dyaw * dyaw } else { 0.0 })
-            }),
-        ];
+        let (velocity, acceleration) = motion.point(offset);
         let offsets = [
             [0.0, 0.0],
             [step32, 0.0],
@@ -360,57 +370,93 @@ pub fn rows(p: &CbfParameters, s: CbfState, left: &Boundary, right: &Boundary) -
     rows
 }
 
-/// min (u − u₀)ᵀ R (u − u₀) over the rows and the bounds, with clarabel.
-fn solve(p: &CbfParameters, nominal: [f64; 2], rows: &[CbfRow]) -> Result<[f64; 2], Fallback> {
-    let [wa, ww] = p.weights;
-    // ½ uᵀ P u + qᵀ u with P = 2R.
-    let pm = CscMatrix::new(2, 2, vec![0, 1, 2], vec![0, 1], vec![2.0 * wa, 2.0 * ww]);
-    let q = vec![-2.0 * wa * nominal[0], -2.0 * ww * nominal[1]];
-    // A u + s = b, s ≥ 0: the rows as −c·u ≤ constant, then the four bounds.
-    let n = rows.len() + 4;
-    let mut column_a = Vec::with_capacity(n);
-    let mut column_w = Vec::with_capacity(n);
-    let mut b = Vec::with_capacity(n);
-    for r in rows {
-        column_a.push(-r.coefficients[0]);
-        column_w.push(-r.coefficients[1]);
-        b.push(r.constant);
+/// The bicycle's motion in a state as the filter predicts it: the first derivatives (SigmaRL's
+/// `KinematicBicycleModel.ode`, `f32`) and the second, affine in u = [a, ω]
+/// (`compute_dstate_2nd_time`, `f64`), each second derivative as `[constant, ∂/∂a, ∂/∂ω]`.
+#[derive(Clone, Copy)]
+pub(crate) struct Motion {
+    dx: f64,
+    dy: f64,
+    dyaw: f64,
+    sin_yaw: f64,
+    cos_yaw: f64,
+    ddx: [f64; 3],
+    ddy: [f64; 3],
+    ddyaw: [f64; 3],
+}
+
+impl Motion {
+    pub(crate) fn of(p: &CbfParameters, s: CbfState) -> Motion {
+        let ratio = (p.rear_axle_m / p.wheelbase_m) as f32;
+        let beta = (ratio * s.steering_rad.tan()).atan();
+        let dx = s.speed_mps * (s.yaw_rad + beta).cos();
+        let dy = s.speed_mps * (s.yaw_rad + beta).sin();
+        let dyaw = (s.speed_mps / p.wheelbase_m as f32) * s.steering_rad.tan() * beta.cos();
+        let (dx, dy, dyaw) = (f64::from(dx), f64::from(dy), f64::from(dyaw));
+        let (yaw, v, delta) = (
+            f64::from(s.yaw_rad),
+            f64::from(s.speed_mps),
+            f64::from(s.steering_rad),
+        );
+        let k = p.rear_axle_m / p.wheelbase_m;
+        let tan_delta = delta.tan();
+        let beta64 = (k * tan_delta).atan();
+        let sec_sq = 1.0 / delta.cos().powi(2);
+        let tan_beta = k * tan_delta;
+        let cos_beta = 1.0 / (1.0 + tan_beta.powi(2)).sqrt();
+        let sin_beta = tan_beta * cos_beta;
+        let dbeta_domega = (k * sec_sq) / (1.0 + (k * tan_delta).powi(2));
+        let (sin_course, cos_course) = (yaw + beta64).sin_cos();
+        let per_wheelbase = v / p.wheelbase_m;
+        let (sin_yaw, cos_yaw) = yaw.sin_cos();
+        Motion {
+            dx,
+            dy,
+            dyaw,
+            sin_yaw,
+            cos_yaw,
+            ddx: [
+                -(v * sin_course) * dyaw,
+                cos_course,
+                -(v * sin_course) * dbeta_domega,
+            ],
+            ddy: [
+                (v * cos_course) * dyaw,
+                sin_course,
+                (v * cos_course) * dbeta_domega,
+            ],
+            ddyaw: [
+                0.0,
+                (1.0 / p.wheelbase_m) * cos_beta * tan_delta,
+                per_wheelbase * cos_beta * sec_sq - per_wheelbase * sin_beta * tan_delta * dbeta_domega,
+            ],
+        }
     }
-    for (ca, cw, limit) in [
-        (1.0, 0.0, p.acceleration_limit_mps2),
-        (-1.0, 0.0, p.acceleration_limit_mps2),
-        (0.0, 1.0, p.steering_rate_limit_radps),
-        (0.0, -1.0, p.steering_rate_limit_radps),
-    ] {
-        column_a.push(ca);
-        column_w.push(cw);
-        b.push(limit);
-    }
-    let a = CscMatrix::new(
-        n,
-        2,
-        vec![0, n, 2 * n],
-        (0..n).chain(0..n).collect(),
-        column_a.into_iter().chain(column_w).collect(),
-    );
-    let settings = DefaultSettingsBuilder::default()
-        .verbose(false)
-        .tol_gap_abs(1e-10)
-        .tol_gap_rel(1e-10)
-        .tol_feas(1e-10)
-        .tol_infeas_abs(1e-10)
-        .tol_infeas_rel(1e-10)
-        .tol_ktratio(1e-8)
-        .max_iter(500)
-        .build()
-        .map_err(|_| Fallback::Unsolved)?;
-    let cones = [NonnegativeConeT(n)];
-    let mut solver = DefaultSolver::new(&pm, &q, &a, &b, &cones, settings).map_err(|_| Fallback::Unsolved)?;
-    solver.solve();
-    match solver.solution.status {
-        SolverStatus::Solved => Ok([solver.solution.x[0], solver.solution.x[1]]),
-        SolverStatus::PrimalInfeasible | SolverStatus::AlmostPrimalInfeasible => Err(Fallback::Infeasible),
-        _ => Err(Fallback::Unsolved),
+
+    /// The velocity of the point `offset` metres ahead of the centre on the vehicle's axis, and
+    /// its acceleration (`compute_center_state_time_derivatives`), each coordinate as
+    /// `[constant, ∂/∂a, ∂/∂ω]`.
+    pub(crate) fn point(&self, offset: f64) -> ([f64; 2], [[f64; 3]; 2]) {
+        let Motion {
+            dx,
+            dy,
+            dyaw,
+            sin_yaw,
+            cos_yaw,
+            ddx,
+            ddy,
+            ddyaw,
+        } = *self;
+        let velocity = [dx - offset * sin_yaw * dyaw, dy + offset * cos_yaw * dyaw];
+        let acceleration: [[f64; 3]; 2] = [
+            std::array::from_fn(|j| {
+                ddx[j] - offset * (sin_yaw * ddyaw[j] + if j == 0 { cos_yaw * dyaw * dyaw } else { 0.0 })
+            }),
+            std::array::from_fn(|j| {
+                ddy[j] + offset * (cos_yaw * ddyaw[j] - if j == 0 { sin_yaw * dyaw * dyaw } else { 0.0 })
+            }),
+        ];
+        (velocity, acceleration)
     }
 }
 
@@ -455,5 +501,32 @@ mod tests {
         let out = filter(&p, state(f32::NAN, 0.0), [2.0, -3.0], &left, &right);
         assert_eq!(out.fallback, Some(Fallback::NotFinite));
         assert_eq!(out.action, [1.0, -std::f32::consts::FRAC_PI_4]);
+    }
+
+    #[test]
+    fn a_qp_without_solution_lets_the_nominal_action_through_unless_its_rows_may_be_relaxed() {
+        let (left, right) = lane();
+        // Heading straight at the left boundary at full speed, 10 cm from it: no braking is enough.
+        let hopeless = CbfState {
+            x_m: 0.013,
+            y_m: 0.05,
+            yaw_rad: std::f32::consts::FRAC_PI_2,
+            speed_mps: 1.0,
+            steering_rad: 0.0,
+        };
+        let p = CbfParameters::sigmarl(0.05);
+        let out = filter(&p, hopeless, [1.0, 0.0], &left, &right);
+        assert_eq!(
+            (out.fallback, out.action, out.relaxed),
+            (Some(Fallback::Infeasible), [1.0, 0.0], false),
+            "{out:?}"
+        );
+        let relaxing = CbfParameters {
+            slack_weight: Some(1e9),
+            ..p
+        };
+        let out = filter(&relaxing, hopeless, [1.0, 0.0], &left, &right);
+        assert_eq!((out.fallback, out.relaxed), (None, true), "{out:?}");
+        assert_eq!(out.action[0], -0.5, "it brakes as hard as it may: {out:?}");
     }
 }

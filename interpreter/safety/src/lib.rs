@@ -1,12 +1,16 @@
 //! Safety filters: layers between a policy's action and the vehicle that change the action as
 //! little as they can to keep the vehicle safe. [`cbf`] is SigmaRL's control-barrier-function
 //! QP of the ITSC 2025 paper (one vehicle against its lane's boundaries, solved with
-//! clarabel), on the pseudo-distance of [`pseudo_distance`]. The crate computes what a filter
+//! clarabel), on the pseudo-distance of [`pseudo_distance`]; [`agents`] solves a step's
+//! vehicles together where rows between them keep them apart (SigmaRL's later centralised QP). The crate computes what a filter
 //! does for one vehicle and step; the stacks that run it in a fidelity are the engine's.
 
+pub mod agents;
 pub mod cbf;
 pub mod pseudo_distance;
+mod qp;
 
+pub use agents::{AgentRows, PairRow, StepOutcome, Vehicle, filter_step};
 pub use cbf::{CbfOutcome, CbfParameters, CbfRow, CbfState, Fallback, Side, filter};
 pub use pseudo_distance::Boundary;
 

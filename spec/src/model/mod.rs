@@ -41,7 +41,7 @@ pub use policy::{
     ObservationSpec, OnnxSpec, OutputHead, PolicySpec, ProcessSpec, TrainedActor, TrainedChoice,
 };
 pub use preset::PresetOr;
-pub use safety::{CbfFilter, CbfWeights, SafetyLayer};
+pub use safety::{CbfAgents, CbfFilter, CbfWeights, SafetyLayer};
 pub use start::{
     AgentStart, DEFAULT_OFF_ROAD_TOLERANCE_M, ExplicitConfiguration, FromPoses, FromPosesSpec, FromRuns,
     FromRunsSpec, InitialConfiguration, Pose, SampleSpec, SampledStarts,

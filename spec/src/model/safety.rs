@@ -46,6 +46,28 @@ pub struct CbfFilter {
     /// The steering commands' bound [°] (SigmaRL: 45).
     #[schemars(range(min = 0, max = 90))]
     pub max_steering_deg: f64,
+    /// Rows that keep the vehicles apart (SigmaRL's later centralised QP; its 1.4.0 filter
+    /// keeps one vehicle in its lane). Absent: each vehicle is filtered alone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub agents: Option<CbfAgents>,
+    /// Where the QP has no solution, its rows are relaxed by slacks whose squares cost this
+    /// weight each (SigmaRL's later QP: 1e9), so the filter still does the least harm it can.
+    /// Absent: the clamped nominal action goes through (SigmaRL 1.4.0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub slack_weight: Option<f64>,
+}
+
+/// The rows between vehicles: each vehicle as `circles` circles that cover the footprint
+/// collisions are scored with (`metrics.footprint`, else the vehicle); for two vehicles in
+/// range, every pair of their circles keeps twice the radius apart, and every vehicle linked
+/// to another by such rows is solved in one QP with it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CbfAgents {
+    /// Two vehicles whose centres are closer than this are kept apart [m].
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub range_m: f64,
 }
 
 /// The CBF-QP's weights (SigmaRL: 30 and 1).
