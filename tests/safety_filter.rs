@@ -1,6 +1,6 @@
 //! A fidelity's `safety:` layer (`stdlib:sigmarl-cbf`): the paper's actor driven through
-//! SigmaRL's CBF filter in sim, what the filter did kept in each run's notes; the layer
-//! refused where it does not run yet (a planning fidelity, training), at its key.
+//! SigmaRL's CBF filter in sim and in the twin's planner, what the filter did kept in each
+//! run's notes; the layer refused where it does not run yet (training).
 
 mod support;
 
@@ -109,20 +109,8 @@ fn the_filter_runs_between_the_actor_and_the_car_and_says_what_it_did() {
 }
 
 #[test]
-fn a_planning_fidelity_or_a_training_through_the_filter_is_refused_at_its_key() {
+fn a_bad_speed_range_or_a_training_through_the_filter_is_refused() {
     let dir = scratch("safety-filter-refused");
-    let path = spec(
-        &dir,
-        "  sim-mpc: {control: trajectory, dynamics: kinematic, safety: stdlib:sigmarl-cbf}",
-        "",
-    );
-    let (code, text) = cpmx(&dir, "validate", &path, None);
-    assert_eq!(code, Some(1), "{text}");
-    assert!(text.contains("cpmx::check::safety-layer"), "{text}");
-    assert!(
-        text.contains("a safety filter runs between the action and the vehicle of `control: direct` so far"),
-        "{text}"
-    );
     let path = spec(
         &dir,
         "  sim-cbf: {control: direct, dynamics: kinematic, safety: {cbf: {circles: 3, circle_radius_m: 0.05, \
@@ -154,11 +142,15 @@ fn a_planning_fidelity_or_a_training_through_the_filter_is_refused_at_its_key() 
 }
 
 #[test]
-fn the_papers_actors_that_collide_from_the_labs_starts_are_kept_apart_by_the_filter() {
+fn the_papers_actors_that_collide_from_the_labs_starts_are_kept_apart_by_the_filter_in_sim_and_twin() {
     let dir = scratch("safety-filter-agents");
     let path = spec(
         &dir,
-        "  sim: {control: direct, dynamics: kinematic}\n  sim-cbf: {control: direct, dynamics: kinematic, safety: stdlib:sigmarl-cbf}",
+        "  sim: {control: direct, dynamics: kinematic}\n  \
+         sim-cbf: {control: direct, dynamics: kinematic, safety: stdlib:sigmarl-cbf}\n  \
+         twin: {control: trajectory, dynamics: stdlib:mu-car-greybox, sensing: stdlib:cpm-ips, actuation: {delay_ms: 80}}\n  \
+         twin-cbf: {control: trajectory, dynamics: stdlib:mu-car-greybox, sensing: stdlib:cpm-ips, actuation: {delay_ms: 80}, \
+         safety: stdlib:sigmarl-cbf}",
         "",
     );
     // The paper's three actors, each from its own lab runs' starts, for the whole 18 s.
@@ -192,14 +184,20 @@ fn the_papers_actors_that_collide_from_the_labs_starts_are_kept_apart_by_the_fil
         let run_events = cells[events].parse::<f64>().unwrap();
         *collisions.entry(cells[1].to_owned()).or_insert(0.0) += run_events;
         colliding_sim_runs += usize::from(cells[1] == "sim" && run_events > 0.0);
-        if cells[1] == "sim-cbf" {
+        if cells[1].ends_with("-cbf") {
             runs += 1;
             kept += cells[kept_apart].parse::<f64>().unwrap();
         }
     }
-    assert_eq!(runs, 27);
+    assert_eq!(runs, 54);
     assert!(kept > 0.0, "the rows between the cars never held");
     // docs/specs.md: "collide in 4 of their 27 sim runs".
     assert_eq!(colliding_sim_runs, 4, "{per_run}");
-    assert_eq!(collisions["sim-cbf"], 0.0, "{collisions:?}");
+    assert!(collisions["twin"] > 0.0, "{collisions:?}");
+    // Through the planner of the twin too: the filter changes every rolled-out step.
+    assert_eq!(
+        collisions["sim-cbf"] + collisions["twin-cbf"],
+        0.0,
+        "{collisions:?}"
+    );
 }

@@ -54,7 +54,7 @@ pub(crate) fn check_fidelities(spec: &Spec, ctx: &mut CheckContext<'_>) {
         if let Fidelity::Simulated(simulated) = fidelity {
             check_distributions(name, &pointer, simulated, ctx);
             check_direct_layers(name, &pointer, simulated, ctx);
-            check_safety_layer(name, &pointer, simulated, ctx);
+            check_safety_layer(&pointer, simulated, ctx);
         }
         if let Fidelity::Lab(lab) = fidelity {
             if lab.vehicle_ids.len() != spec.agents as usize {
@@ -92,28 +92,11 @@ pub(crate) fn check_fidelities(spec: &Spec, ctx: &mut CheckContext<'_>) {
     }
 }
 
-/// A safety filter runs between the action and the kinematic bicycle of `control: direct`
-/// (a planner's lookahead and the MPC's plans are not filtered yet); its speed range must be
-/// a range.
-fn check_safety_layer(name: &str, pointer: &str, fidelity: &SimulatedFidelity, ctx: &mut CheckContext<'_>) {
+/// A safety filter's speed range must be a range.
+fn check_safety_layer(pointer: &str, fidelity: &SimulatedFidelity, ctx: &mut CheckContext<'_>) {
     let Some(safety) = &fidelity.safety else {
         return;
     };
-    if fidelity.control == Control::Trajectory {
-        let spans = ctx.spans(&format!("{pointer}/safety"));
-        ctx.push(
-            Problem::error(
-                "cpmx::check::safety-layer",
-                format!(
-                    "fidelity `{name}` has `control: trajectory`; a safety filter runs between the action and the \
-                     vehicle of `control: direct` so far"
-                ),
-                spans.key.unwrap_or(spans.value),
-                "needs `control: direct`",
-            )
-            .with_help("filter a `control: direct` fidelity (the planner's plans and the MPC are not filtered yet)"),
-        );
-    }
     let [low, high] = safety.cbf.speed_range_mps;
     if low >= high || low.is_nan() || high.is_nan() {
         let span = ctx.span(&format!("{pointer}/safety/cbf/speed_range_mps"));

@@ -6,11 +6,13 @@ use std::path::Path;
 use std::sync::Arc;
 
 use cpmx_metrics::{
-    CollisionGeometry as MetricGeometry, CraAConfig, CraLConfig, EventCount, Hysteresis, MetricsConfig,
+    CollisionGeometry as MetricGeometry, CraAConfig, CraLConfig, EventCount, Hysteresis, LaneBoundaries,
+    MetricsConfig,
 };
 use cpmx_policy::{Activation, BoundaryCorners, MlpActor, OutputHead, SigmarlObservation};
 use cpmx_spec::model::{
-    CollisionCount, CollisionGeometry, MapSpec, MetricsSpec, ObservationSpec, PolicySpec, VehicleSpec,
+    CollisionCount, CollisionGeometry, CraLBoundaries, MapSpec, MetricsSpec, ObservationSpec, PolicySpec,
+    VehicleSpec,
 };
 use cpmx_spec::{CheckedSpec, Spec};
 use cpmx_vehicle::VehicleParams;
@@ -546,6 +548,10 @@ pub fn metrics_config(m: &MetricsSpec, timing: &cpmx_spec::model::Timing) -> Met
     let cra_l = m.cra_l.as_ref().map_or(defaults.cra_l, |c| CraLConfig {
         slack: c.slack,
         per_distance_m: c.per_distance_m,
+        boundaries: match c.boundaries {
+            None | Some(CraLBoundaries::OwnLane) => LaneBoundaries::OwnLane,
+            Some(CraLBoundaries::Road) => LaneBoundaries::Road,
+        },
     });
     MetricsConfig {
         sample_period_s: m.sample_period_s,

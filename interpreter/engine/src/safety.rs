@@ -11,6 +11,9 @@ use cpmx_spec::model::SafetyLayer;
 use cpmx_vehicle::{BicycleState, Command, VehicleParams};
 use cpmx_world::{Map, Polyline};
 
+use crate::engine::RunError;
+use crate::experiment::Experiment;
+
 /// The filter of one run: its parameters, each path's boundaries, and its counts.
 pub(crate) struct SafetyFilter {
     parameters: CbfParameters,
@@ -33,6 +36,28 @@ struct Counts {
 }
 
 impl SafetyFilter {
+    /// The filter of a run whose fidelity has the safety `layer`, if any, for agents on
+    /// `ref_paths` of `experiment`'s map.
+    pub(crate) fn of_run(
+        layer: Option<&SafetyLayer>,
+        experiment: &Experiment,
+        ref_paths: &[usize],
+    ) -> Result<Option<SafetyFilter>, RunError> {
+        layer
+            .map(|layer| {
+                SafetyFilter::new(
+                    layer,
+                    &experiment.vehicle,
+                    &experiment.footprint,
+                    experiment.spec.timing.dt,
+                    &experiment.map,
+                    ref_paths,
+                )
+                .ok_or(RunError::SafetyLanes)
+            })
+            .transpose()
+    }
+
     /// The filter of `layer` for agents on `ref_paths` of `map`, each step `dt_s` long, the
     /// agents kept apart (where the layer asks) by circles that cover `footprint`; `None` when
     /// a path's boundaries have fewer than two points.
@@ -152,7 +177,16 @@ impl SafetyFilter {
             };
         }
     }
+}
 
+/// In a planning fidelity the filter changes each step the planner rolls out.
+impl cpmx_planner::CommandFilter for SafetyFilter {
+    fn filter(&mut self, states: &[BicycleState], velocities_mps: &[[f64; 2]], commands: &mut [Command]) {
+        self.apply(states, velocities_mps, commands);
+    }
+}
+
+impl SafetyFilter {
     /// What the filter did, by name, for the run's `statistics` (`per_run.csv`'s columns).
     pub(crate) fn statistics(&self) -> BTreeMap<String, f64> {
         let c = &self.counts;

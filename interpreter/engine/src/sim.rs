@@ -41,20 +41,11 @@ impl Engine for SimEngine {
             ref_paths: starts.iter().map(|s| s.ref_path).collect(),
             samples: Vec::with_capacity(spec.timing.steps as usize),
         };
-        let mut safety = match inputs.fidelity.and_then(|f| f.safety.as_ref()) {
-            None => None,
-            Some(layer) => Some(
-                SafetyFilter::new(
-                    layer,
-                    &experiment.vehicle,
-                    &experiment.footprint,
-                    dt_s,
-                    &experiment.map,
-                    &recording.ref_paths,
-                )
-                .ok_or(RunError::SafetyLanes)?,
-            ),
-        };
+        let mut safety = SafetyFilter::of_run(
+            inputs.fidelity.and_then(|f| f.safety.as_ref()),
+            experiment,
+            &recording.ref_paths,
+        )?;
         let mut knowledge = inputs.neighbour_knowledge();
         let mut agents = vec![AgentState::default(); states.len()];
         let mut commands = vec![Command::default(); states.len()];

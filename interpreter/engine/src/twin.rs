@@ -2,7 +2,9 @@
 //! the planner rolls the policy out over Hc/Hp from the states the vehicles *report* and hands
 //! each vehicle a timed trajectory; each vehicle ([`VehicleStack`]) then runs its 50 Hz loop
 //! until the next period. With `dynamics: kinematic` this is sim-mpc, with the grey-box model,
-//! the IPS and the actuation delay it is the digital twin. The recording holds the true state
+//! the IPS and the actuation delay it is the digital twin. A `safety:` filter changes the
+//! policy's commands of every step the planner rolls out, on the states it predicts from the
+//! listed ones. The recording holds the true state
 //! at every policy period, as the sim engine's does.
 //!
 //! The planner starts from the states the lab's middleware would list at the tick (position
@@ -20,6 +22,7 @@ use cpmx_spec::model::{OnCollision, Planner as PlannerSpec};
 use cpmx_vehicle::{BicycleState, VehicleParams};
 
 use crate::engine::{Engine, RunError, RunInputs};
+use crate::safety::SafetyFilter;
 use cpmx_stack::{
     CONTROL_PERIOD_NS, CONTROL_PERIOD_S, RUN_START_NS, StampedState, VehicleStack, anchor_ns,
     control_periods, max_state_age_ns, trajectory_points,
@@ -59,6 +62,8 @@ impl Engine for TwinEngine {
             .map_err(&unsupported)?;
         let mut planner = planner(planner_spec, dt_s, experiment.vehicle);
         let mut policy = inputs.policy()?;
+        let ref_paths: Vec<usize> = starts.iter().map(|s| s.ref_path).collect();
+        let mut safety = SafetyFilter::of_run(fidelity.safety.as_ref(), experiment, &ref_paths)?;
         let mut knowledge = inputs.neighbour_knowledge();
         let model = cpmx_vehicle::KinematicBicycle::new(experiment.vehicle);
 
@@ -67,7 +72,7 @@ impl Engine for TwinEngine {
             latency_s: Vec::new(),
             statistics: Default::default(),
             times_s: Vec::with_capacity(spec.timing.steps as usize),
-            ref_paths: starts.iter().map(|s| s.ref_path).collect(),
+            ref_paths,
             samples: Vec::with_capacity(spec.timing.steps as usize),
         };
         let dt_ns = substeps as u64 * CONTROL_PERIOD_NS;
@@ -94,7 +99,10 @@ impl Engine for TwinEngine {
                     .collect();
                 planner.set_neighbours(Some(knowledge.step(t_s, &agents)));
             }
-            let trajectories = planner.plan(policy.as_mut(), &states, &paths, 0.0)?;
+            let trajectories = match &mut safety {
+                None => planner.plan(policy.as_mut(), &states, &paths, 0.0)?,
+                Some(filter) => planner.plan_filtered(policy.as_mut(), filter, &states, &paths, 0.0)?,
+            };
             for ((vehicle, trajectory), state) in vehicles.iter_mut().zip(&trajectories).zip(&listed) {
                 let anchor = anchor_ns(state.create_ns, tick_ns, max_age_ns);
                 vehicle.receive(trajectory_points(trajectory, anchor, dt_ns), tick_ns, tick_ns);
@@ -113,6 +121,10 @@ impl Engine for TwinEngine {
             {
                 break;
             }
+        }
+        if let Some(filter) = &safety {
+            recording.notes.push(filter.note());
+            recording.statistics.extend(filter.statistics());
         }
         Ok(recording)
     }

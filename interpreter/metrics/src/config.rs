@@ -106,6 +106,29 @@ pub struct CraLConfig {
     pub slack: f64,
     /// Violation length is reported per this travelled distance [m].
     pub per_distance_m: f64,
+    /// Which boundaries a footprint must stay within: its own lane's (the paper) or the
+    /// road's, the reference path's shared boundaries (where a safety filter keeps the car).
+    #[serde(default, skip_serializing_if = "LaneBoundaries::is_own_lane")]
+    pub boundaries: LaneBoundaries,
+}
+
+impl LaneBoundaries {
+    /// Whether these are the own lane's (the default, left out of `metrics.json`).
+    pub fn is_own_lane(&self) -> bool {
+        *self == LaneBoundaries::OwnLane
+    }
+}
+
+/// The boundaries CRA-L measures against.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LaneBoundaries {
+    /// The reference path's own lane (the paper's CRA-L).
+    #[default]
+    OwnLane,
+    /// The road: the reference path's shared boundaries, which neighbouring lanes of the same
+    /// direction share (SigmaRL's lanelet collisions, and its safety filter's constraints).
+    Road,
 }
 
 impl Default for MetricsConfig {
@@ -122,6 +145,7 @@ impl Default for MetricsConfig {
             cra_l: CraLConfig {
                 slack: 0.10,
                 per_distance_m: 100.0,
+                boundaries: LaneBoundaries::OwnLane,
             },
             max_steps: None,
             rotate180: None,
@@ -145,6 +169,7 @@ impl MetricsConfig {
             cra_l: CraLConfig {
                 slack: 0.0,
                 per_distance_m: per_unit_m,
+                boundaries: LaneBoundaries::OwnLane,
             },
             max_steps: None,
             rotate180: None,

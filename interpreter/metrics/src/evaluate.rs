@@ -11,13 +11,13 @@ use cpmx_world::{Point, Polyline, ReferencePath, SegmentBoxes, polyline::dist};
 
 use crate::MetricsError;
 use crate::collision::{PlacedBox, signed_distance_m};
-use crate::config::{END_REACHED_M, EventCount, MetricsConfig};
+use crate::config::{END_REACHED_M, EventCount, LaneBoundaries, MetricsConfig};
 use crate::hysteresis::event_samples;
 use crate::lane::Lane;
 use crate::output::{AgentMetrics, PairEvent, RunMetrics};
 use crate::resample::resample;
 
-/// What the metrics need of a reference path: its id, centre line and own-lane boundaries.
+/// What the metrics need of a reference path: its id, centre line, own-lane and road boundaries.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PathGeometry<'a> {
     /// The id agents refer to it by (`Recording::ref_paths`).
@@ -28,6 +28,11 @@ pub struct PathGeometry<'a> {
     pub left_boundary: &'a [Point],
     /// Own-lane right boundary, in driving direction.
     pub right_boundary: &'a [Point],
+    /// The road's left boundary (shared by the lanes of the same direction), in driving
+    /// direction.
+    pub road_left_boundary: &'a [Point],
+    /// The road's right boundary.
+    pub road_right_boundary: &'a [Point],
     /// Whether the path is a closed loop (it has no end to reach).
     pub is_loop: bool,
 }
@@ -39,6 +44,8 @@ impl<'a> From<&'a ReferencePath> for PathGeometry<'a> {
             center_line: &path.center_line.points,
             left_boundary: &path.left_boundary.points,
             right_boundary: &path.right_boundary.points,
+            road_left_boundary: &path.left_boundary_shared.points,
+            road_right_boundary: &path.right_boundary_shared.points,
             is_loop: path.is_loop,
         }
     }
@@ -129,7 +136,10 @@ pub fn evaluate(
             .ok_or(MetricsError::UnknownRefPath { agent, id })?;
         let map = |line: &[Point]| -> Vec<Point> { line.iter().map(|&p| rotate(p)).collect() };
         centre_lines.push(SegmentBoxes::new(Polyline::new(map(path.center_line))));
-        lanes.push(Lane::new(map(path.left_boundary), map(path.right_boundary)));
+        lanes.push(match config.cra_l.boundaries {
+            LaneBoundaries::OwnLane => Lane::new(map(path.left_boundary), map(path.right_boundary)),
+            LaneBoundaries::Road => Lane::new(map(path.road_left_boundary), map(path.road_right_boundary)),
+        });
         open_paths.push(!path.is_loop);
     }
 
@@ -277,6 +287,8 @@ mod tests {
                 center_line: &self.centre,
                 left_boundary: &self.left,
                 right_boundary: &self.right,
+                road_left_boundary: &self.left,
+                road_right_boundary: &self.right,
                 is_loop: false,
             }]
         }
@@ -323,6 +335,28 @@ mod tests {
         assert!(slack.agents[0].violation_samples.is_empty());
         assert!((slack.cd_m - 0.03).abs() < 1e-12);
         assert!((slack.as_mps - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_car_in_the_next_lane_of_the_road_leaves_its_own_lane_only() {
+        let lane = Straight::new();
+        // A road of two lanes: the own lane and one 0.15 m to its left.
+        let road_left: Vec<Point> = lane.left.iter().map(|p| [p[0], p[1] + 0.15]).collect();
+        let geometry = [PathGeometry {
+            road_left_boundary: &road_left,
+            ..lane.geometry()[0]
+        }];
+        let r = recording((0..10).map(|k| vec![sample(1.0 + 0.1 * k as f64, 0.15, 0.0)]).collect());
+        let mut config = MetricsConfig::sigmarl_script(100.0);
+        let own = evaluate(&r, &geometry, &VehicleParams::MU_CAR, &config).unwrap();
+        assert_eq!(own.agents[0].violation_samples.len(), 10);
+        config.cra_l.boundaries = LaneBoundaries::Road;
+        let road = evaluate(&r, &geometry, &VehicleParams::MU_CAR, &config).unwrap();
+        assert!(road.agents[0].violation_samples.is_empty() && road.cra_l == 0.0, "{road:?}");
+        // Half a car further and it touches the road's edge too.
+        let r = recording((0..10).map(|k| vec![sample(1.0 + 0.1 * k as f64, 0.2, 0.0)]).collect());
+        let road = evaluate(&r, &geometry, &VehicleParams::MU_CAR, &config).unwrap();
+        assert_eq!(road.agents[0].violation_samples.len(), 10);
     }
 
     #[test]

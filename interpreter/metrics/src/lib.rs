@@ -25,7 +25,8 @@ pub mod resample;
 pub mod stats;
 
 pub use config::{
-    CollisionGeometry, CraAConfig, CraLConfig, EventCount, Hysteresis, MetricsConfig, Rotate180,
+    CollisionGeometry, CraAConfig, CraLConfig, EventCount, Hysteresis, LaneBoundaries, MetricsConfig,
+    Rotate180,
 };
 pub use evaluate::{PathGeometry, evaluate};
 pub use output::{AgentMetrics, PairEvent, RunMetrics, format_float};

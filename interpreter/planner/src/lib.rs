@@ -48,6 +48,13 @@ pub struct PlannedPoint {
 /// A planned trajectory of one agent: Hp + 1 points, the first at the planning time.
 pub type PlannedTrajectory = Vec<PlannedPoint>;
 
+/// A layer between the policy's commands and the rollout (a fidelity's `safety:` filter): it
+/// may change each rolled-out step's commands, given the predicted states and velocities.
+pub trait CommandFilter {
+    /// Changes `commands` for agents in `states`, moving at `velocities_mps`.
+    fn filter(&mut self, states: &[BicycleState], velocities_mps: &[[f64; 2]], commands: &mut [Command]);
+}
+
 /// Where the first step's commands come from.
 enum FirstStep<'a> {
     /// The policy, on the real states (the further steps go to its fork).
@@ -108,7 +115,20 @@ impl Planner {
         paths: &AgentPaths,
         t_s: f64,
     ) -> Result<Vec<PlannedTrajectory>, PolicyError> {
-        self.roll_out(FirstStep::Policy(policy), states, paths, t_s)
+        self.roll_out(FirstStep::Policy(policy), None, states, paths, t_s)
+    }
+
+    /// [`Planner::plan`] with each of the Hc rolled-out steps' commands through `filter`
+    /// before they move the predicted cars (the steps after Hc hold the filtered commands).
+    pub fn plan_filtered(
+        &mut self,
+        policy: &mut dyn Policy,
+        filter: &mut dyn CommandFilter,
+        states: &[BicycleState],
+        paths: &AgentPaths,
+        t_s: f64,
+    ) -> Result<Vec<PlannedTrajectory>, PolicyError> {
+        self.roll_out(FirstStep::Policy(policy), Some(filter), states, paths, t_s)
     }
 
     /// [`Planner::plan`] with the first step's commands already chosen (a learner's sampled
@@ -122,12 +142,13 @@ impl Planner {
         paths: &AgentPaths,
         t_s: f64,
     ) -> Result<Vec<PlannedTrajectory>, PolicyError> {
-        self.roll_out(FirstStep::Commands { first, lookahead }, states, paths, t_s)
+        self.roll_out(FirstStep::Commands { first, lookahead }, None, states, paths, t_s)
     }
 
     fn roll_out(
         &mut self,
         mut first_step: FirstStep<'_>,
+        mut filter: Option<&mut dyn CommandFilter>,
         states: &[BicycleState],
         paths: &AgentPaths,
         t_s: f64,
@@ -140,12 +161,14 @@ impl Planner {
         let mut corners_before: Option<Vec<Footprint>> = self.previous_corners.take();
         let mut commands = vec![Command::default(); states.len()];
         let mut agents = vec![AgentState::default(); states.len()];
+        let mut velocities = vec![[0.0; 2]; states.len()];
         let mut fork: Option<Box<dyn Policy>> = None;
 
         // Roll the policy out over Hc on predicted states.
         for k in 0..p.control_horizon {
-            for (agent, state) in agents.iter_mut().zip(&predicted) {
-                *agent = AgentState::from_bicycle(state, self.model.velocity_mps(state));
+            for ((agent, velocity), state) in agents.iter_mut().zip(&mut velocities).zip(&predicted) {
+                *velocity = self.model.velocity_mps(state);
+                *agent = AgentState::from_bicycle(state, *velocity);
             }
             let input = ObservationInput {
                 agents: &agents,
@@ -176,6 +199,9 @@ impl Planner {
                     commands.copy_from_slice(first);
                 }
                 (FirstStep::Commands { lookahead, .. }, _) => lookahead.act(&input, &mut commands)?,
+            }
+            if let Some(filter) = filter.as_mut() {
+                filter.filter(&predicted, &velocities, &mut commands);
             }
             let corners_now: Vec<Footprint> = predicted
                 .iter()

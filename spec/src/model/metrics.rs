@@ -90,6 +90,21 @@ pub struct CraLSpec {
     /// Normalised per this travelled distance [m] (the paper: 100).
     #[schemars(extend("exclusiveMinimum" = 0))]
     pub per_distance_m: f64,
+    /// The boundaries a footprint must stay within: `own-lane` (default, the paper) or `road`
+    /// (the reference path's shared boundaries: SigmaRL's lanelet collisions, and what its
+    /// safety filter keeps the car within).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub boundaries: Option<CraLBoundaries>,
+}
+
+/// The boundaries CRA-L measures against.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum CraLBoundaries {
+    /// The reference path's own lane.
+    OwnLane,
+    /// The road: the reference path's shared boundaries.
+    Road,
 }
 
 /// CD: mean distance of the vehicle centre to its reference centre line. No parameters.

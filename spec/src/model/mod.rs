@@ -30,8 +30,8 @@ pub use fidelity::{
     LabFidelity, Misplaced, PerceptionLayer, Preflight, SensingLayer, SensingModel, SimulatedFidelity,
 };
 pub use metrics::{
-    AsSpec, Bootstrap, CdSpec, CollisionCount, CollisionGeometry, Compare, CraASpec, CraLSpec, GroupKey,
-    Hysteresis, MetricsSpec, PairedTest, ReportSpec, Statistic,
+    AsSpec, Bootstrap, CdSpec, CollisionCount, CollisionGeometry, Compare, CraASpec, CraLBoundaries,
+    CraLSpec, GroupKey, Hysteresis, MetricsSpec, PairedTest, ReportSpec, Statistic,
 };
 pub use parameter::{
     Distribution, DrawnFidelity, NamedParameter, NormalDistribution, Parameter, ParameterRange,

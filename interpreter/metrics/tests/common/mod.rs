@@ -51,6 +51,8 @@ impl PathLines {
             center_line: &self.center_line,
             left_boundary: &self.left_boundary,
             right_boundary: &self.right_boundary,
+            road_left_boundary: &self.left_boundary,
+            road_right_boundary: &self.right_boundary,
             is_loop: self.is_loop,
         }
     }
