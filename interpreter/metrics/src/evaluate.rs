@@ -346,15 +346,26 @@ mod tests {
             road_left_boundary: &road_left,
             ..lane.geometry()[0]
         }];
-        let r = recording((0..10).map(|k| vec![sample(1.0 + 0.1 * k as f64, 0.15, 0.0)]).collect());
+        let r = recording(
+            (0..10)
+                .map(|k| vec![sample(1.0 + 0.1 * k as f64, 0.15, 0.0)])
+                .collect(),
+        );
         let mut config = MetricsConfig::sigmarl_script(100.0);
         let own = evaluate(&r, &geometry, &VehicleParams::MU_CAR, &config).unwrap();
         assert_eq!(own.agents[0].violation_samples.len(), 10);
         config.cra_l.boundaries = LaneBoundaries::Road;
         let road = evaluate(&r, &geometry, &VehicleParams::MU_CAR, &config).unwrap();
-        assert!(road.agents[0].violation_samples.is_empty() && road.cra_l == 0.0, "{road:?}");
+        assert!(
+            road.agents[0].violation_samples.is_empty() && road.cra_l == 0.0,
+            "{road:?}"
+        );
         // Half a car further and it touches the road's edge too.
-        let r = recording((0..10).map(|k| vec![sample(1.0 + 0.1 * k as f64, 0.2, 0.0)]).collect());
+        let r = recording(
+            (0..10)
+                .map(|k| vec![sample(1.0 + 0.1 * k as f64, 0.2, 0.0)])
+                .collect(),
+        );
         let road = evaluate(&r, &geometry, &VehicleParams::MU_CAR, &config).unwrap();
         assert_eq!(road.agents[0].violation_samples.len(), 10);
     }
