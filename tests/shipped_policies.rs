@@ -95,6 +95,7 @@ fn check_curve(dir: &Path, planned: u64, run: &serde_json::Value, what: &str) {
 fn the_shipped_actors_were_trained_by_the_experiments_training_sections() {
     // at25's three seeds as sim, and seeds 1-3 of sim-mpc and of the randomised twin.
     assert_eq!(check_shipped("experiments/transfer.yaml"), 9);
+    assert_eq!(check_shipped("experiments/transfer-twin.yaml"), 3);
     assert_eq!(check_shipped("experiments/at25-cpmx.yaml"), 3);
     assert_eq!(check_shipped("experiments/domain-shift.yaml"), 3);
     assert_eq!(check_shipped("experiments/communication.yaml"), 1);
