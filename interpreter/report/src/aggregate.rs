@@ -83,6 +83,10 @@ pub struct Group {
     pub units: usize,
     /// One summary per metric, in [`Metric::ALL`] order.
     pub metrics: Vec<MetricSummary>,
+    /// What the fidelity's layers counted over every run of the group (all runs: a layer's
+    /// counts are not a metric of independent units), by name: a `*.largest_*` statistic
+    /// is the largest of the runs', every other the sum. Empty without such a layer.
+    pub layer_counts: BTreeMap<String, f64>,
 }
 
 impl Group {
@@ -289,12 +293,27 @@ pub(crate) fn summarize_group(
             }
         })
         .collect();
+    let mut layer_counts: BTreeMap<String, f64> = BTreeMap::new();
+    for (name, &value) in members.iter().flat_map(|r| &r.statistics) {
+        let total = layer_counts.entry(name.clone()).or_insert(0.0);
+        *total = if is_largest(name) {
+            total.max(value)
+        } else {
+            *total + value
+        };
+    }
     Group {
         key,
         runs: members.len(),
         units: independent.len(),
         metrics,
+        layer_counts,
     }
+}
+
+/// Whether a layer's statistic is a largest value (kept as the group's largest), not a count.
+pub fn is_largest(name: &str) -> bool {
+    name.contains(".largest_")
 }
 
 /// Stratified bootstrap intervals of one metric; strata are the initial configurations

@@ -166,3 +166,51 @@ fn markdown_with_the_transfer_matrix() {
     let transfer = &markdown[markdown.find("## Transfer").expect("a transfer section")..];
     insta::assert_snapshot!(transfer);
 }
+
+/// A fidelity with a safety layer: its counts summed over the group's runs (copies included:
+/// a layer's counts are not a metric of independent units), its largest values the largest.
+#[test]
+fn what_the_layers_counted_is_summed_and_its_largest_kept() {
+    let mut runs = common::runs();
+    for (k, run) in runs
+        .iter_mut()
+        .enumerate()
+        .filter(|(_, r)| r.plan.fidelity == "sim")
+    {
+        run.statistics = [
+            ("safety.changed".to_owned(), k as f64),
+            ("safety.largest_speed_change_mps".to_owned(), 0.1 * k as f64),
+        ]
+        .into_iter()
+        .collect();
+    }
+    let summary = summarize(
+        "synthetic",
+        &runs,
+        &common::report(&[GroupKey::Fidelity]),
+        &Origins::default(),
+    );
+    let sim: Vec<usize> = runs
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.plan.fidelity == "sim")
+        .map(|(k, _)| k)
+        .collect();
+    let group = summary.groups.iter().find(|g| g.key == ["sim"]).unwrap();
+    assert_eq!(
+        group.layer_counts["safety.changed"],
+        sim.iter().sum::<usize>() as f64
+    );
+    assert_eq!(
+        group.layer_counts["safety.largest_speed_change_mps"],
+        0.1 * *sim.iter().max().unwrap() as f64
+    );
+    assert!(
+        summary
+            .groups
+            .iter()
+            .filter(|g| g.key != ["sim"])
+            .all(|g| g.layer_counts.is_empty())
+    );
+    insta::assert_snapshot!(render(&summary, Format::Markdown));
+}

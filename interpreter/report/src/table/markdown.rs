@@ -21,6 +21,7 @@ pub fn render(summary: &Summary) -> String {
         let _ = writeln!(out, "{vehicles}\n");
     }
     main_table(&mut out, summary);
+    layer_table(&mut out, summary);
     if summary.shows(Statistic::Ci95) || summary.shows(Statistic::Bootstrap) {
         interval_table(&mut out, summary);
     }
@@ -31,6 +32,60 @@ pub fn render(summary: &Summary) -> String {
         transfer_tables(&mut out, summary, transfer);
     }
     out
+}
+
+/// What the fidelities' layers counted (a safety filter's interventions), a row per group
+/// that has counts; nothing without such a layer.
+fn layer_table(out: &mut String, summary: &Summary) {
+    let names: std::collections::BTreeSet<&String> = summary
+        .groups
+        .iter()
+        .flat_map(|g| g.layer_counts.keys())
+        .collect();
+    if names.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        out,
+        "\n## What the layers counted\n\nOver every run of the group: sums, but `largest` columns, the largest of the runs'.\n"
+    );
+    let axes: Vec<&str> = summary
+        .group_by
+        .iter()
+        .map(|&a| crate::aggregate::axis_name(a))
+        .collect();
+    let _ = writeln!(
+        out,
+        "| {} | runs | {} |",
+        axes.join(" | "),
+        names
+            .iter()
+            .map(|n| format!("`{n}`"))
+            .collect::<Vec<_>>()
+            .join(" | ")
+    );
+    let _ = writeln!(
+        out,
+        "|{}",
+        " :-- |".repeat(axes.len()) + &" --: |".repeat(names.len() + 1)
+    );
+    for group in summary.groups.iter().filter(|g| !g.layer_counts.is_empty()) {
+        let cells: Vec<String> = names
+            .iter()
+            .map(|name| match group.layer_counts.get(*name) {
+                None => String::new(),
+                Some(v) if crate::aggregate::is_largest(name) => format!("{v:.3}"),
+                Some(v) => format!("{v:.0}"),
+            })
+            .collect();
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} |",
+            group.key.join(" | "),
+            group.runs,
+            cells.join(" | ")
+        );
+    }
 }
 
 /// The transfer matrix: per metric, training fidelities × evaluation fidelities; then every
