@@ -76,7 +76,7 @@ fn bench(c: &mut Criterion) {
         ..single
     };
     let mut k = 0;
-    c.bench_function("cbf/three cars 0.3 m apart in one QP (per step)", |b| {
+    c.bench_function("cbf/three cars 0.3 m apart, their rows binding (per step)", |b| {
         b.iter(|| {
             k = (k + 1) % poses.len();
             let vehicles: Vec<Vehicle<'_>> = [0.0, 0.3, 0.6]

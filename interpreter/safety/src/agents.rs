@@ -72,48 +72,77 @@ pub struct StepOutcome {
 
 /// Filters every vehicle's nominal command; with `p.agents`, vehicles in range of each other
 /// are kept apart.
+///
+/// Each car is filtered alone first; cars whose answers break a row between them are then
+/// solved together (with every row between the group's cars in range), and again until no
+/// row between groups is broken. That is the joint QP's answer: each group's is optimal
+/// without the rows between groups, and it satisfies them. Most steps need no joint QP.
 pub fn filter_step(p: &CbfParameters, vehicles: &[Vehicle<'_>]) -> StepOutcome {
     let alone = |v: &Vehicle<'_>| filter(p, v.state, v.nominal, v.left, v.right);
+    let mut outcomes: Vec<CbfOutcome> = vehicles.iter().map(alone).collect();
     let Some(agents) = &p.agents else {
         return StepOutcome {
-            vehicles: vehicles.iter().map(alone).collect(),
+            vehicles: outcomes,
             pair_rows: Vec::new(),
             active_pairs: Vec::new(),
         };
     };
-    let near = near_pairs(vehicles, agents.range_m);
-    let groups = groups(vehicles.len(), &near);
-    let mut outcomes: Vec<Option<CbfOutcome>> = vec![None; vehicles.len()];
-    let mut pair_rows = Vec::new();
-    let mut active_pairs = Vec::new();
-    for group in groups {
-        if let [only] = group[..] {
-            outcomes[only] = Some(alone(&vehicles[only]));
-            continue;
+    let pair_rows: Vec<PairRow> = near_pairs(vehicles, agents.range_m)
+        .into_iter()
+        .flat_map(|(i, j)| rows_between(p, agents, [i, j], [vehicles[i].state, vehicles[j].state]))
+        .collect();
+    let mut links: Vec<(usize, usize)> = Vec::new();
+    let mut group_of: Vec<usize> = (0..vehicles.len()).collect();
+    loop {
+        let inputs: Vec<[f64; 2]> = outcomes.iter().map(applied_input).collect();
+        let broken: Vec<(usize, usize)> = pair_rows
+            .iter()
+            .filter(|r| group_of[r.vehicles[0]] != group_of[r.vehicles[1]] && pair_value(r, &inputs) < 0.0)
+            .map(|r| (r.vehicles[0], r.vehicles[1]))
+            .collect();
+        if broken.is_empty() {
+            break;
         }
-        let first_row = pair_rows.len();
-        for &(i, j) in near.iter().filter(|(i, _)| group.contains(i)) {
-            pair_rows.extend(rows_between(
-                p,
-                agents,
-                [i, j],
-                [vehicles[i].state, vehicles[j].state],
-            ));
-        }
-        let (group_outcomes, active) = filter_group(p, vehicles, &group, &pair_rows[first_row..]);
-        active_pairs.extend(active.into_iter().map(|k| first_row + k));
-        for (vehicle, outcome) in group.into_iter().zip(group_outcomes) {
-            outcomes[vehicle] = Some(outcome);
+        links.extend(broken);
+        for (index, group) in groups(vehicles.len(), &links).into_iter().enumerate() {
+            for &v in &group {
+                group_of[v] = index;
+            }
+            if group.len() < 2 {
+                continue;
+            }
+            let rows: Vec<PairRow> = pair_rows
+                .iter()
+                .filter(|r| group.contains(&r.vehicles[0]) && group.contains(&r.vehicles[1]))
+                .cloned()
+                .collect();
+            for (vehicle, outcome) in group.iter().zip(filter_group(p, vehicles, &group, &rows)) {
+                outcomes[*vehicle] = outcome;
+            }
         }
     }
+    let inputs: Vec<[f64; 2]> = outcomes.iter().map(applied_input).collect();
+    let active_pairs = (0..pair_rows.len())
+        .filter(|&k| pair_value(&pair_rows[k], &inputs) < 1e-7)
+        .collect();
     StepOutcome {
-        vehicles: outcomes
-            .into_iter()
-            .map(|o| o.expect("every vehicle is in a group"))
-            .collect(),
+        vehicles: outcomes,
         pair_rows,
         active_pairs,
     }
+}
+
+/// The input a car's outcome applies: the QP's, or the nominal one where it went through.
+fn applied_input(outcome: &CbfOutcome) -> [f64; 2] {
+    outcome.input.unwrap_or(outcome.nominal_input.map(f64::from))
+}
+
+/// A row between two cars at their `inputs`.
+fn pair_value(row: &PairRow, inputs: &[[f64; 2]]) -> f64 {
+    let term = |c: [f64; 2], u: [f64; 2]| c[0] * u[0] + c[1] * u[1];
+    term(row.coefficients[0], inputs[row.vehicles[0]])
+        + term(row.coefficients[1], inputs[row.vehicles[1]])
+        + row.constant
 }
 
 /// The pairs `(i, j)`, `i < j`, whose centres are closer than `range_m`.
@@ -210,13 +239,13 @@ fn rows_between(
 }
 
 /// The QP of the vehicles `group` (increasing) with their boundary rows and `pair_rows`;
-/// each vehicle's outcome, and the indices of the active pair rows.
+/// each vehicle's outcome.
 fn filter_group(
     p: &CbfParameters,
     vehicles: &[Vehicle<'_>],
     group: &[usize],
     pair_rows: &[PairRow],
-) -> (Vec<CbfOutcome>, Vec<usize>) {
+) -> Vec<CbfOutcome> {
     let commands: Vec<Command> = group
         .iter()
         .map(|&v| Command::of(p, vehicles[v].state, vehicles[v].nominal))
@@ -231,12 +260,11 @@ fn filter_group(
             .iter()
             .all(|r| r.constant.is_finite() && r.coefficients.iter().flatten().all(|c| c.is_finite()));
     let all_fall_back = |why: Fallback, lanes: Vec<Vec<_>>| {
-        let outcomes = commands
+        commands
             .iter()
             .zip(lanes)
             .map(|(c, rows)| c.fallback(why, rows))
-            .collect();
-        (outcomes, Vec::new())
+            .collect()
     };
     if !finite {
         return all_fall_back(Fallback::NotFinite, lanes);
@@ -251,7 +279,6 @@ fn filter_group(
         .enumerate()
         .flat_map(|(v, rows)| rows.iter().map(move |r| QpRow::own(v, r)))
         .collect();
-    let lane_row_count = qp_rows.len();
     qp_rows.extend(pair_rows.iter().map(|r| QpRow {
         first: (local(r.vehicles[0]), r.coefficients[0]),
         second: Some((local(r.vehicles[1]), r.coefficients[1])),
@@ -262,13 +289,7 @@ fn filter_group(
         Ok(solution) => solution,
         Err(why) => return all_fall_back(why, lanes),
     };
-    let active_pairs = qp_rows[lane_row_count..]
-        .iter()
-        .enumerate()
-        .filter(|(_, r)| r.value(&inputs) < 1e-7)
-        .map(|(k, _)| k)
-        .collect();
-    let outcomes = commands
+    commands
         .iter()
         .zip(lanes)
         .zip(group)
@@ -277,8 +298,7 @@ fn filter_group(
             let active = active_rows(&rows, input);
             command.filtered(p, vehicles[v].state, input, rows, active, relaxed)
         })
-        .collect();
-    (outcomes, active_pairs)
+        .collect()
 }
 
 #[cfg(test)]
@@ -344,6 +364,52 @@ mod tests {
         // The car 2.3 m away has no neighbour in range: SigmaRL's filter, alone.
         let alone = filter(&p, vehicles[2].state, vehicles[2].nominal, &left, &right);
         assert_eq!(out.vehicles[2], alone);
+    }
+
+    #[test]
+    fn solving_the_cars_whose_rows_break_together_is_the_joint_qp() {
+        let (left, right) = lane();
+        let p = parameters();
+        let car = |x_m: f32, yaw_rad: f32, speed_mps: f32| Vehicle {
+            state: at(x_m, yaw_rad, speed_mps),
+            nominal: [1.0, 0.0],
+            left: &left,
+            right: &right,
+        };
+        // Two cars head-on, a third 0.7 m past the second driving away: in range, never bound.
+        let vehicles = [
+            car(-0.2, 0.0, 1.0),
+            car(0.2, std::f32::consts::PI, 1.0),
+            car(0.9, 0.0, 0.8),
+        ];
+        let out = filter_step(&p, &vehicles);
+        let rows: Vec<PairRow> = near_pairs(&vehicles, 1.0)
+            .into_iter()
+            .flat_map(|(i, j)| {
+                rows_between(
+                    &p,
+                    p.agents.as_ref().unwrap(),
+                    [i, j],
+                    [vehicles[i].state, vehicles[j].state],
+                )
+            })
+            .collect();
+        assert_eq!(
+            rows.len(),
+            18,
+            "two pairs in range (the first and the third car are 1.1 m apart)"
+        );
+        let joint = filter_group(&p, &vehicles, &[0, 1, 2], &rows);
+        for (step, joint) in out.vehicles.iter().zip(&joint) {
+            for (a, b) in step.input.unwrap().iter().zip(joint.input.unwrap()) {
+                assert!((a - b).abs() < 1e-6, "{step:?} {joint:?}");
+            }
+        }
+        // The third car was filtered alone, as SigmaRL's filter would.
+        assert_eq!(
+            out.vehicles[2],
+            filter(&p, vehicles[2].state, vehicles[2].nominal, &left, &right)
+        );
     }
 
     #[test]

@@ -34,12 +34,6 @@ impl QpRow {
             constant: row.constant,
         }
     }
-
-    /// The row's value at `inputs`.
-    pub(crate) fn value(&self, inputs: &[[f64; 2]]) -> f64 {
-        let term = |(vehicle, c): (usize, [f64; 2])| c[0] * inputs[vehicle][0] + c[1] * inputs[vehicle][1];
-        term(self.first) + self.second.map_or(0.0, term) + self.constant
-    }
 }
 
 /// The inputs nearest `nominals` that satisfy `rows`, and whether the rows had to be relaxed
