@@ -61,7 +61,7 @@ impl SafetyFilter {
     /// The filter of `layer` for agents on `ref_paths` of `map`, each step `dt_s` long, the
     /// agents kept apart (where the layer asks) by circles that cover `footprint`; `None` when
     /// a path's boundaries have fewer than two points.
-    pub(crate) fn new(
+    fn new(
         layer: &SafetyLayer,
         vehicle: &VehicleParams,
         footprint: &VehicleParams,
@@ -177,16 +177,7 @@ impl SafetyFilter {
             };
         }
     }
-}
 
-/// In a planning fidelity the filter changes each step the planner rolls out.
-impl cpmx_planner::CommandFilter for SafetyFilter {
-    fn filter(&mut self, states: &[BicycleState], velocities_mps: &[[f64; 2]], commands: &mut [Command]) {
-        self.apply(states, velocities_mps, commands);
-    }
-}
-
-impl SafetyFilter {
     /// What the filter did, by name, for the run's `statistics` (`per_run.csv`'s columns).
     pub(crate) fn statistics(&self) -> BTreeMap<String, f64> {
         let c = &self.counts;
@@ -224,5 +215,12 @@ impl SafetyFilter {
             c.not_finite,
             c.unsolved
         )
+    }
+}
+
+/// In a planning fidelity the filter changes each step the planner rolls out.
+impl cpmx_planner::CommandFilter for SafetyFilter {
+    fn filter(&mut self, states: &[BicycleState], velocities_mps: &[[f64; 2]], commands: &mut [Command]) {
+        self.apply(states, velocities_mps, commands);
     }
 }

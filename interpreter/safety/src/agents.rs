@@ -2,12 +2,14 @@
 //! (SigmaRL's later centralised QP, `cbf_qp.py` after tag 1.4.0): each vehicle is a row of
 //! circles that cover its footprint; for each pair of vehicles closer than `range_m`, and each
 //! pair of their circles, the truncated-Taylor CBF on h = ‖p_i − p_j‖² − (2r)² couples both
-//! vehicles' inputs. Vehicles linked by such pairs (directly or through others) are solved
-//! together, in one QP with their boundary rows; a vehicle with no neighbour in range is
-//! filtered alone, exactly as SigmaRL's 1.4.0 filter does. Unlike SigmaRL's grouped QP, no
-//! neighbour's input is assumed zero: every coupled vehicle is in the same QP.
+//! vehicles' inputs. The answer is the joint QP's over all of them: each vehicle is filtered
+//! alone first (exactly as SigmaRL's 1.4.0 filter does), and only vehicles whose answers break
+//! a row between them are solved together, in one QP with their boundary rows. Unlike
+//! SigmaRL's grouped QP, no neighbour's input is assumed zero.
 
-use crate::cbf::{CbfOutcome, CbfParameters, CbfState, Command, Fallback, Motion, active_rows, filter, rows};
+use crate::cbf::{
+    CbfOutcome, CbfParameters, CbfRow, CbfState, Command, Fallback, Motion, active_rows, filter,
+};
 use crate::pseudo_distance::Boundary;
 use crate::qp::{QpRow, solve_relaxing};
 
@@ -103,12 +105,18 @@ pub fn filter_step(p: &CbfParameters, vehicles: &[Vehicle<'_>]) -> StepOutcome {
         if broken.is_empty() {
             break;
         }
+        // Only the groups a broken row joins change; the others keep their answers.
+        let mut touched = vec![false; vehicles.len()];
+        for &(i, j) in &broken {
+            touched[i] = true;
+            touched[j] = true;
+        }
         links.extend(broken);
         for (index, group) in groups(vehicles.len(), &links).into_iter().enumerate() {
             for &v in &group {
                 group_of[v] = index;
             }
-            if group.len() < 2 {
+            if group.len() < 2 || !group.iter().any(|&v| touched[v]) {
                 continue;
             }
             let rows: Vec<PairRow> = pair_rows
@@ -116,7 +124,13 @@ pub fn filter_step(p: &CbfParameters, vehicles: &[Vehicle<'_>]) -> StepOutcome {
                 .filter(|r| group.contains(&r.vehicles[0]) && group.contains(&r.vehicles[1]))
                 .cloned()
                 .collect();
-            for (vehicle, outcome) in group.iter().zip(filter_group(p, vehicles, &group, &rows)) {
+            // Each car's boundary rows as its lone filter computed them (the pseudo-distances
+            // are most of a filter's cost).
+            let lanes = group
+                .iter()
+                .map(|&v| std::mem::take(&mut outcomes[v].rows))
+                .collect();
+            for (vehicle, outcome) in group.iter().zip(filter_group(p, vehicles, &group, lanes, &rows)) {
                 outcomes[*vehicle] = outcome;
             }
         }
@@ -238,21 +252,18 @@ fn rows_between(
     rows
 }
 
-/// The QP of the vehicles `group` (increasing) with their boundary rows and `pair_rows`;
-/// each vehicle's outcome.
+/// The QP of the vehicles `group` (increasing) with their boundary rows `lanes` (in the
+/// group's order) and `pair_rows`; each vehicle's outcome.
 fn filter_group(
     p: &CbfParameters,
     vehicles: &[Vehicle<'_>],
     group: &[usize],
+    lanes: Vec<Vec<CbfRow>>,
     pair_rows: &[PairRow],
 ) -> Vec<CbfOutcome> {
     let commands: Vec<Command> = group
         .iter()
         .map(|&v| Command::of(p, vehicles[v].state, vehicles[v].nominal))
-        .collect();
-    let lanes: Vec<_> = group
-        .iter()
-        .map(|&v| rows(p, vehicles[v].state, vehicles[v].left, vehicles[v].right))
         .collect();
     let finite = group.iter().all(|&v| vehicles[v].state.is_finite())
         && lanes.iter().flatten().all(|r| r.is_finite())
@@ -399,7 +410,11 @@ mod tests {
             18,
             "two pairs in range (the first and the third car are 1.1 m apart)"
         );
-        let joint = filter_group(&p, &vehicles, &[0, 1, 2], &rows);
+        let lanes = vehicles
+            .iter()
+            .map(|v| crate::cbf::rows(&p, v.state, v.left, v.right))
+            .collect();
+        let joint = filter_group(&p, &vehicles, &[0, 1, 2], lanes, &rows);
         for (step, joint) in out.vehicles.iter().zip(&joint) {
             for (a, b) in step.input.unwrap().iter().zip(joint.input.unwrap()) {
                 assert!((a - b).abs() < 1e-6, "{step:?} {joint:?}");

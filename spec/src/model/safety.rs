@@ -60,8 +60,8 @@ pub struct CbfFilter {
 
 /// The rows between vehicles: each vehicle as `circles` circles that cover the footprint
 /// collisions are scored with (`metrics.footprint`, else the vehicle); for two vehicles in
-/// range, every pair of their circles keeps twice the radius apart, and every vehicle linked
-/// to another by such rows is solved in one QP with it.
+/// range, every pair of their circles keeps twice the radius apart; the answer is one QP's
+/// over all the vehicles (vehicles whose lone answers break no such row keep them).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct CbfAgents {
