@@ -1,0 +1,70 @@
+//! cpmx's own transcendental functions: `sin`, `cos`, `sin_cos`, `exp` and `pow`, each within
+//! one unit in the last place of the exact value, with the same bits on every CPU, for any
+//! thread count, and in scalar code and SIMD lanes alike.
+//!
+//! Why a library of our own: the twin's numbers used to depend on the host's libm (glibc's
+//! `sin_cos` and `pow` in the MPC followers and the grey-box plant), which neither gives the
+//! same bits on every machine nor has vector versions with its bits. Here each function is one
+//! algorithm written as straight-line IEEE arithmetic.
+//!
+//! Invariants:
+//! - **No fused multiply-add.** Every operation is a separately rounded `+`, `−`, `×` or `÷`
+//!   (Rust never contracts them), so an x86 lane, an ARM lane and a scalar register compute
+//!   the same bits. Exact products use Dekker's splitting, not FMA.
+//! - **One kernel per function**, `#[inline(always)]`, branch-free over its common domain; the
+//!   lanes ([`sin_cos_lanes`], [`pow_lanes`], …) run it on every lane and send the lanes
+//!   outside that domain (NaN, infinities, huge arguments, zeros, overflow) through the same
+//!   scalar `slow` path the scalar functions use.
+//! - **Accuracy**: within 1 ulp of the correctly rounded result (measured against a
+//!   multiprecision reference: `cargo run --release -p cpmx-math --example accuracy`, and
+//!   tested on a sample in `tests/accuracy.rs`); docs/performance.md has the figures.
+
+mod dd;
+mod exp_log;
+mod lanes;
+mod trig;
+
+pub use lanes::{exp_lanes, exp_slice, pow_lanes, pow_slice, sin_cos_lanes, sin_cos_slice};
+
+/// sin x and cos x together (one argument reduction).
+#[inline]
+pub fn sin_cos(x: f64) -> (f64, f64) {
+    if trig::in_kernel(x) {
+        trig::kernel(x)
+    } else {
+        trig::slow(x)
+    }
+}
+
+/// sin x.
+#[inline]
+pub fn sin(x: f64) -> f64 {
+    sin_cos(x).0
+}
+
+/// cos x.
+#[inline]
+pub fn cos(x: f64) -> f64 {
+    sin_cos(x).1
+}
+
+/// e^x.
+#[inline]
+pub fn exp(x: f64) -> f64 {
+    if exp_log::exp_in_kernel(x) {
+        exp_log::exp(x)
+    } else {
+        exp_log::exp_slow(x)
+    }
+}
+
+/// x^y, with C99 Annex F's special cases.
+#[inline]
+pub fn pow(x: f64, y: f64) -> f64 {
+    let ln = exp_log::pow_ln(x);
+    if exp_log::pow_in_kernel(x, y, ln) {
+        exp_log::pow_kernel(y, ln)
+    } else {
+        exp_log::pow_slow(x, y)
+    }
+}
