@@ -202,6 +202,44 @@ fn report_merges_only_one_specs_folders_and_rescores_into_another_folder() {
 }
 
 #[test]
+fn stored_runs_are_regrouped_on_purpose() {
+    let dir = scratch("group-by");
+    let out = dir.join("out");
+    let out_arg = out.to_str().unwrap();
+    let by_policy = ok(&cpmx(&["run", "experiments/quickstart.yaml", "--out", out_arg]));
+    let pooled = ok(&cpmx(&["report", out_arg, "--group-by", "fidelity"]));
+    // The title says the rows pool what the spec keeps apart; one row for sim's 12 runs.
+    let (title, table) = pooled.split_once('\n').unwrap();
+    assert_eq!(title, "# quickstart (grouped by fidelity)");
+    assert!(table.contains("| sim | 12 | 12 |"), "{table}");
+    assert!(by_policy.contains("| sim | cautious | 4 | 4 |"), "{by_policy}");
+    let by_configuration = ok(&cpmx(&[
+        "report",
+        out_arg,
+        "--group-by",
+        "fidelity,initial_configuration",
+    ]));
+    assert!(
+        by_configuration.contains("| sim | turning | 3 |"),
+        "{by_configuration}"
+    );
+    // The folder's own summaries follow its spec: other rows are written elsewhere.
+    let before = files(&out);
+    let into_itself = cpmx(&["report", out_arg, "--group-by", "fidelity", "--out", out_arg]);
+    assert_eq!(into_itself.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&into_itself.stderr).contains("grouped by fidelity"));
+    assert_eq!(files(&out), before);
+    let misspelt = cpmx(&["report", out_arg, "--group-by", "polcy"]);
+    assert_eq!(misspelt.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&misspelt.stderr).contains("use fidelity, policy or initial_configuration"),
+        "{}",
+        String::from_utf8_lossy(&misspelt.stderr)
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
 fn a_hand_edited_resolved_spec_is_caught() {
     let dir = scratch("edited");
     let out = dir.join("out");

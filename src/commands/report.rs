@@ -1,13 +1,14 @@
 //! `cpmx report DIR...`: recomputes every run's metrics from its stored trajectory, merges the
 //! folders (e.g. the shards of one sweep) and prints the summary, byte-identical to the summary
 //! file of that format that one `cpmx run` of the whole matrix writes. `--metrics` scores the
-//! same recordings with other metric definitions.
+//! same recordings with other metric definitions, `--group-by` pools them into other rows.
 
 use std::path::{Path, PathBuf};
 
 use cpmx_engine::{Scoring, folder, inputs_hash, store};
 use cpmx_recording::Recording;
 use cpmx_report::{Format, RunRecord, render, summarize};
+use cpmx_spec::model::GroupKey;
 use cpmx_spec::{CheckScope, CheckedSpec, DataPath, SpecSource};
 
 use super::Failure;
@@ -29,12 +30,42 @@ pub struct ReportArgs {
     /// a preset (`stdlib:at25-paper`) or a YAML file holding a `metrics:` section's value.
     #[arg(long, value_name = "stdlib:NAME|FILE")]
     pub metrics: Option<String>,
+    /// Group the summary's rows by these keys instead of the spec's `report.group_by`
+    /// (comma-separated: fidelity, policy, initial_configuration), e.g. `--group-by fidelity`
+    /// pools a fidelity's policies into one row and their pairs into one comparison.
+    #[arg(long, value_name = "KEY,...", value_delimiter = ',', value_parser = parse_group_key)]
+    pub group_by: Option<Vec<GroupKey>>,
     #[command(flatten)]
     pub data: DataArgs,
 }
 
 fn parse_format(name: &str) -> Result<Format, String> {
     Format::from_name(name).ok_or_else(|| format!("`{name}`: use markdown, csv, json or latex"))
+}
+
+fn parse_group_key(name: &str) -> Result<GroupKey, String> {
+    [
+        GroupKey::Fidelity,
+        GroupKey::Policy,
+        GroupKey::InitialConfiguration,
+    ]
+    .into_iter()
+    .find(|key| cpmx_report::axis_name(*key) == name)
+    .ok_or_else(|| format!("`{name}`: use fidelity, policy or initial_configuration"))
+}
+
+/// The options that make the summary differ from the one the folder holds, as its title and
+/// `--out`'s diagnostic say them.
+fn changes(args: &ReportArgs) -> Vec<String> {
+    let mut out = Vec::new();
+    if let Some(metrics) = &args.metrics {
+        out.push(format!("scored with --metrics {metrics}"));
+    }
+    if let Some(keys) = &args.group_by {
+        let names: Vec<&str> = keys.iter().map(|k| cpmx_report::axis_name(*k)).collect();
+        out.push(format!("grouped by {}", names.join(", ")));
+    }
+    out
 }
 
 fn fail(message: String) -> Failure {
@@ -144,10 +175,10 @@ fn check_same_spec(
     Ok(())
 }
 
-/// `--metrics` writes into a folder that is not one of those reported: re-scored summaries in
-/// a run folder would contradict its own `metrics.json` files and spec, and the next `cpmx
-/// report` of it would give the old numbers again.
-fn check_out_is_not_reported(out: Option<&Path>, dirs: &[PathBuf]) -> Result<(), Failure> {
+/// `--metrics` or `--group-by` write into a folder that is not one of those reported: other
+/// summaries in a run folder would contradict its own `metrics.json` files and spec, and the
+/// next `cpmx report` of it would give the old ones again.
+fn check_out_is_not_reported(out: Option<&Path>, dirs: &[PathBuf], changes: &str) -> Result<(), Failure> {
     let Some(out) = out else {
         return Ok(());
     };
@@ -159,9 +190,8 @@ fn check_out_is_not_reported(out: Option<&Path>, dirs: &[PathBuf]) -> Result<(),
         .find(|d| d.canonicalize().is_ok_and(|d| d == out_canonical))
     {
         eprintln!(
-            "error: `--out {}` is a folder being reported: its summaries, scored with --metrics, would contradict \
-             its runs' metrics.json and its spec\nhelp: write the re-scored summaries into another folder, e.g. \
-             `--out {}-rescored`",
+            "error: `--out {}` is a folder being reported: its summaries, {changes}, would contradict its runs' \
+             metrics.json and its spec\nhelp: write these summaries into another folder, e.g. `--out {}-rescored`",
             out.display(),
             dir.display()
         );
@@ -209,10 +239,14 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
         }
     };
     check_same_spec(&args.dirs, &checked.spec.name, &context, &args.data)?;
-    if let Some(metrics) = &args.metrics {
-        check_out_is_not_reported(args.out.as_deref(), &args.dirs)?;
-        // The summary's title says what scored it: the spec's own metrics did not.
-        checked.spec.name = format!("{} (scored with --metrics {metrics})", checked.spec.name);
+    let changes = changes(args).join(", ");
+    if !changes.is_empty() {
+        check_out_is_not_reported(args.out.as_deref(), &args.dirs, &changes)?;
+        // The summary's title says what differs from the spec's own summary.
+        checked.spec.name = format!("{} ({changes})", checked.spec.name);
+    }
+    if let Some(keys) = &args.group_by {
+        checked.spec.report.group_by = keys.clone();
     }
     let scoring =
         Scoring::prepare(&checked).map_err(|e| fail(format!("{}: {e}", resolved_path.display())))?;

@@ -28,7 +28,7 @@ impl Case {
     pub fn name(&self) -> String {
         match *self {
             Case::SinCos { limit } => format!("sin_cos, x in [-{limit}, {limit}]"),
-            Case::SinCosLog { lo, hi } => format!("sin_cos, |x| = 2^e, e in [{lo}, {hi}]"),
+            Case::SinCosLog { lo, hi } => format!("sin_cos, x = ±2^e, e in [{lo}, {hi}]"),
             Case::Exp { lo, hi } => format!("exp, x in [{lo}, {hi}]"),
             Case::Pow { lo, hi, y_lo, y_hi } => {
                 format!("pow, x = 2^e, e in [{lo}, {hi}], y in [{y_lo}, {y_hi}]")
