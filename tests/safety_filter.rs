@@ -201,3 +201,55 @@ fn the_papers_actors_that_collide_from_the_labs_starts_are_kept_apart_by_the_fil
         "{collisions:?}"
     );
 }
+
+#[test]
+fn the_itsc25_policy_in_sigmarl_1_4_0s_loop_touches_the_edge_where_sigmarls_own_code_does() {
+    // research/itsc25-sigmarl.md: from these ten starts SigmaRL 1.4.0's own code, filter on,
+    // crosses the road's edge on path 5 only; in the later loop (one Euler step) cpmx crossed
+    // it on seven paths.
+    let dir = scratch("safety-filter-itsc25");
+    let spec = support::root().join("experiments/safety-filter-itsc25.yaml");
+    let out = dir.join("out");
+    let (code, text) = cpmx(&dir, "run", &spec, Some(&out));
+    assert_eq!(code, Some(0), "{text}");
+    let per_run = std::fs::read_to_string(out.join("per_run.csv")).unwrap();
+    let mut lines = per_run.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (fidelity, configuration, cra_l) = (
+        column("fidelity"),
+        column("initial_configuration"),
+        column("cra_l"),
+    );
+    let touching = |which: &str| -> Vec<String> {
+        per_run
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').collect::<Vec<_>>())
+            .filter(|r| r[fidelity] == which && r[cra_l].parse::<f64>().unwrap() > 0.0)
+            .map(|r| r[configuration].to_owned())
+            .collect()
+    };
+    assert_eq!(touching("sim").len(), 10);
+    assert_eq!(touching("sim-cbf"), ["path5"]);
+    assert!(touching("sim-cbf-margin-7cm").is_empty());
+
+    // The integration over the step is not in the training environment.
+    let training = "training:
+  fidelity: sim-rk4
+  scenario: stdlib:sigmarl-intersection-at25-paper
+  reward: stdlib:sigmarl-at25-paper-reward
+  algorithm: stdlib:mappo-sigmarl
+  observation: stdlib:sigmarl-at25-paper
+  iterations: 1
+  seeds: [1]
+";
+    let path = self::spec(
+        &dir,
+        "  sim-rk4: {control: direct, dynamics: kinematic-rk4}",
+        training,
+    );
+    let (code, text) = cpmx(&dir, "train", &path, Some(&dir.join("train")));
+    assert_ne!(code, Some(0), "{text}");
+    assert!(text.contains("integrates with `kinematic-rk4`"), "{text}");
+}

@@ -174,7 +174,12 @@ fn observation_of(
         }
     };
     match sigmarl::observation(&parameters, &spec.vehicle, spec.timing.dt) {
-        Ok(observation) => Some(observation),
+        Ok(mut observation) => {
+            // The release's conventions (`tag`): 1.4.0 observes without the boundary lag.
+            let tag = policy.mlp.as_ref().and_then(|m| m.tag).unwrap_or_default();
+            observation.agent0_boundary_lag = tag.agent0_boundary_lag();
+            Some(observation)
+        }
         Err(refusals) => {
             for refusal in refusals {
                 ctx.push(

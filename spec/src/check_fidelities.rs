@@ -7,8 +7,8 @@ use std::collections::HashSet;
 use crate::check::{CheckContext, InterpreterChecks};
 use crate::diagnostic::Problem;
 use crate::model::{
-    ActuationLayer, Control, Distribution, DynamicsLayer, Fidelity, Parameter, ParameterRange, SensingLayer,
-    SimulatedFidelity, Spec,
+    ActuationLayer, Control, Distribution, DynamicsLayer, Fidelity, KinematicKeyword, Parameter,
+    ParameterRange, SensingLayer, SimulatedFidelity, Spec,
 };
 use crate::yaml::escape_pointer;
 
@@ -117,6 +117,21 @@ fn check_safety_layer(pointer: &str, fidelity: &SimulatedFidelity, ctx: &mut Che
 /// the twin engine, which `control: trajectory` runs. Each such layer is an error at its key.
 fn check_direct_layers(name: &str, pointer: &str, fidelity: &SimulatedFidelity, ctx: &mut CheckContext<'_>) {
     if fidelity.control != Control::Direct {
+        if fidelity.dynamics == DynamicsLayer::Kinematic(KinematicKeyword::KinematicRk4) {
+            let span = ctx.span(&format!("{pointer}/dynamics"));
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::kinematic-rk4",
+                    format!(
+                        "fidelity `{name}` plans (`control: trajectory`), and `kinematic-rk4` integrates only \
+                         `control: direct`'s steps so far"
+                    ),
+                    span,
+                    "control: direct only",
+                )
+                .with_help("use `dynamics: kinematic` here, or `control: direct`"),
+            );
+        }
         return;
     }
     let layers = [

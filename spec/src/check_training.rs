@@ -69,6 +69,21 @@ fn check_trained_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
                 ),
             );
         }
+        if mlp.tag.is_some() && mlp.sigmarl.is_none() {
+            let span = key_span(ctx, &format!("{base}/tag"));
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::policy-kind",
+                    format!(
+                        "policy `{}` gives a SigmaRL release's `tag`, but names no SigmaRL checkpoint",
+                        p.name
+                    ),
+                    span,
+                    "whose release?",
+                )
+                .with_help("`tag` goes with `sigmarl: CHECKPOINT`; remove it here"),
+            );
+        }
         match (&mlp.weights, &mlp.trained) {
             (Some(_), Some(_)) => {}
             (None, None) if mlp.sigmarl.is_some() => {}

@@ -201,7 +201,8 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
                 return;
             }
             if let Some(names) = constants_of_every_branch(context, &pointer) {
-                out.push(not_one_of(field, &names, spans.value, instance).at_pointer(pointer));
+                let problem = not_one_of(field, &names, spans.value, instance);
+                out.push(with_layer_forms(problem, &pointer, instance).at_pointer(pointer));
                 return;
             }
             if let Some(branch) = best_branch(context, &pointer) {
@@ -322,7 +323,14 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
             "here",
         ),
     };
-    let problem = match (layer_forms(&pointer), instance.as_ref()) {
+    let problem = with_layer_forms(problem, &pointer, instance.as_ref());
+    out.push(problem.at_pointer(pointer));
+}
+
+/// `problem` with the forms a fidelity layer accepts in its help, when the value at `pointer`
+/// is a word that is none of them (`dynamics: greybox`).
+fn with_layer_forms(problem: Problem, pointer: &str, instance: &Value) -> Problem {
+    match (layer_forms(pointer), instance) {
         (Some(forms), Value::String(_)) => Problem {
             help: Some(match &problem.help {
                 Some(help) => format!("{help} The valid forms: {forms}"),
@@ -331,8 +339,7 @@ fn map_error(schema: &Value, doc: &SpannedDocument, error: &ValidationError<'_>,
             ..problem
         },
         _ => problem,
-    };
-    out.push(problem.at_pointer(pointer));
+    }
 }
 
 /// The forms a fidelity layer accepts, for a word that is none of them (`dynamics: greybox`).
@@ -343,7 +350,8 @@ fn layer_forms(pointer: &str) -> Option<&'static str> {
     }
     match layer {
         "dynamics" => Some(
-            "`kinematic` (SigmaRL's bicycle), `stdlib:mu-car-greybox` (the CPM Lab's identified model; \
+            "`kinematic` (SigmaRL's bicycle), `kinematic-rk4` (integrated over the step, as SigmaRL 1.4.0), \
+             `stdlib:mu-car-greybox` (the CPM Lab's identified model; \
              `cpmx stdlib mu-car-greybox` prints it), or an inline grey-box model \
              `{parameters: [p1, ..., p10], euler_step_s: 0.02, battery_voltage_v: 7.8}`",
         ),

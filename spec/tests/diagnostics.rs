@@ -449,6 +449,34 @@ case!(
 );
 
 #[test]
+fn kinematic_rk4_integrates_direct_control_and_tag_goes_with_a_checkpoint() {
+    assert!(check(&edit("dynamics: kinematic}", "dynamics: kinematic-rk4}")).is_ok());
+    let planning = edit(
+        "sim: {control: direct, dynamics: kinematic}",
+        "sim: {control: trajectory, dynamics: kinematic-rk4}",
+    );
+    assert!(codes(&planning).contains(&"cpmx::check::kinematic-rk4"));
+    let tag = edit(
+        "{name: base, builtin: lane-follow}",
+        "{name: base, mlp: {weights: actor.safetensors, tag: 1.4.0}}",
+    );
+    let problems = check(&tag).unwrap_err();
+    assert!(
+        problems.iter().any(|p| p
+            .problem
+            .message
+            .contains("release's `tag`, but names no SigmaRL checkpoint")),
+        "{}",
+        cpmx_spec::render(&problems, false)
+    );
+    let unknown = edit(
+        "{name: base, builtin: lane-follow}",
+        "{name: base, mlp: {sigmarl: ckpt, tag: 1.3.0}}",
+    );
+    assert!(codes(&unknown).contains(&"cpmx::schema::choice"));
+}
+
+#[test]
 fn deep_nesting_is_a_diagnostic() {
     let text = format!("a: {}{}\n", "[".repeat(500), "]".repeat(500));
     assert!(check(&text).is_err());

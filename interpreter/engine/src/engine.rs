@@ -165,16 +165,14 @@ impl RunInputs<'_> {
                 actor,
                 observation,
                 output,
+                head,
                 sample,
             } => {
                 let (mode, rng) = self.action_mode(*sample);
-                Box::new(MlpPolicy::with_output(
-                    actor.as_ref().clone(),
-                    *observation,
-                    *output,
-                    mode,
-                    rng,
-                )?)
+                Box::new(
+                    MlpPolicy::with_output(actor.as_ref().clone(), *observation, *output, mode, rng)?
+                        .with_action_head(*head),
+                )
             }
             PreparedPolicy::Onnx {
                 network,

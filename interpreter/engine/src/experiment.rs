@@ -9,7 +9,7 @@ use cpmx_metrics::{
     CollisionGeometry as MetricGeometry, CraAConfig, CraLConfig, EventCount, Hysteresis, LaneBoundaries,
     MetricsConfig,
 };
-use cpmx_policy::{Activation, BoundaryCorners, MlpActor, OutputHead, SigmarlObservation};
+use cpmx_policy::{ActionHead, Activation, BoundaryCorners, MlpActor, OutputHead, SigmarlObservation};
 use cpmx_spec::model::{
     CollisionCount, CollisionGeometry, CraLBoundaries, MapSpec, MetricsSpec, ObservationSpec, PolicySpec,
     VehicleSpec,
@@ -63,6 +63,8 @@ pub enum PreparedPolicy {
         actor: Arc<MlpActor>,
         observation: SigmarlObservation,
         output: OutputHead,
+        /// The actions' half-ranges (a SigmaRL checkpoint's release's car; else SigmaRL's).
+        head: ActionHead,
         sample: bool,
     },
     /// A network exported to ONNX, loaded once and shared by the runs.
@@ -481,6 +483,7 @@ pub fn prepare_policy(policy: &PolicySpec, weights: Option<&Path>) -> Result<Pre
                 actor: Arc::new(actor),
                 observation,
                 output,
+                head: ActionHead::default(),
                 sample,
             },
             crate::onnx::LoadedOnnx::Graph(network) => PreparedPolicy::Onnx {
@@ -518,6 +521,9 @@ pub fn prepare_policy(policy: &PolicySpec, weights: Option<&Path>) -> Result<Pre
                 actor: Arc::new(actor),
                 observation,
                 output,
+                head: ActionHead {
+                    high: mlp.tag.unwrap_or_default().action_high(),
+                },
                 sample,
             })
         }

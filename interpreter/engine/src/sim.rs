@@ -1,6 +1,8 @@
 //! The sim engine (`control: direct, dynamics: kinematic`): SigmaRL's loop. Every `dt` the
 //! policy sees all agents' states and its command goes straight into the kinematic bicycle
-//! (through the fidelity's `safety:` filter, when it has one).
+//! (through the fidelity's `safety:` filter, when it has one), stepped as SigmaRL 1.5.0 on
+//! does (one Euler step) or, with `kinematic-rk4`, as SigmaRL 1.4.0 does (integrated over
+//! the step).
 //!
 //! The recording holds the state *before* each action, t = 0 … (steps − 1)·dt, as SigmaRL's
 //! evaluation receives them; so the metrics of a run equal `cpmx evaluate` of its trajectory.
@@ -8,12 +10,15 @@
 use cpmx_metrics::collision::{PlacedBox, mtv_distance_m};
 use cpmx_policy::{AgentState, ObservationInput};
 use cpmx_recording::{AgentSample, Recording};
-use cpmx_spec::model::OnCollision;
+use cpmx_spec::model::{DynamicsLayer, KinematicKeyword, OnCollision};
 use cpmx_vehicle::{BicycleState, Command, KinematicBicycle};
 
 use crate::engine::{Engine, RunError, RunInputs};
 use crate::safety::SafetyFilter;
 use crate::starts::InitialState;
+
+/// Runge–Kutta substeps of a `kinematic-rk4` step (within about 1e-6 m of SigmaRL 1.4.0's dopri5).
+const RK4_SUBSTEPS: u32 = 5;
 
 /// SigmaRL's simulation: direct control of the kinematic bicycle.
 #[derive(Debug, Clone, Copy, Default)]
@@ -25,6 +30,10 @@ impl Engine for SimEngine {
         let spec = &experiment.spec;
         let model = KinematicBicycle::new(experiment.vehicle);
         let dt_s = spec.timing.dt;
+        // `kinematic-rk4`: SigmaRL 1.4.0's integration over the step; else its later Euler step.
+        let integrated = inputs
+            .fidelity
+            .is_some_and(|f| f.dynamics == DynamicsLayer::Kinematic(KinematicKeyword::KinematicRk4));
 
         // Place the agents and prepare their paths.
         let starts = inputs.starts;
@@ -83,7 +92,11 @@ impl Engine for SimEngine {
                 filter.apply(&states, &velocities, &mut commands);
             }
             for ((state, velocity), command) in states.iter_mut().zip(&mut velocities).zip(&commands) {
-                let out = model.step(state, *command, dt_s);
+                let out = if integrated {
+                    model.step_rk4(state, *command, dt_s, RK4_SUBSTEPS)
+                } else {
+                    model.step(state, *command, dt_s)
+                };
                 *state = out.state;
                 *velocity = out.velocity_mps;
             }

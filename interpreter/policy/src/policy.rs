@@ -177,6 +177,13 @@ impl MlpPolicy {
         Self::with_net(Net::External(network), observation, output, mode, rng)
     }
 
+    /// The same policy with the actions' half-ranges of `head` (a SigmaRL release's car; the
+    /// default is SigmaRL's later ±1 m/s, ±31°).
+    pub fn with_action_head(mut self, head: ActionHead) -> Self {
+        self.head = head;
+        self
+    }
+
     fn with_net(
         net: Net,
         observation: SigmarlObservation,

@@ -8,7 +8,9 @@ use std::collections::BTreeMap;
 use cpmx_env::{EnvConfig, Plant, StackPlant, config_from_training, training_paths};
 use cpmx_learn::Hyperparameters;
 use cpmx_spec::CheckedSpec;
-use cpmx_spec::model::{Activation, Control, Fidelity, Lookahead, TrainingSpec, ValueLoss};
+use cpmx_spec::model::{
+    Activation, Control, DynamicsLayer, Fidelity, KinematicKeyword, Lookahead, TrainingSpec, ValueLoss,
+};
 use cpmx_world::ReferencePath;
 use sha2::{Digest, Sha256};
 
@@ -240,6 +242,14 @@ fn plant_of(checked: &CheckedSpec, name: &str, lookahead: Lookahead) -> Result<P
             "it filters the actions through a `safety:` layer, which training environments do not run yet: \
              train in the fidelity without it",
         ),
+        Some(Fidelity::Simulated(f))
+            if f.dynamics == DynamicsLayer::Kinematic(KinematicKeyword::KinematicRk4) =>
+        {
+            refuse(
+                "it integrates with `kinematic-rk4`, and training environments step SigmaRL's single Euler step \
+             only: train in a fidelity with `dynamics: kinematic`",
+            )
+        }
         Some(Fidelity::Simulated(f)) if f.control == Control::Trajectory => {
             let Some(planner) = &checked.spec.planner else {
                 return refuse(

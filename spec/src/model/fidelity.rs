@@ -162,18 +162,23 @@ pub enum Control {
 #[serde(untagged)]
 #[schemars(rename = "DynamicsLayer")]
 pub enum DynamicsLayer<P = Parameter> {
-    /// `kinematic`: the kinematic bicycle as SigmaRL integrates it.
+    /// `kinematic` (or `kinematic-rk4`): the kinematic bicycle as SigmaRL integrates it.
     Kinematic(KinematicKeyword),
     /// The identified grey-box µCar model (`stdlib:mu-car-greybox`).
     GreyBox(#[schemars(with = "PresetOr<GreyBoxModel>")] GreyBoxModel<P>),
 }
 
-/// The keyword `kinematic`.
+/// The keywords of the kinematic bicycle: how a step is integrated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "kebab-case")]
 pub enum KinematicKeyword {
-    /// The kinematic bicycle.
+    /// The kinematic bicycle, one explicit Euler step per `dt` (SigmaRL 1.5.0 on, and the
+    /// paper's actors).
     Kinematic,
+    /// The same bicycle and inputs, the motion integrated over the step (classical
+    /// Runge–Kutta, 5 substeps), as SigmaRL 1.4.0's dopri5 integrates it (its ITSC 2025
+    /// checkpoints). `control: direct` only, not in training.
+    KinematicRk4,
 }
 
 /// The CPM Lab's identified vehicle model (cpm-lab-interface.md §4).

@@ -38,7 +38,7 @@ pub use parameter::{
 };
 pub use policy::{
     ActionMode, BuiltinPolicy, CheckpointPick, LaneFollowParams, MlpActivation, MlpSpec, ObservationDesign,
-    ObservationSpec, OnnxSpec, OutputHead, PolicySpec, ProcessSpec, TrainedActor, TrainedChoice,
+    ObservationSpec, OnnxSpec, OutputHead, PolicySpec, ProcessSpec, SigmarlTag, TrainedActor, TrainedChoice,
 };
 pub use preset::PresetOr;
 pub use safety::{CbfAgents, CbfFilter, CbfWeights, SafetyLayer};

@@ -83,6 +83,13 @@ pub struct MlpSpec {
     /// iteration). Not for a `.pth` file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pick: Option<CheckpointPick>,
+    /// The SigmaRL release whose conventions the checkpoint follows (`sigmarl:` only):
+    /// `1.5.0` (the default: the paper's actors and later releases) or `1.4.0` (its ITSC 2025
+    /// checkpoint). A 1.4.0 actor's steering spans its car's ±45° (later releases' ±31°), and
+    /// its observation has no one-step lag of agent 0's boundary distances. Its simulation
+    /// integrates over the step: pair it with `dynamics: kinematic-rk4`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tag: Option<SigmarlTag>,
     /// SHA-256 of the weight file's bytes (64 hex digits). When given, only a file with this
     /// content is taken: the data path is searched for one. `cpmx run` records it in the run
     /// folder's `spec.resolved.yaml`.
@@ -202,6 +209,35 @@ pub struct TrainedActor {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(length(min = 1))]
     pub point: Option<String>,
+}
+
+/// A SigmaRL release whose conventions a checkpoint follows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+pub enum SigmarlTag {
+    /// Tag 1.4.0 (May 2025, the ITSC 2025 paper): actions span ±1 m/s and ±45° (π/4), no
+    /// boundary-distance lag in the observation.
+    #[serde(rename = "1.4.0")]
+    V1_4_0,
+    /// Tag 1.5.0 and later (the paper's actors): actions span ±1 m/s and ±31°, agent 0's
+    /// boundary distances one step late.
+    #[default]
+    #[serde(rename = "1.5.0")]
+    V1_5_0,
+}
+
+impl SigmarlTag {
+    /// The half-ranges of the actions, `[speed m/s, steering rad]`: the car of the release.
+    pub fn action_high(self) -> [f32; 2] {
+        match self {
+            SigmarlTag::V1_4_0 => [1.0, std::f32::consts::FRAC_PI_4],
+            SigmarlTag::V1_5_0 => [1.0, 0.541_052_04],
+        }
+    }
+
+    /// Whether agent 0's boundary distances are observed one step late.
+    pub fn agent0_boundary_lag(self) -> bool {
+        self == SigmarlTag::V1_5_0
+    }
 }
 
 /// Which actor of a SigmaRL checkpoint folder.
