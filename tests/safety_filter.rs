@@ -37,6 +37,21 @@ metrics: {{extends: stdlib:at25, footprint: stdlib:mu-car}}
     path
 }
 
+/// A `training:` section of one iteration of the paper's setup in `fidelity`.
+fn one_iteration_in(fidelity: &str) -> String {
+    format!(
+        "training:
+  fidelity: {fidelity}
+  scenario: stdlib:sigmarl-intersection-at25-paper
+  reward: stdlib:sigmarl-at25-paper-reward
+  algorithm: stdlib:mappo-sigmarl
+  observation: stdlib:sigmarl-at25-paper
+  iterations: 1
+  seeds: [1]
+"
+    )
+}
+
 /// `cpmx VERB SPEC --data REFERENCE [--out OUT]` in `dir`: its exit code, and its output with
 /// miette's wrapping undone.
 fn cpmx(dir: &Path, verb: &str, spec: &Path, out: Option<&Path>) -> (Option<i32>, String) {
@@ -121,19 +136,10 @@ fn a_bad_speed_range_or_a_training_through_the_filter_is_refused() {
     let (code, text) = cpmx(&dir, "validate", &path, None);
     assert_eq!(code, Some(1), "{text}");
     assert!(text.contains("`speed_range_mps` is [1, -0.5]"), "{text}");
-    let training = "training:
-  fidelity: sim-cbf
-  scenario: stdlib:sigmarl-intersection-at25-paper
-  reward: stdlib:sigmarl-at25-paper-reward
-  algorithm: stdlib:mappo-sigmarl
-  observation: stdlib:sigmarl-at25-paper
-  iterations: 1
-  seeds: [1]
-";
     let path = spec(
         &dir,
         "  sim-cbf: {control: direct, dynamics: kinematic, safety: stdlib:sigmarl-cbf}",
-        training,
+        &one_iteration_in("sim-cbf"),
     );
     let out = dir.join("train");
     let (code, text) = cpmx(&dir, "train", &path, Some(&out));
@@ -208,9 +214,9 @@ fn the_itsc25_policy_in_sigmarl_1_4_0s_loop_touches_the_edge_where_sigmarls_own_
     // crosses the road's edge on path 5 only; in the later loop (one Euler step) cpmx crossed
     // it on seven paths.
     let dir = scratch("safety-filter-itsc25");
-    let spec = support::root().join("experiments/safety-filter-itsc25.yaml");
+    let itsc25 = support::root().join("experiments/safety-filter-itsc25.yaml");
     let out = dir.join("out");
-    let (code, text) = cpmx(&dir, "run", &spec, Some(&out));
+    let (code, text) = cpmx(&dir, "run", &itsc25, Some(&out));
     assert_eq!(code, Some(0), "{text}");
     let per_run = std::fs::read_to_string(out.join("per_run.csv")).unwrap();
     let mut lines = per_run.lines();
@@ -235,19 +241,10 @@ fn the_itsc25_policy_in_sigmarl_1_4_0s_loop_touches_the_edge_where_sigmarls_own_
     assert!(touching("sim-cbf-margin-7cm").is_empty());
 
     // The integration over the step is not in the training environment.
-    let training = "training:
-  fidelity: sim-rk4
-  scenario: stdlib:sigmarl-intersection-at25-paper
-  reward: stdlib:sigmarl-at25-paper-reward
-  algorithm: stdlib:mappo-sigmarl
-  observation: stdlib:sigmarl-at25-paper
-  iterations: 1
-  seeds: [1]
-";
-    let path = self::spec(
+    let path = spec(
         &dir,
         "  sim-rk4: {control: direct, dynamics: kinematic-rk4}",
-        training,
+        &one_iteration_in("sim-rk4"),
     );
     let (code, text) = cpmx(&dir, "train", &path, Some(&dir.join("train")));
     assert_ne!(code, Some(0), "{text}");
