@@ -52,6 +52,22 @@ fn one_iteration_in(fidelity: &str) -> String {
     )
 }
 
+/// The rows of a run folder's `per_run.csv`, each cell by its column's name.
+fn per_run(out: &Path) -> Vec<std::collections::HashMap<String, String>> {
+    let text = std::fs::read_to_string(out.join("per_run.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    lines
+        .map(|line| {
+            header
+                .iter()
+                .map(|h| h.to_string())
+                .zip(line.split(',').map(str::to_owned))
+                .collect()
+        })
+        .collect()
+}
+
 /// `cpmx VERB SPEC --data REFERENCE [--out OUT]` in `dir`: its exit code, and its output with
 /// miette's wrapping undone.
 fn cpmx(dir: &Path, verb: &str, spec: &Path, out: Option<&Path>) -> (Option<i32>, String) {
@@ -102,23 +118,16 @@ fn the_filter_runs_between_the_actor_and_the_car_and_says_what_it_did() {
     // The filter changes the actions, so the cars drive otherwise.
     assert_ne!(filtered, plain);
     // per_run.csv counts it, for the filtered runs only.
-    let per_run = std::fs::read_to_string(out.join("per_run.csv")).unwrap();
-    let mut lines = per_run.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let column = |name: &str| {
-        header
-            .iter()
-            .position(|h| *h == name)
-            .unwrap_or_else(|| panic!("{per_run}"))
-    };
-    let (steps, changed) = (column("safety.agent_steps"), column("safety.changed"));
-    for line in lines {
-        let cells: Vec<&str> = line.split(',').collect();
-        if cells[1] == "sim-cbf" {
-            assert_eq!(cells[steps].parse::<f64>().unwrap(), 120.0, "{line}");
-            assert!(cells[changed].parse::<f64>().unwrap() > 0.0, "{line}");
+    for row in per_run(&out) {
+        if row["fidelity"] == "sim-cbf" {
+            assert_eq!(
+                row["safety.agent_steps"].parse::<f64>().unwrap(),
+                120.0,
+                "{row:?}"
+            );
+            assert!(row["safety.changed"].parse::<f64>().unwrap() > 0.0, "{row:?}");
         } else {
-            assert_eq!(cells[steps], "", "{line}");
+            assert_eq!(row["safety.agent_steps"], "", "{row:?}");
         }
     }
 }
@@ -178,27 +187,22 @@ fn the_papers_actors_that_collide_from_the_labs_starts_are_kept_apart_by_the_fil
     let out = dir.join("out");
     let (code, text) = cpmx(&dir, "run", &path, Some(&out));
     assert_eq!(code, Some(0), "{text}");
-    let per_run = std::fs::read_to_string(out.join("per_run.csv")).unwrap();
-    let mut lines = per_run.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
-    let (events, kept_apart) = (column("a2a_events"), column("safety.kept_apart"));
+    let rows = per_run(&out);
     let (mut collisions, mut runs, mut kept) = (std::collections::BTreeMap::new(), 0, 0.0);
     let mut colliding_sim_runs = 0;
-    for line in lines {
-        let cells: Vec<&str> = line.split(',').collect();
-        let run_events = cells[events].parse::<f64>().unwrap();
-        *collisions.entry(cells[1].to_owned()).or_insert(0.0) += run_events;
-        colliding_sim_runs += usize::from(cells[1] == "sim" && run_events > 0.0);
-        if cells[1].ends_with("-cbf") {
+    for row in &rows {
+        let run_events = row["a2a_events"].parse::<f64>().unwrap();
+        *collisions.entry(row["fidelity"].clone()).or_insert(0.0) += run_events;
+        colliding_sim_runs += usize::from(row["fidelity"] == "sim" && run_events > 0.0);
+        if row["fidelity"].ends_with("-cbf") {
             runs += 1;
-            kept += cells[kept_apart].parse::<f64>().unwrap();
+            kept += row["safety.kept_apart"].parse::<f64>().unwrap();
         }
     }
     assert_eq!(runs, 54);
     assert!(kept > 0.0, "the rows between the cars never held");
     // docs/specs.md: "collide in 4 of their 27 sim runs".
-    assert_eq!(colliding_sim_runs, 4, "{per_run}");
+    assert_eq!(colliding_sim_runs, 4, "{rows:?}");
     assert!(collisions["twin"] > 0.0, "{collisions:?}");
     // Through the planner of the twin too: the filter changes every rolled-out step.
     assert_eq!(
@@ -218,22 +222,11 @@ fn the_itsc25_policy_in_sigmarl_1_4_0s_loop_touches_the_edge_where_sigmarls_own_
     let out = dir.join("out");
     let (code, text) = cpmx(&dir, "run", &itsc25, Some(&out));
     assert_eq!(code, Some(0), "{text}");
-    let per_run = std::fs::read_to_string(out.join("per_run.csv")).unwrap();
-    let mut lines = per_run.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
-    let (fidelity, configuration, cra_l) = (
-        column("fidelity"),
-        column("initial_configuration"),
-        column("cra_l"),
-    );
-    let touching = |which: &str| -> Vec<String> {
-        per_run
-            .lines()
-            .skip(1)
-            .map(|l| l.split(',').collect::<Vec<_>>())
-            .filter(|r| r[fidelity] == which && r[cra_l].parse::<f64>().unwrap() > 0.0)
-            .map(|r| r[configuration].to_owned())
+    let rows = per_run(&out);
+    let touching = |which: &str| -> Vec<&str> {
+        rows.iter()
+            .filter(|r| r["fidelity"] == which && r["cra_l"].parse::<f64>().unwrap() > 0.0)
+            .map(|r| r["initial_configuration"].as_str())
             .collect()
     };
     assert_eq!(touching("sim").len(), 10);

@@ -521,9 +521,10 @@ pub fn prepare_policy(policy: &PolicySpec, weights: Option<&Path>) -> Result<Pre
                 actor: Arc::new(actor),
                 observation,
                 output,
-                head: ActionHead {
-                    high: mlp.tag.unwrap_or_default().action_high(),
-                },
+                // A SigmaRL checkpoint's release decides its box; everything else has SigmaRL's.
+                head: mlp.tag.map_or_else(ActionHead::default, |tag| ActionHead {
+                    high: tag.action_high(),
+                }),
                 sample,
             })
         }

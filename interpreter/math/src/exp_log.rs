@@ -96,9 +96,10 @@ fn exp_kernel(hi: f64, lo: f64) -> f64 {
     value * scale
 }
 
-/// ln x in two doubles for a positive normal `x`, to about 2^-65 relative.
+/// ln x in two doubles for a positive normal `x`, to about 2^-65 relative (any other `x` gives
+/// a meaningless but finite-or-NaN answer, which [`pow_in_kernel`] then sends elsewhere).
 #[inline(always)]
-fn ln_kernel(x: f64) -> (f64, f64) {
+pub(crate) fn ln_kernel(x: f64) -> (f64, f64) {
     let bits = x.to_bits();
     let exponent = ((bits >> 52) as i64 - 1023) as f64;
     let m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
@@ -173,18 +174,18 @@ pub(crate) fn pow_in_kernel(x: f64, y: f64, ln: (f64, f64)) -> bool {
     (f64::MIN_POSITIVE..f64::INFINITY).contains(&x) && y.abs() < 1e290 && (y * ln.0).abs() <= EXP_FAST_LIMIT
 }
 
-/// ln x for the kernel's test and product (any `x`; meaningful for positive normal ones).
-#[inline(always)]
-pub(crate) fn pow_ln(x: f64) -> (f64, f64) {
-    ln_kernel(x)
-}
-
 /// pow(x, y) from ln x in two doubles.
 #[inline(always)]
 pub(crate) fn pow_kernel(y: f64, ln: (f64, f64)) -> f64 {
-    let (z, z_lo) = two_prod(y, ln.0);
-    let (z, z_lo) = fast_two_sum(z, z_lo + y * ln.1);
+    let (z, z_lo) = times(y, ln);
     exp_kernel(z, z_lo)
+}
+
+/// y·(hi + lo) in two doubles (|y| < 2^995).
+#[inline(always)]
+fn times(y: f64, (hi, lo): (f64, f64)) -> (f64, f64) {
+    let (z, z_lo) = two_prod(y, hi);
+    fast_two_sum(z, z_lo + y * lo)
 }
 
 /// pow of any two doubles, with C99's special cases (pow(x, ±0) = 1, pow(1, y) = 1, a negative
@@ -240,7 +241,6 @@ pub(crate) fn pow_slow(x: f64, y: f64) -> f64 {
             0.0
         };
     }
-    let (z, z_lo) = two_prod(y, ln.0);
-    let (z, z_lo) = fast_two_sum(z, z_lo + y * ln.1);
+    let (z, z_lo) = times(y, ln);
     exp_any(z, z_lo)
 }

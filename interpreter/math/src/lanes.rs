@@ -55,7 +55,7 @@ fn pow_block<const N: usize>(x: &[f64; N], y: &[f64; N]) -> [f64; N] {
     let mut out = [0.0; N];
     let mut inside = [false; N];
     for i in 0..N {
-        let ln = exp_log::pow_ln(x[i]);
+        let ln = exp_log::ln_kernel(x[i]);
         inside[i] = exp_log::pow_in_kernel(x[i], y[i], ln);
         out[i] = exp_log::pow_kernel(y[i], ln);
     }

@@ -61,7 +61,7 @@ pub fn exp(x: f64) -> f64 {
 /// x^y, with C99 Annex F's special cases.
 #[inline]
 pub fn pow(x: f64, y: f64) -> f64 {
-    let ln = exp_log::pow_ln(x);
+    let ln = exp_log::ln_kernel(x);
     if exp_log::pow_in_kernel(x, y, ln) {
         exp_log::pow_kernel(y, ln)
     } else {

@@ -145,7 +145,8 @@ impl KinematicBicycle {
         };
         let along =
             |s: &[f64; 5], k: &[f64; 5], h: f64| -> [f64; 5] { std::array::from_fn(|i| s[i] + h * k[i]) };
-        let h = dt_s / f64::from(substeps.max(1));
+        let substeps = substeps.max(1);
+        let h = dt_s / f64::from(substeps);
         let mut s = [
             state.x_m,
             state.y_m,
@@ -153,7 +154,7 @@ impl KinematicBicycle {
             state.speed_mps,
             state.steering_rad,
         ];
-        for _ in 0..substeps.max(1) {
+        for _ in 0..substeps {
             let k1 = rate(&s);
             let k2 = rate(&along(&s, &k1, 0.5 * h));
             let k3 = rate(&along(&s, &k2, 0.5 * h));
