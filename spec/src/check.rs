@@ -23,6 +23,8 @@ pub struct Resources {
     /// The network file of each policy with an `mlp` (its weights) or an `onnx` (its file), by
     /// policy index.
     pub weights: Vec<Option<PathBuf>>,
+    /// The priority network of each XP-MARL policy (`priority: {sigmarl}`), by policy index.
+    pub priorities: Vec<Option<PathBuf>>,
     /// The observation of each policy that is a SigmaRL checkpoint, from its `*_data.json`, by
     /// policy index (the spec's policies get it before the interpreter's checks).
     pub observations: Vec<Option<crate::model::ObservationSpec>>,

@@ -1,13 +1,13 @@
 //! `mlp: {sigmarl: ...}` policies: the checkpoint found on the data path, the actor picked from
-//! its folder, and the observation its `*_data.json` describes, each problem located at the
-//! policy's node and naming the file.
+//! its folder, the observation its `*_data.json` describes, and an XP-MARL actor's `priority:`,
+//! each problem located at the policy's node and naming the file.
 
 use std::path::PathBuf;
 
 use crate::check::CheckContext;
 use crate::check_files::{CheckScope, missing_file};
 use crate::diagnostic::Problem;
-use crate::model::{MlpSpec, ObservationSpec, Spec};
+use crate::model::{MlpSpec, NeighbourActions, ObservationSpec, PrioritySpec, Spec};
 use crate::paths::{DataPath, sha256_hex};
 use crate::sigmarl;
 
@@ -198,4 +198,158 @@ fn observation_of(
             None
         }
     }
+}
+
+/// The priority network of policy `i`, and the checks that tie `priority:` to what its actor
+/// observes (`derived`: the observation its checkpoint's `*_data.json` describes): only a
+/// SigmaRL checkpoint trained with XP-MARL's action propagation is ranked, and it must say how.
+pub(crate) fn find_priority(
+    spec: &Spec,
+    i: usize,
+    derived: Option<&ObservationSpec>,
+    data: &DataPath,
+    scope: CheckScope,
+    ctx: &mut CheckContext<'_>,
+) -> Option<PathBuf> {
+    let policy = &spec.policies[i];
+    let checkpoint = policy.mlp.as_ref().filter(|m| m.sigmarl.is_some());
+    let Some(mlp) = checkpoint else {
+        let given = policy.observation.as_ref().map(|o| o.neighbour_actions);
+        if given.is_some_and(|a| !a.is_none()) {
+            let span = ctx.span(&format!("/policies/{i}/observation/neighbour_actions"));
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::policy-kind",
+                    format!(
+                        "policy `{}` observes its neighbours' actions, which only a SigmaRL checkpoint's actor \
+                         does (cpmx trains and runs other networks without them)",
+                        policy.name
+                    ),
+                    span,
+                    "not a SigmaRL checkpoint",
+                )
+                .with_help("remove `neighbour_actions`, or name the checkpoint with `mlp: {sigmarl: FOLDER}`"),
+            );
+        }
+        if policy.priority.is_some() {
+            let spans = ctx.spans(&format!("/policies/{i}/priority"));
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::policy-kind",
+                    format!(
+                        "`priority` ranks the agents of a SigmaRL checkpoint trained with XP-MARL's action \
+                         propagation, and `{}` is no SigmaRL checkpoint",
+                        policy.name
+                    ),
+                    spans.key.unwrap_or(spans.value),
+                    "nothing to rank",
+                )
+                .with_help("remove `priority`"),
+            );
+        }
+        return None;
+    };
+    let derived = derived?;
+    let actions = derived.neighbour_actions;
+    let priority = match (actions, &policy.priority) {
+        (NeighbourActions::Propagated, None) => {
+            let span = ctx.span(&format!("/policies/{i}/mlp/sigmarl"));
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::priority",
+                    format!(
+                        "policy `{}` was trained with XP-MARL's action propagation (`is_using_prioritized_marl: \
+                         true`): its agents act in an order that the spec must give",
+                        policy.name
+                    ),
+                    span,
+                    "ranked how?",
+                )
+                .with_help(
+                    "add `priority: {sigmarl: FOLDER}` (SigmaRL's learned priority policy, saved beside the actor), \
+                     `priority: random` or `priority: none` (no order, empty action slots)",
+                ),
+            );
+            return None;
+        }
+        (NeighbourActions::None | NeighbourActions::Tentative, Some(_)) => {
+            let spans = ctx.spans(&format!("/policies/{i}/priority"));
+            let observes = if actions == NeighbourActions::None {
+                "no actions of its neighbours"
+            } else {
+                "its neighbours' tentative actions (opponent modelling), which need no order"
+            };
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::priority",
+                    format!(
+                        "`priority` orders the agents of `{}`, whose actor observes {observes}",
+                        policy.name
+                    ),
+                    spans.key.unwrap_or(spans.value),
+                    "nothing to rank",
+                )
+                .with_help("remove `priority`: the checkpoint's `*_data.json` says how it observes"),
+            );
+            return None;
+        }
+        (_, Some(PrioritySpec::Sigmarl(priority))) => priority,
+        _ => return None,
+    };
+    let pointer = format!("/policies/{i}/priority/sigmarl");
+    let path = match data.find(&priority.sigmarl) {
+        Ok(path) => path,
+        Err(_) if scope == CheckScope::Measure => return None,
+        Err(tried) => {
+            let span = ctx.span(&pointer);
+            ctx.push(missing_file(
+                "SigmaRL priority policy",
+                &priority.sigmarl,
+                &tried,
+                data.option,
+                span,
+            ));
+            return None;
+        }
+    };
+    let pick = priority.pick.or(mlp.pick).unwrap_or_default();
+    let file = match sigmarl::locate_priority(&path, pick) {
+        Ok(file) => file,
+        Err(reason) => {
+            let span = ctx.span(&pointer);
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::checkpoint",
+                    format!("policy `{}`: {reason}", policy.name),
+                    span,
+                    "no priority policy here",
+                )
+                .with_help(
+                    "name the folder of an XP-MARL run with a learned priority policy, or rank with \
+                     `priority: random` / `priority: none`",
+                ),
+            );
+            return None;
+        }
+    };
+    if let Some(expected) = &priority.sha256
+        && std::fs::read(&file).map(|bytes| sha256_hex(&bytes)).as_ref().ok() != Some(expected)
+    {
+        let span = ctx.span(&format!("/policies/{i}/priority/sha256"));
+        ctx.push(
+            Problem::error(
+                "cpmx::check::file-content",
+                format!(
+                    "policy `{}`: {} does not have sha256 {expected}",
+                    policy.name,
+                    file.display()
+                ),
+                span,
+                "pinned to other content",
+            )
+            .with_help("name the priority policy of the pinned version, or remove `sha256` to take any"),
+        );
+        return None;
+    }
+    Some(file)
 }

@@ -117,13 +117,20 @@ fn check_safety_layer(pointer: &str, fidelity: &SimulatedFidelity, ctx: &mut Che
 /// the twin engine, which `control: trajectory` runs. Each such layer is an error at its key.
 fn check_direct_layers(name: &str, pointer: &str, fidelity: &SimulatedFidelity, ctx: &mut CheckContext<'_>) {
     if fidelity.control != Control::Direct {
-        if fidelity.dynamics == DynamicsLayer::Kinematic(KinematicKeyword::KinematicRk4) {
+        if let DynamicsLayer::Kinematic(
+            keyword @ (KinematicKeyword::KinematicRk4 | KinematicKeyword::KinematicVmas),
+        ) = fidelity.dynamics
+        {
+            let keyword = match keyword {
+                KinematicKeyword::KinematicVmas => "kinematic-vmas",
+                _ => "kinematic-rk4",
+            };
             let span = ctx.span(&format!("{pointer}/dynamics"));
             ctx.push(
                 Problem::error(
                     "cpmx::check::kinematic-rk4",
                     format!(
-                        "fidelity `{name}` plans (`control: trajectory`), and `kinematic-rk4` integrates only \
+                        "fidelity `{name}` plans (`control: trajectory`), and `{keyword}` integrates only \
                          `control: direct`'s steps so far"
                     ),
                     span,

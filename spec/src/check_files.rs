@@ -173,6 +173,9 @@ pub(crate) fn find_files(
                 }
             });
         resources.weights.push(found);
+        let priority =
+            crate::check_checkpoint::find_priority(spec, i, observations[i].as_ref(), data, scope, ctx);
+        resources.priorities.push(priority);
     }
     resources.observations = observations;
     if let Some(training) = &spec.training {

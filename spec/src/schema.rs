@@ -351,7 +351,7 @@ fn layer_forms(pointer: &str) -> Option<&'static str> {
     match layer {
         "dynamics" => Some(
             "`kinematic` (SigmaRL's bicycle), `kinematic-rk4` (integrated over the step, as SigmaRL 1.4.0), \
-             `stdlib:mu-car-greybox` (the CPM Lab's identified model; \
+             `kinematic-vmas` (as SigmaRL 1.2.0), `stdlib:mu-car-greybox` (the CPM Lab's identified model; \
              `cpmx stdlib mu-car-greybox` prints it), or an inline grey-box model \
              `{parameters: [p1, ..., p10], euler_step_s: 0.02, battery_voltage_v: 7.8}`",
         ),

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use serde_json::{Map, Value};
 
-use crate::model::{CheckpointPick, ObservationDesign, ObservationSpec, VehicleSpec};
+use crate::model::{CheckpointPick, NeighbourActions, ObservationDesign, ObservationSpec, VehicleSpec};
 
 /// The files of one SigmaRL actor.
 #[derive(Debug, Clone, PartialEq)]
@@ -71,6 +71,37 @@ pub fn locate(path: &Path, pick: Option<CheckpointPick>) -> Result<CheckpointFil
     Ok(CheckpointFiles {
         data: data_beside(&policy),
         policy,
+    })
+}
+
+/// The priority network of an XP-MARL run at `path`: a `*_priority_policy.pth`, or from a
+/// folder `reward<r>_priority_policy.pth` (`best`, the highest `r`) or
+/// `final_priority_policy.pth` (`final`).
+pub fn locate_priority(path: &Path, pick: CheckpointPick) -> Result<PathBuf, String> {
+    if !path.is_dir() {
+        return Ok(path.to_owned());
+    }
+    let names = file_names(path)?;
+    let chosen = match pick {
+        CheckpointPick::Final => names.iter().find(|n| *n == "final_priority_policy.pth").cloned(),
+        CheckpointPick::Best => names
+            .iter()
+            .filter_map(|n| {
+                let r = n.strip_prefix("reward")?.strip_suffix("_priority_policy.pth")?;
+                Some((r.parse::<f64>().ok().filter(|r| r.is_finite())?, n))
+            })
+            .max_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, n)| n.clone()),
+    };
+    chosen.map(|n| path.join(n)).ok_or_else(|| {
+        format!(
+            "{} holds no {} (SigmaRL saves a priority policy only for `prioritization_method: marl`)",
+            path.display(),
+            match pick {
+                CheckpointPick::Best => "`reward<r>_priority_policy.pth`",
+                CheckpointPick::Final => "`final_priority_policy.pth`",
+            }
+        )
     })
 }
 
@@ -160,7 +191,7 @@ impl std::fmt::Display for Refusal {
 }
 
 /// Parameters whose value cpmx's observation has built in: any other value is refused.
-const FIXED: [(&str, bool, &str); 13] = [
+const FIXED: [(&str, bool, &str); 11] = [
     (
         "is_partial_observation",
         true,
@@ -210,16 +241,6 @@ const FIXED: [(&str, bool, &str); 13] = [
         "is_add_noise",
         false,
         "cpmx has no observation noise (SigmaRL's uniform noise on normalised values)",
-    ),
-    (
-        "is_using_opponent_modeling",
-        false,
-        "cpmx does not append the other agents' actions (opponent modelling)",
-    ),
-    (
-        "is_using_prioritized_marl",
-        false,
-        "cpmx does not append higher-priority agents' actions (XP-MARL's action propagation)",
     ),
     (
         "is_using_cbf",
@@ -361,6 +382,24 @@ pub fn observation(
     let observed_agents = count("n_nearing_agents_observed", 2, 16, &mut refuse);
     let center_line_distance = flag("is_observe_distance_to_center_line", true, &mut refuse);
     let steering = flag("is_obs_steering", false, &mut refuse);
+    let propagated = flag("is_using_prioritized_marl", false, &mut refuse);
+    let tentative = flag("is_using_opponent_modeling", false, &mut refuse);
+    let neighbour_actions = match (propagated, tentative) {
+        (Some(true), Some(true)) => {
+            refuse(
+                "is_using_opponent_modeling",
+                &Value::Bool(true),
+                "together with `is_using_prioritized_marl`, which SigmaRL never trained: whose actions fill the \
+                 slots cannot be told"
+                    .to_owned(),
+            );
+            None
+        }
+        (Some(true), Some(false)) => Some(NeighbourActions::Propagated),
+        (Some(false), Some(true)) => Some(NeighbourActions::Tentative),
+        (Some(false), Some(false)) => Some(NeighbourActions::None),
+        _ => None,
+    };
     let lane_width_m = match parameters.get("scenario_type") {
         None => Some(0.15),
         Some(value) => {
@@ -398,6 +437,7 @@ pub fn observation(
         center_line_distance,
         steering,
         lane_width_m,
+        neighbour_actions,
     ) {
         (
             Some(ref_points),
@@ -405,6 +445,7 @@ pub fn observation(
             Some(center_line_distance),
             Some(steering),
             Some(lane_width_m),
+            Some(neighbour_actions),
         ) => {
             Ok(ObservationSpec {
                 design: ObservationDesign::Sigmarl,
@@ -419,6 +460,7 @@ pub fn observation(
                 center_line_distance,
                 agent0_boundary_lag: true,
                 steering,
+                neighbour_actions,
             })
         }
         _ => Err(refusals),
@@ -426,11 +468,13 @@ pub fn observation(
 }
 
 /// Parameters mapped to a field of the observation.
-const HONOURED: [&str; 4] = [
+const HONOURED: [&str; 6] = [
     "n_points_short_term",
     "n_nearing_agents_observed",
     "is_observe_distance_to_center_line",
     "is_obs_steering",
+    "is_using_prioritized_marl",
+    "is_using_opponent_modeling",
 ];
 
 #[cfg(test)]

@@ -6,7 +6,8 @@ use cpmx_policy::ActorError;
 use cpmx_spec::model::{Fidelity, MapSpec};
 use cpmx_spec::{CheckContext, InterpreterChecks, Problem, Resources, Spec};
 
-use crate::experiment::{PrepareError, load_map, load_network, observation};
+use crate::experiment::{PrepareError, load_map};
+use crate::policies::{load_network, observation};
 
 /// The checks of this build of cpmx.
 #[derive(Debug, Clone, Copy, Default)]

@@ -2,8 +2,8 @@
 //! Engines know nothing of each other, of metrics or of files.
 
 use cpmx_policy::{
-    AgentPaths, ExternalPolicy, LaneFollow, LaneFollowParams, MlpPolicy, Policy, PolicyError, ProcessConfig,
-    ProcessPolicy,
+    AgentPaths, ExternalPolicy, LaneFollow, LaneFollowParams, MlpPolicy, Policy, PolicyError,
+    PrioritizedPolicy, ProcessConfig, ProcessPolicy, Ranking, SlotFilling,
 };
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -15,7 +15,8 @@ use cpmx_spec::model::{Control, DrawnFidelity, Fidelity, SimulatedFidelity};
 use rand::SeedableRng;
 use rand_chacha::ChaCha20Rng;
 
-use crate::experiment::{Experiment, PreparedPolicy};
+use crate::experiment::Experiment;
+use crate::policies::{NeighbourActionSource, PreparedPolicy};
 use crate::starts::InitialState;
 
 /// Why a run failed.
@@ -167,12 +168,32 @@ impl RunInputs<'_> {
                 output,
                 head,
                 sample,
+                neighbour_actions,
             } => {
                 let (mode, rng) = self.action_mode(*sample);
-                Box::new(
-                    MlpPolicy::with_output(actor.as_ref().clone(), *observation, *output, mode, rng)?
-                        .with_action_head(*head),
-                )
+                let actor = actor.as_ref().clone();
+                match neighbour_actions {
+                    None => Box::new(
+                        MlpPolicy::with_output(actor, *observation, *output, mode, rng)?
+                            .with_action_head(*head),
+                    ),
+                    Some(source) => {
+                        let filling = match source {
+                            NeighbourActionSource::Learned(priority) => {
+                                SlotFilling::Propagated(Ranking::Learned(priority.as_ref().clone()))
+                            }
+                            NeighbourActionSource::Random => SlotFilling::Propagated(Ranking::Random(
+                                ChaCha20Rng::from_seed(stream_key(self.plan.seed, "priority")),
+                            )),
+                            NeighbourActionSource::Unranked => SlotFilling::Propagated(Ranking::Unranked),
+                            NeighbourActionSource::Tentative => SlotFilling::Tentative,
+                        };
+                        Box::new(
+                            PrioritizedPolicy::new(actor, *observation, filling, *output, mode, rng)?
+                                .with_action_head(*head),
+                        )
+                    }
+                }
             }
             PreparedPolicy::Onnx {
                 network,

@@ -9,16 +9,15 @@ use cpmx_metrics::{
     CollisionGeometry as MetricGeometry, CraAConfig, CraLConfig, EventCount, Hysteresis, LaneBoundaries,
     MetricsConfig,
 };
-use cpmx_policy::{ActionHead, Activation, BoundaryCorners, MlpActor, OutputHead, SigmarlObservation};
 use cpmx_spec::model::{
-    CollisionCount, CollisionGeometry, CraLBoundaries, MapSpec, MetricsSpec, ObservationSpec, PolicySpec,
-    VehicleSpec,
+    CollisionCount, CollisionGeometry, CraLBoundaries, MapSpec, MetricsSpec, VehicleSpec,
 };
 use cpmx_spec::{CheckedSpec, Spec};
 use cpmx_vehicle::VehicleParams;
 use cpmx_world::Map;
 
 use crate::memo::Memo;
+use crate::policies::{PreparedPolicy, prepare_policy};
 use crate::starts::{ConfigurationStarts, InitialState, initial_states, start_of};
 
 /// Why an experiment could not be prepared.
@@ -48,50 +47,14 @@ pub enum PrepareError {
         "policy `{policy}`: its SigmaRL checkpoint was not found (run `cpmx validate` for where it was looked for)"
     )]
     Checkpoint { policy: String },
+    #[error("policy `{policy}`: {reason}")]
+    Priority { policy: String, reason: String },
     #[error("initial configuration `{name}`: {reason}")]
     Start { name: String, reason: String },
     #[error(
         "policy `{policy}` names the actor trained with seed {seed}, which was not found: run `cpmx train` first"
     )]
     NotTrained { policy: String, seed: u64 },
-}
-
-/// A policy as the spec defines it, with its network loaded once.
-#[derive(Debug, Clone)]
-pub enum PreparedPolicy {
-    Mlp {
-        actor: Arc<MlpActor>,
-        observation: SigmarlObservation,
-        output: OutputHead,
-        /// The actions' half-ranges (a SigmaRL checkpoint's release's car; else SigmaRL's).
-        head: ActionHead,
-        sample: bool,
-    },
-    /// A network exported to ONNX, loaded once and shared by the runs.
-    Onnx {
-        network: Arc<dyn cpmx_policy::Network>,
-        observation: SigmarlObservation,
-        output: OutputHead,
-        sample: bool,
-    },
-    /// A policy process, started once per run in `dir` (the spec's folder).
-    Process {
-        spec: cpmx_spec::model::ProcessSpec,
-        observation: Option<SigmarlObservation>,
-        dir: std::path::PathBuf,
-    },
-    /// A policy decided in this process by another language (`python: {}`): the decider is
-    /// bound with [`Experiment::bind`] before the runs; unbound, its runs fail saying so.
-    External {
-        observation: Option<SigmarlObservation>,
-        decider: Option<Arc<dyn cpmx_policy::Decider>>,
-    },
-    LaneFollow(cpmx_spec::model::LaneFollowParams),
-    /// An `mlp: {trained}` policy whose actor is not there yet: the experiment still prepares
-    /// (so runs of the other policies can go ahead), and a run of this one fails saying so.
-    NotTrained {
-        seed: u64,
-    },
 }
 
 /// Everything a run needs that does not depend on the run.
@@ -189,8 +152,9 @@ impl Experiment {
         let map = Arc::new(load_map(spec, checked.resources.map_file.as_deref())?);
         let vehicle = vehicle_params(&spec.vehicle);
         let mut policies = Vec::new();
-        for (policy, weights) in spec.policies.iter().zip(&checked.resources.weights) {
-            let mut prepared = match prepare_policy(policy, weights.as_deref()) {
+        for (i, (policy, weights)) in spec.policies.iter().zip(&checked.resources.weights).enumerate() {
+            let priority = checked.resources.priorities.get(i).and_then(Option::as_deref);
+            let mut prepared = match prepare_policy(policy, weights.as_deref(), priority) {
                 Err(PrepareError::NotTrained { seed, .. }) => PreparedPolicy::NotTrained { seed },
                 other => other?,
             };
@@ -362,9 +326,6 @@ pub fn load_map_spec(map: &MapSpec, map_file: Option<&Path>) -> Result<Map, Prep
 /// The maps parsed in this process, by format and text.
 static MAPS: Memo<(cpmx_world::MapFormat, String), Map> = Memo::new();
 
-/// The actors parsed in this process, by activation and file bytes.
-static ACTORS: Memo<(Activation, Vec<u8>), MlpActor> = Memo::new();
-
 /// The spec's vehicle in the interpreter's units.
 pub fn vehicle_params(v: &VehicleSpec) -> VehicleParams {
     VehicleParams {
@@ -382,156 +343,6 @@ pub fn vehicle_params(v: &VehicleSpec) -> VehicleParams {
 /// The vehicle whose footprint the spec's metrics score: `metrics.footprint`, else `vehicle`.
 pub fn footprint_params(spec: &Spec) -> VehicleParams {
     vehicle_params(spec.metrics.footprint.as_ref().unwrap_or(&spec.vehicle))
-}
-
-/// The spec's observation design as the policy crate's.
-pub fn observation(o: &ObservationSpec) -> SigmarlObservation {
-    SigmarlObservation {
-        neighbours: o.observed_agents as usize,
-        reference_points: o.ref_points as usize,
-        reference_point_stride: o.ref_point_stride as usize,
-        position_norm_m: o.position_scale_m,
-        speed_norm_mps: o.speed_scale_mps,
-        distance_norm_m: o.distance_scale_m,
-        observe_center_line_distance: o.center_line_distance,
-        observe_boundary_distances: o.boundary_distances,
-        observe_steering: o.steering,
-        boundary_corners: if o.agent0_boundary_lag {
-            BoundaryCorners::LaggedForFirstAgent
-        } else {
-            BoundaryCorners::Current
-        },
-        ..SigmarlObservation::default()
-    }
-}
-
-/// The spec's activation and output head as the policy crate's.
-pub fn network_options(mlp: &cpmx_spec::model::MlpSpec) -> (Activation, OutputHead) {
-    use cpmx_spec::model::MlpActivation;
-    let activation = match mlp.activation {
-        MlpActivation::Tanh => Activation::Tanh,
-        MlpActivation::Relu => Activation::Relu,
-        MlpActivation::Elu => Activation::Elu,
-    };
-    (activation, output_head(mlp.output))
-}
-
-/// The spec's output head as the policy crate's.
-pub(crate) fn output_head(head: cpmx_spec::model::OutputHead) -> OutputHead {
-    use cpmx_spec::model::OutputHead as Head;
-    match head {
-        Head::SigmarlTanhNormal => OutputHead::SigmarlTanhNormal,
-        Head::DeterministicTanh => OutputHead::DeterministicTanh,
-        Head::DeterministicClip => OutputHead::DeterministicClip,
-    }
-}
-
-/// Loads a policy's network (once per experiment): layer sizes from the file, checked against
-/// the observation and the output head.
-pub fn load_network(
-    mlp: &cpmx_spec::model::MlpSpec,
-    observation: &SigmarlObservation,
-    weights: &Path,
-) -> Result<(MlpActor, OutputHead), cpmx_policy::ActorError> {
-    let (activation, output) = network_options(mlp);
-    let bytes = std::fs::read(weights).map_err(|source| cpmx_policy::ActorError::Io {
-        path: weights.to_owned(),
-        source,
-    })?;
-    // A SigmaRL checkpoint is torch.save's zip archive: read it as such (the spec names it
-    // with `sigmarl:`; a `weights:` file that is one is read the same way).
-    let checkpoint = mlp.sigmarl.is_some() || bytes.starts_with(b"PK\x03\x04");
-    let actor = ACTORS.get_or_parse((activation, bytes), |(activation, bytes)| {
-        if checkpoint {
-            MlpActor::load_checkpoint(weights, *activation)
-        } else {
-            MlpActor::from_bytes_any(bytes, *activation)
-        }
-    })?;
-    actor.check_fits(Some(observation.size()), output)?;
-    Ok((actor, output))
-}
-
-/// Loads a policy's network (once per experiment).
-pub fn prepare_policy(policy: &PolicySpec, weights: Option<&Path>) -> Result<PreparedPolicy, PrepareError> {
-    if policy.python.is_some() {
-        return Ok(PreparedPolicy::External {
-            observation: policy.observation.as_ref().map(observation),
-            decider: None,
-        });
-    }
-    if let Some(process) = &policy.process {
-        return Ok(PreparedPolicy::Process {
-            spec: process.clone(),
-            observation: policy.observation.as_ref().map(observation),
-            dir: std::path::PathBuf::from("."),
-        });
-    }
-    let sample = policy.action == Some(cpmx_spec::model::ActionMode::Sample);
-    if let Some(onnx) = &policy.onnx {
-        let observation = observation(policy.observation.as_ref().expect("defaulted to stdlib:sigmarl"));
-        let path = weights.unwrap_or(Path::new(&onnx.file));
-        let loaded =
-            crate::onnx::load(onnx, observation.size(), path).map_err(|source| PrepareError::Onnx {
-                policy: policy.name.clone(),
-                source,
-            })?;
-        let output = crate::onnx::head(onnx);
-        // A plain MLP runs as `mlp:` weights do: same kernels, same bits.
-        return Ok(match loaded {
-            crate::onnx::LoadedOnnx::Mlp(actor) => PreparedPolicy::Mlp {
-                actor: Arc::new(actor),
-                observation,
-                output,
-                head: ActionHead::default(),
-                sample,
-            },
-            crate::onnx::LoadedOnnx::Graph(network) => PreparedPolicy::Onnx {
-                network,
-                observation,
-                output,
-                sample,
-            },
-        });
-    }
-    match (&policy.mlp, weights) {
-        (Some(mlp), found) => {
-            let observation = observation(policy.observation.as_ref().expect("defaulted to stdlib:sigmarl"));
-            let path = match (found, &mlp.weights, &mlp.trained) {
-                (Some(path), _, _) => path,
-                (None, Some(weights), _) => Path::new(weights),
-                (None, None, None) if mlp.sigmarl.is_some() => {
-                    return Err(PrepareError::Checkpoint {
-                        policy: policy.name.clone(),
-                    });
-                }
-                (None, None, trained) => {
-                    return Err(PrepareError::NotTrained {
-                        policy: policy.name.clone(),
-                        seed: trained.as_ref().map_or(0, |t| t.seed),
-                    });
-                }
-            };
-            let (actor, output) =
-                load_network(mlp, &observation, path).map_err(|source| PrepareError::Actor {
-                    policy: policy.name.clone(),
-                    source,
-                })?;
-            Ok(PreparedPolicy::Mlp {
-                actor: Arc::new(actor),
-                observation,
-                output,
-                // A SigmaRL checkpoint's release decides its box; everything else has SigmaRL's.
-                head: mlp.tag.map_or_else(ActionHead::default, |tag| ActionHead {
-                    high: tag.action_high(),
-                }),
-                sample,
-            })
-        }
-        (None, _) => Ok(PreparedPolicy::LaneFollow(
-            policy.lane_follow.clone().unwrap_or_default(),
-        )),
-    }
 }
 
 /// The spec's metric parameters as the metrics crate's.

@@ -12,6 +12,7 @@ pub mod lab;
 mod memo;
 mod onnx;
 mod pipeline;
+mod policies;
 mod randomise;
 mod runner;
 mod safety;
@@ -25,9 +26,9 @@ pub use cpmx_stack::{CONTROL_PERIOD_S, GreyBoxMpcModel, VehicleStack};
 pub use cpmx_stack::{control_periods, trajectory_points};
 pub use engine::{Engine, Operator, RunError, RunInputs, engine_for};
 pub use experiment::{
-    Experiment, PrepareError, PreparedPolicy, Scoring, load_map, load_map_spec, metrics_config, observation,
-    vehicle_params,
+    Experiment, PrepareError, Scoring, load_map, load_map_spec, metrics_config, vehicle_params,
 };
+pub use policies::{NeighbourActionSource, PreparedPolicy, observation};
 pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, measure_recording, simulate};
 pub use sim::SimEngine;
 pub use starts::{ConfigurationStarts, InitialState, initial_states};

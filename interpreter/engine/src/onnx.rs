@@ -27,7 +27,7 @@ pub enum OnnxLoadError {
 
 /// The output head an ONNX spec declares, as the policy crate's.
 pub fn head(onnx: &OnnxSpec) -> OutputHead {
-    crate::experiment::output_head(onnx.output)
+    crate::policies::output_head(onnx.output)
 }
 
 /// A loaded ONNX graph: a plain MLP, run on cpmx's kernels like `mlp:` weights, or any other

@@ -1,8 +1,8 @@
 //! The sim engine (`control: direct, dynamics: kinematic`): SigmaRL's loop. Every `dt` the
 //! policy sees all agents' states and its command goes straight into the kinematic bicycle
 //! (through the fidelity's `safety:` filter, when it has one), stepped as SigmaRL 1.5.0 on
-//! does (one Euler step) or, with `kinematic-rk4`, as SigmaRL 1.4.0 does (integrated over
-//! the step).
+//! does (one Euler step), with `kinematic-rk4` as SigmaRL 1.4.0 does (integrated over the
+//! step), or with `kinematic-vmas` as SigmaRL 1.2.0's VMAS does (direct commands, drag).
 //!
 //! The recording holds the state *before* each action, t = 0 … (steps − 1)·dt, as SigmaRL's
 //! evaluation receives them; so the metrics of a run equal `cpmx evaluate` of its trajectory.
@@ -11,7 +11,7 @@ use cpmx_metrics::collision::{PlacedBox, mtv_distance_m};
 use cpmx_policy::{AgentState, ObservationInput};
 use cpmx_recording::{AgentSample, Recording};
 use cpmx_spec::model::{DynamicsLayer, KinematicKeyword, OnCollision};
-use cpmx_vehicle::{BicycleState, Command, KinematicBicycle};
+use cpmx_vehicle::{BicycleState, Command, KinematicBicycle, VmasMotion};
 
 use crate::engine::{Engine, RunError, RunInputs};
 use crate::safety::SafetyFilter;
@@ -30,16 +30,18 @@ impl Engine for SimEngine {
         let spec = &experiment.spec;
         let model = KinematicBicycle::new(experiment.vehicle);
         let dt_s = spec.timing.dt;
-        // `kinematic-rk4`: SigmaRL 1.4.0's integration over the step; else its later Euler step.
-        let integrated = inputs
-            .fidelity
-            .is_some_and(|f| f.dynamics == DynamicsLayer::Kinematic(KinematicKeyword::KinematicRk4));
+        let integration = match inputs.fidelity.map(|f| &f.dynamics) {
+            Some(DynamicsLayer::Kinematic(keyword)) => *keyword,
+            _ => KinematicKeyword::Kinematic,
+        };
 
         // Place the agents and prepare their paths.
         let starts = inputs.starts;
         let paths = inputs.agent_paths()?;
         let mut states: Vec<BicycleState> = starts.iter().map(initial_bicycle_state).collect();
         let mut velocities: Vec<[f64; 2]> = states.iter().map(|s| model.velocity_mps(s)).collect();
+        // VMAS's yaw rates (`kinematic-vmas` only): from rest, as SigmaRL places its agents.
+        let mut yaw_rates_rad_s = vec![0.0; states.len()];
         let mut policy = inputs.policy()?;
 
         let mut recording = Recording {
@@ -91,14 +93,31 @@ impl Engine for SimEngine {
             if let Some(filter) = &mut safety {
                 filter.apply(&states, &velocities, &mut commands);
             }
-            for ((state, velocity), command) in states.iter_mut().zip(&mut velocities).zip(&commands) {
-                let out = if integrated {
-                    model.step_rk4(state, *command, dt_s, RK4_SUBSTEPS)
-                } else {
-                    model.step(state, *command, dt_s)
+            for (((state, velocity), yaw_rate_rad_s), command) in states
+                .iter_mut()
+                .zip(&mut velocities)
+                .zip(&mut yaw_rates_rad_s)
+                .zip(&commands)
+            {
+                (*state, *velocity) = match integration {
+                    KinematicKeyword::Kinematic => {
+                        let out = model.step(state, *command, dt_s);
+                        (out.state, out.velocity_mps)
+                    }
+                    KinematicKeyword::KinematicRk4 => {
+                        let out = model.step_rk4(state, *command, dt_s, RK4_SUBSTEPS);
+                        (out.state, out.velocity_mps)
+                    }
+                    KinematicKeyword::KinematicVmas => {
+                        let motion = VmasMotion {
+                            velocity_mps: *velocity,
+                            yaw_rate_rad_s: *yaw_rate_rad_s,
+                        };
+                        let out = model.step_vmas(state, motion, *command, dt_s);
+                        *yaw_rate_rad_s = out.motion.yaw_rate_rad_s;
+                        (out.state, out.motion.velocity_mps)
+                    }
                 };
-                *state = out.state;
-                *velocity = out.velocity_mps;
             }
 
             // Collisions, as the spec asks.
@@ -111,6 +130,7 @@ impl Engine for SimEngine {
                             for (i, _) in colliding.iter().enumerate().filter(|(_, c)| **c) {
                                 states[i] = initial_bicycle_state(&starts[i]);
                                 velocities[i] = model.velocity_mps(&states[i]);
+                                yaw_rates_rad_s[i] = 0.0;
                             }
                             policy.reset();
                         }

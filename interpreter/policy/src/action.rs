@@ -42,6 +42,9 @@ pub struct ActionOutput {
 pub struct ActionHead {
     /// `[max speed m/s, max steering rad]`.
     pub high: [f32; 2],
+    /// torchrl 0.2.1's TanhNormal (SigmaRL 1.2.0): the location is shifted into the box and
+    /// back, `(loc + high) - high` in float32, before tanh; that moves its last bits.
+    pub shift_location: bool,
 }
 
 impl Default for ActionHead {
@@ -49,6 +52,7 @@ impl Default for ActionHead {
     fn default() -> Self {
         ActionHead {
             high: [1.0, 0.541_052_04],
+            shift_location: false,
         }
     }
 }
@@ -61,9 +65,14 @@ impl ActionHead {
         let scale = [scale_of(raw[2]), scale_of(raw[3])];
         let mut action = [0.0; 2];
         for c in 0..2 {
+            let centre = if self.shift_location {
+                (loc[c] + self.high[c]) - self.high[c]
+            } else {
+                loc[c]
+            };
             let pre = match mode {
-                ActionMode::Mean => loc[c],
-                ActionMode::Sample => loc[c] + scale[c] * standard_normal(rng),
+                ActionMode::Mean => centre,
+                ActionMode::Sample => centre + scale[c] * standard_normal(rng),
             };
             action[c] = self.high[c] * pre.tanh().clamp(-TANH_BOUND, TANH_BOUND);
         }

@@ -1,7 +1,8 @@
 //! Policies for cpmx: SigmaRL's observation design, MLP actors of any layer sizes loaded from
 //! safetensors or from SigmaRL's PyTorch checkpoints with their output heads, policy processes in any
 //! language (`process`), policies decided in the same process by another language (`external`:
-//! the Python package's callables), and built-in baselines.
+//! the Python package's callables), XP-MARL's ranked actors that observe their neighbours'
+//! actions, and built-in baselines.
 //!
 //! This crate owns deciding commands from states. It never steps vehicles, reads specs or
 //! computes metrics; its only randomness is the `ChaCha20Rng` a caller hands to [`MlpPolicy`].
@@ -38,6 +39,7 @@ mod layers;
 mod memory;
 pub mod observation;
 pub mod policy;
+pub mod priority;
 pub mod process;
 pub mod torch;
 
@@ -51,4 +53,5 @@ pub use observation::{
     SigmarlObservation,
 };
 pub use policy::{MlpPolicy, Network, Policy, PolicyError, check_input_size};
+pub use priority::{PrioritizedPolicy, Ranking, SlotFilling};
 pub use process::{PROTOCOL_VERSION, ProcessConfig, ProcessPolicy};

@@ -23,6 +23,26 @@ impl ObservationMemory {
         design: &SigmarlObservation,
         input: &ObservationInput<'_>,
     ) -> Result<&[f32], ObservationError> {
+        self.observe_into(design, input, None)
+    }
+
+    /// [`ObservationMemory::observe`], also writing the agent in each neighbour slot (see
+    /// [`SigmarlObservation::observe_all_with_neighbours`]).
+    pub(crate) fn observe_with_neighbours(
+        &mut self,
+        design: &SigmarlObservation,
+        input: &ObservationInput<'_>,
+        neighbours: &mut [Option<usize>],
+    ) -> Result<&[f32], ObservationError> {
+        self.observe_into(design, input, Some(neighbours))
+    }
+
+    fn observe_into(
+        &mut self,
+        design: &SigmarlObservation,
+        input: &ObservationInput<'_>,
+        neighbours: Option<&mut [Option<usize>]>,
+    ) -> Result<&[f32], ObservationError> {
         let agents = input.agents.len();
         self.observations.resize(agents * design.size(), 0.0);
         if self.previous_corners.len() != agents {
@@ -33,7 +53,12 @@ impl ObservationMemory {
             previous_corners: input.previous_corners.or(remembered),
             ..*input
         };
-        design.observe_all(&observed, &mut self.observations)?;
+        match neighbours {
+            Some(neighbours) => {
+                design.observe_all_with_neighbours(&observed, &mut self.observations, neighbours)?
+            }
+            None => design.observe_all(&observed, &mut self.observations)?,
+        }
         self.current_corners.resize(agents, Footprint::default());
         for (slot, a) in self.current_corners.iter_mut().zip(input.agents) {
             *slot = footprint_corners(input.vehicle, a.x_m, a.y_m, a.yaw_rad);

@@ -170,6 +170,10 @@ pub struct SigmarlObservation {
     pub steering_norm_rad: f64,
     /// Which corners enter the boundary distances.
     pub boundary_corners: BoundaryCorners,
+    /// Two slots per observed neighbour after everything else, for that neighbour's action
+    /// `[speed m/s, steering rad]` (XP-MARL, SigmaRL 1.2.0): the observation leaves them zero
+    /// and the policy fills them ([`crate::PrioritizedPolicy`]).
+    pub action_slots: bool,
 }
 
 impl Default for SigmarlObservation {
@@ -188,6 +192,7 @@ impl Default for SigmarlObservation {
             observe_steering: false,
             steering_norm_rad: std::f64::consts::TAU,
             boundary_corners: BoundaryCorners::LaggedForFirstAgent,
+            action_slots: false,
         }
     }
 }
@@ -229,11 +234,48 @@ impl SigmarlObservation {
             + usize::from(self.observe_center_line_distance)
             + 2 * usize::from(self.observe_boundary_distances)
             + self.neighbours * (NEIGHBOUR_BASE + steering + usize::from(self.observe_neighbour_distance))
+            + self.action_slot_count()
+    }
+
+    /// Number of action slots at the end of each agent's observation (2 per observed neighbour,
+    /// or none).
+    pub fn action_slot_count(&self) -> usize {
+        if self.action_slots { 2 * self.neighbours } else { 0 }
+    }
+
+    /// [`SigmarlObservation::observe_all`], also writing which agent each agent observes in
+    /// each neighbour slot (`neighbours[i * self.neighbours + k]`, nearest first; `None` where a
+    /// slot holds no other agent): the agents whose actions fill its action slots.
+    pub fn observe_all_with_neighbours(
+        &self,
+        input: &ObservationInput<'_>,
+        out: &mut [f32],
+        neighbours: &mut [Option<usize>],
+    ) -> Result<(), ObservationError> {
+        let expected = input.agents.len() * self.neighbours;
+        if neighbours.len() != expected {
+            return Err(ObservationError::BufferSize {
+                found: neighbours.len(),
+                expected,
+                agents: input.agents.len(),
+                size: self.neighbours,
+            });
+        }
+        self.observe_checked(input, out, Some(neighbours))
     }
 
     /// Observations of all agents into `out` (`agents * size()` values, agent-major).
     /// Allocation-free.
     pub fn observe_all(&self, input: &ObservationInput<'_>, out: &mut [f32]) -> Result<(), ObservationError> {
+        self.observe_checked(input, out, None)
+    }
+
+    fn observe_checked(
+        &self,
+        input: &ObservationInput<'_>,
+        out: &mut [f32],
+        mut neighbours: Option<&mut [Option<usize>]>,
+    ) -> Result<(), ObservationError> {
         // Check that the inputs fit together.
         let (n, size) = (input.agents.len(), self.size());
         if out.len() != n * size {
@@ -264,14 +306,23 @@ impl SigmarlObservation {
             }
         }
 
+        let k = self.neighbours;
         for (i, chunk) in out.chunks_exact_mut(size).enumerate() {
-            self.observe_one(input, i, chunk);
+            let chosen = neighbours.as_deref_mut().map(|n| &mut n[i * k..(i + 1) * k]);
+            self.observe_one(input, i, chunk, chosen);
         }
         Ok(())
     }
 
-    /// Observation of agent `ego` (inputs already checked).
-    fn observe_one(&self, input: &ObservationInput<'_>, ego: usize, out: &mut [f32]) {
+    /// Observation of agent `ego` (inputs already checked); `observed` receives the agent in
+    /// each neighbour slot.
+    fn observe_one(
+        &self,
+        input: &ObservationInput<'_>,
+        ego: usize,
+        out: &mut [f32],
+        observed: Option<&mut [Option<usize>]>,
+    ) {
         let me = &input.agents[ego];
         let path: &PreparedPath = &input.paths.paths[ego];
         let frame = EgoFrame::new(me);
@@ -331,6 +382,12 @@ impl SigmarlObservation {
             };
             insert_sorted(&mut chosen[..k], (d, j));
         }
+        if let Some(observed) = observed {
+            for (slot, &(distance_m, j)) in observed.iter_mut().zip(&chosen[..k]) {
+                *slot = (distance_m.is_finite() && j != ego).then_some(j);
+            }
+            observed.iter_mut().skip(k).for_each(|slot| *slot = None);
+        }
         for &(distance_m, j) in chosen[..k].iter().filter(|e| e.0.is_finite()) {
             let other = &state_of(j);
             for c in footprint_corners(input.vehicle, other.x_m, other.y_m, other.yaw_rad) {
@@ -348,7 +405,8 @@ impl SigmarlObservation {
                 w.push(distance_m / self.distance_norm_m);
             }
         }
-        // More neighbours requested than agents exist (or than supported): zeros.
+        // More neighbours requested than agents exist (or than supported), and the action
+        // slots: zeros.
         w.fill_rest();
     }
 }

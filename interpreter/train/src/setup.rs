@@ -243,11 +243,14 @@ fn plant_of(checked: &CheckedSpec, name: &str, lookahead: Lookahead) -> Result<P
              train in the fidelity without it",
         ),
         Some(Fidelity::Simulated(f))
-            if f.dynamics == DynamicsLayer::Kinematic(KinematicKeyword::KinematicRk4) =>
+            if matches!(
+                f.dynamics,
+                DynamicsLayer::Kinematic(KinematicKeyword::KinematicRk4 | KinematicKeyword::KinematicVmas)
+            ) =>
         {
             refuse(
-                "it integrates with `kinematic-rk4`, and training environments step SigmaRL's single Euler step \
-             only: train in a fidelity with `dynamics: kinematic`",
+                "it integrates with `kinematic-rk4` or `kinematic-vmas`, and training environments step SigmaRL's \
+             single Euler step only: train in a fidelity with `dynamics: kinematic`",
             )
         }
         Some(Fidelity::Simulated(f)) if f.control == Control::Trajectory => {

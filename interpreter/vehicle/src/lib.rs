@@ -1,5 +1,6 @@
-//! Vehicle models: the kinematic bicycle exactly as SigmaRL integrates it, the CPM Lab's
-//! identified grey-box µCar, and the rectangular footprint that observations and metrics share.
+//! Vehicle models: the kinematic bicycle exactly as SigmaRL integrates it (and as VMAS moved it
+//! in SigmaRL 1.2.0), the CPM Lab's identified grey-box µCar, and the rectangular footprint that
+//! observations and metrics share.
 //!
 //! This crate owns vehicle parameters, state and one integration step. It knows nothing of
 //! maps, policies or metrics, and draws no random numbers.
@@ -8,6 +9,7 @@ mod bicycle;
 mod bicycle_f32;
 mod footprint;
 mod greybox;
+mod vmas;
 
 pub use bicycle::{BicycleState, Command, KinematicBicycle, Precision, StepOutput};
 pub use footprint::{Footprint, footprint_corners};
@@ -15,6 +17,7 @@ pub use greybox::{
     GreyBoxDerivative, GreyBoxError, GreyBoxInput, GreyBoxParams, GreyBoxState, GreyBoxStep, GreyBoxVehicle,
     LAB_GREYBOX_PARAMETERS, MAX_SUBSTEPS,
 };
+pub use vmas::{VMAS_DRAG, VmasMotion, VmasStep};
 
 /// Geometry and limits of a vehicle (SigmaRL's `AGENTS`; the CPM Lab µCar at 1:18).
 #[derive(Debug, Clone, Copy, PartialEq)]

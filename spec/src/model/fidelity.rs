@@ -162,7 +162,8 @@ pub enum Control {
 #[serde(untagged)]
 #[schemars(rename = "DynamicsLayer")]
 pub enum DynamicsLayer<P = Parameter> {
-    /// `kinematic` (or `kinematic-rk4`): the kinematic bicycle as SigmaRL integrates it.
+    /// `kinematic` (or `kinematic-rk4`, `kinematic-vmas`): the kinematic bicycle as SigmaRL
+    /// integrates it.
     Kinematic(KinematicKeyword),
     /// The identified grey-box µCar model (`stdlib:mu-car-greybox`).
     GreyBox(#[schemars(with = "PresetOr<GreyBoxModel>")] GreyBoxModel<P>),
@@ -179,6 +180,12 @@ pub enum KinematicKeyword {
     /// Runge–Kutta, 5 substeps), as SigmaRL 1.4.0's dopri5 integrates it (its ITSC 2025
     /// checkpoints). `control: direct` only, not in training.
     KinematicRk4,
+    /// SigmaRL 1.2.0's car in VMAS (its ITSC 2024 and ICRA 2025 checkpoints): the commanded
+    /// speed and steering taken at once (no acceleration or steering-rate limit), one
+    /// Runge–Kutta step of the bicycle over `dt`, then VMAS's force round trip with its drag
+    /// of 0.25, so the car moves `Δ/dt − 0.25·v` (about 0.8 × the commanded speed when
+    /// steady) and its yaw rate likewise. `control: direct` only, not in training.
+    KinematicVmas,
 }
 
 /// The CPM Lab's identified vehicle model (cpm-lab-interface.md §4).

@@ -37,8 +37,9 @@ pub use parameter::{
     Distribution, DrawnFidelity, NamedParameter, NormalDistribution, Parameter, ParameterRange,
 };
 pub use policy::{
-    ActionMode, BuiltinPolicy, CheckpointPick, LaneFollowParams, MlpActivation, MlpSpec, ObservationDesign,
-    ObservationSpec, OnnxSpec, OutputHead, PolicySpec, ProcessSpec, SigmarlTag, TrainedActor, TrainedChoice,
+    ActionMode, BuiltinPolicy, CheckpointPick, LaneFollowParams, MlpActivation, MlpSpec, NeighbourActions,
+    ObservationDesign, ObservationSpec, OnnxSpec, OutputHead, PolicySpec, PriorityKeyword, PrioritySpec,
+    ProcessSpec, SigmarlPriority, SigmarlTag, TrainedActor, TrainedChoice,
 };
 pub use preset::PresetOr;
 pub use safety::{CbfAgents, CbfFilter, CbfWeights, SafetyLayer};

@@ -47,6 +47,54 @@ pub struct PolicySpec {
     /// Parameters of the `lane-follow` baseline.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lane_follow: Option<LaneFollowParams>,
+    /// The order in which the agents act within a step, for an actor that observes the actions
+    /// of higher-ranked agents (XP-MARL: a SigmaRL checkpoint trained with
+    /// `is_using_prioritized_marl`): SigmaRL's learned priority policy, a random order, or none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub priority: Option<PrioritySpec>,
+}
+
+/// How the agents of an XP-MARL actor are ranked each step. Agents act in rank order; each
+/// observes the actions of its observed neighbours that have already acted this step (zeros for
+/// the others), through the communication layer when the fidelity has one.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(untagged)]
+pub enum PrioritySpec {
+    /// `random` or `none`.
+    Keyword(PriorityKeyword),
+    /// SigmaRL's priority policy.
+    Sigmarl(SigmarlPriority),
+}
+
+/// Rankings without a network.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum PriorityKeyword {
+    /// A fresh uniform permutation every step, from the run's `priority` stream (XP-MARL's
+    /// random-priority baseline).
+    Random,
+    /// No ranking: every agent acts at once with the action slots empty (what SigmaRL 1.2.0's
+    /// evaluation did to its random-priority model, whose priority module it never built).
+    None,
+}
+
+/// SigmaRL's learned priority policy (`*_priority_policy.pth`, saved beside the actor): its
+/// score ranks the agents, the highest first.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SigmarlPriority {
+    /// A `*_priority_policy.pth` file, or the folder of the training run (relative to the
+    /// spec's folder or found on the data path), from which `pick` takes it.
+    #[schemars(length(min = 1))]
+    pub sigmarl: String,
+    /// `best` (`reward<r>_priority_policy.pth`) or `final` (`final_priority_policy.pth`).
+    /// Default: the actor's `pick` (SigmaRL saves the two together).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pick: Option<CheckpointPick>,
+    /// SHA-256 of the file's bytes (64 hex digits): only a file with this content is taken.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(regex(pattern = r"^[0-9a-f]{64}$"))]
+    pub sha256: Option<String>,
 }
 
 /// A multi-layer perceptron actor, its layer sizes read from the file: a safetensors file
@@ -84,10 +132,12 @@ pub struct MlpSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pick: Option<CheckpointPick>,
     /// The SigmaRL release whose conventions the checkpoint follows (`sigmarl:` only):
-    /// `1.5.0` (the default: the paper's actors and later releases) or `1.4.0` (its ITSC 2025
-    /// checkpoint). A 1.4.0 actor's steering spans its car's ±45° (later releases' ±31°), and
-    /// its observation has no one-step lag of agent 0's boundary distances. Its simulation
-    /// integrates over the step: pair it with `dynamics: kinematic-rk4`.
+    /// `1.5.0` (the default: the paper's actors and later releases), `1.4.0` (its ITSC 2025
+    /// checkpoint) or `1.2.0` (its ITSC 2024 and ICRA 2025 checkpoints). A 1.4.0 actor's
+    /// steering spans its car's ±45° (later releases' ±31°), and its observation has no
+    /// one-step lag of agent 0's boundary distances; its simulation integrates over the step:
+    /// pair it with `dynamics: kinematic-rk4`. A 1.2.0 actor's steering spans ±35°, its head
+    /// is torchrl 0.2.1's, and its simulation is VMAS's: pair it with `dynamics: kinematic-vmas`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tag: Option<SigmarlTag>,
     /// SHA-256 of the weight file's bytes (64 hex digits). When given, only a file with this
@@ -214,6 +264,12 @@ pub struct TrainedActor {
 /// A SigmaRL release whose conventions a checkpoint follows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 pub enum SigmarlTag {
+    /// Tag 1.2.0 (September 2024, the ITSC 2024 and ICRA 2025 papers): actions span ±1 m/s and
+    /// ±35°, the location of the TanhNormal shifted into the box and back in float32 as torchrl
+    /// 0.2.1 does, no boundary-distance lag. Its simulation is VMAS's: pair it with
+    /// `dynamics: kinematic-vmas`.
+    #[serde(rename = "1.2.0")]
+    V1_2_0,
     /// Tag 1.4.0 (May 2025, the ITSC 2025 paper): actions span ±1 m/s and ±45° (π/4), no
     /// boundary-distance lag in the observation.
     #[serde(rename = "1.4.0")]
@@ -229,6 +285,7 @@ impl SigmarlTag {
     /// The half-ranges of the actions, `[speed m/s, steering rad]`: the car of the release.
     pub fn action_high(self) -> [f32; 2] {
         match self {
+            SigmarlTag::V1_2_0 => [1.0, 0.610_865_24],
             SigmarlTag::V1_4_0 => [1.0, std::f32::consts::FRAC_PI_4],
             SigmarlTag::V1_5_0 => [1.0, 0.541_052_04],
         }
@@ -237,6 +294,12 @@ impl SigmarlTag {
     /// Whether agent 0's boundary distances are observed one step late.
     pub fn agent0_boundary_lag(self) -> bool {
         self == SigmarlTag::V1_5_0
+    }
+
+    /// Whether the TanhNormal's location passes through torchrl 0.2.1's shift into the box and
+    /// back (`loc + high - high` in float32, which moves its last bits).
+    pub fn shifts_location(self) -> bool {
+        self == SigmarlTag::V1_2_0
     }
 }
 
@@ -404,6 +467,33 @@ pub struct ObservationSpec {
     /// Default: `false` (SigmaRL's published policies).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub steering: bool,
+    /// The actions of the observed agents, appended after everything else as `[speed,
+    /// steering]` per observed agent, in m/s and rad (SigmaRL 1.2.0's XP-MARL actors):
+    /// `propagated` (the action an agent already chose this step, by `priority:` order, else
+    /// zeros) or `tentative` (what the same actor chooses for it with the slots empty: SigmaRL's
+    /// "perfect opponent modelling"). Default: `none`. Read from a checkpoint's `*_data.json`.
+    #[serde(default, skip_serializing_if = "NeighbourActions::is_none")]
+    pub neighbour_actions: NeighbourActions,
+}
+
+/// Which actions of the observed agents an observation carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum NeighbourActions {
+    /// None (SigmaRL's observation).
+    #[default]
+    None,
+    /// Those of higher-ranked agents that acted earlier in the step (XP-MARL).
+    Propagated,
+    /// Each one's first-pass action (opponent modelling).
+    Tentative,
+}
+
+impl NeighbourActions {
+    /// Whether the observation carries no actions.
+    pub fn is_none(&self) -> bool {
+        *self == NeighbourActions::None
+    }
 }
 
 /// Observation designs.
