@@ -31,6 +31,8 @@ pub enum PrepareError {
         path: std::path::PathBuf,
         source: cpmx_world::MapError,
     },
+    #[error("cannot build the map's reference paths: {0}")]
+    Paths(cpmx_world::PathError),
     #[error("reference path {id}: {source}")]
     RefPath { id: u64, source: cpmx_world::PathError },
     #[error("policy `{policy}`: {source}")]
@@ -273,6 +275,11 @@ pub fn load_map_spec(map: &MapSpec, map_file: Option<&Path>) -> Result<Map, Prep
                 .map_err(map_error)?;
             if let Some(region) = &file.region {
                 map = map.with_region(region)?;
+            }
+            if file.tag == Some(cpmx_spec::model::SigmarlTag::V1_2_0) {
+                map = map
+                    .with_shared_join(cpmx_world::SharedJoin::LikeOwn)
+                    .map_err(PrepareError::Paths)?;
             }
             for definition in &file.ref_paths {
                 map.add_reference_path(definition.id as usize, &definition.lanelets)

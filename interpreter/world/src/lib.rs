@@ -35,7 +35,7 @@ pub use lanelet::{Adjacent, DrivingDirection, Incoming, Intersection, Lanelet, L
 pub use map::{Bounds, Map, MapFormat, MapKind, PathSet};
 pub use nearest::{PathIndex, SegmentGrid};
 pub use numerics::Numerics;
-pub use paths::{CentreRule, PathBuilder, SharedRule};
+pub use paths::{CentreRule, PathBuilder, SharedJoin, SharedRule};
 pub use polyline::{Point, Polyline, SegmentDistance};
 pub use segment_boxes::SegmentBoxes;
 pub use sigmarl_osm::{ScenarioTable, SigmarlScenario};

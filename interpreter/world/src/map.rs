@@ -14,7 +14,7 @@ use crate::error::{LineIndex, MapError, PathError};
 use crate::lanelet::{Intersection, Lanelet, LaneletId};
 use crate::nearest::PathIndex;
 use crate::numerics::Numerics;
-use crate::paths::{CentreRule, PathBuilder, SharedRule};
+use crate::paths::{CentreRule, PathBuilder, SharedJoin, SharedRule};
 use crate::polyline::{Point, dist};
 use crate::{commonroad, generic, osm};
 
@@ -112,6 +112,8 @@ pub struct Map {
     notes: Vec<String>,
     /// How paths' centre lines are made (Lanelet2 maps join the lanelets' own).
     centre: CentreRule,
+    /// How paths' shared boundaries are joined (the SigmaRL release they follow).
+    join: SharedJoin,
 }
 
 /// The parts a loader or built-in map hands over.
@@ -255,6 +257,7 @@ impl Map {
             indexes: BTreeMap::new(),
             notes: parts.notes,
             centre: parts.centre,
+            join: SharedJoin::Blend,
         };
         if map.kind == MapKind::Generic {
             let numbering = generic::generic_path_lanelets(&map.all_lanelets);
@@ -362,7 +365,27 @@ impl Map {
         } else {
             SharedRule::Adjacency
         };
-        PathBuilder::new(&self.all_lanelets, self.numerics, rule).with_centre_rule(self.centre)
+        PathBuilder::new(&self.all_lanelets, self.numerics, rule)
+            .with_centre_rule(self.centre)
+            .with_shared_join(self.join)
+    }
+
+    /// The same map with every path built from lanelets rebuilt with its shared boundaries
+    /// joined by `join` (SigmaRL 1.2.0's paths: [`SharedJoin::LikeOwn`]). A built-in map's fixed
+    /// paths stay as they are.
+    pub fn with_shared_join(mut self, join: SharedJoin) -> Result<Map, PathError> {
+        if self.join == join || self.fixed_paths.is_some() {
+            return Ok(self);
+        }
+        self.join = join;
+        let builder = self.builder();
+        let rebuilt = self
+            .paths
+            .values()
+            .map(|p| builder.build(p.id, &p.lanelet_ids))
+            .collect::<Result<Vec<_>, _>>()?;
+        self.set_paths(rebuilt);
+        Ok(self)
     }
 
     fn set_paths(&mut self, paths: Vec<ReferencePath>) {

@@ -1,7 +1,8 @@
 //! Builds reference paths from lanelet sequences exactly as SigmaRL does (`parse_xml.py`,
 //! `_get_reference_path`; recipe in the reference README, section 1, steps 2-6): own
 //! boundaries concatenated, centre line as their point-wise mean, loop test, shared (road)
-//! boundaries blended with an overlap of 4 where they do not connect, loops re-closed.
+//! boundaries blended with an overlap of 4 where they do not connect, loops re-closed
+//! (SigmaRL 1.5.0; 1.2.0 joined them as it joined the own boundaries: [`SharedJoin`]).
 //! On Lanelet2 maps the centre line is the lanelets' own (Lanelet2's) centre lines joined
 //! instead ([`CentreRule`]), since their boundaries need not have equal point counts.
 //! It knows nothing of any particular map's numbering.
@@ -37,6 +38,20 @@ pub enum SharedRule<'a> {
     Adjacency,
 }
 
+/// How consecutive pieces of a path's shared (road) boundaries are joined.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SharedJoin {
+    /// SigmaRL 1.5.0 (and the paper's actors): a piece that connects loses its first point, one
+    /// that does not is blended in over 4 points on each side; a loop's boundary whose ends lie
+    /// apart is re-closed.
+    #[default]
+    Blend,
+    /// SigmaRL 1.2.0 (its ITSC 2024 and ICRA 2025 checkpoints): each piece is joined as the own
+    /// boundary of that side is — its first point dropped when the own boundary connects, even
+    /// where the shared boundary jumps — and loops are not re-closed.
+    LikeOwn,
+}
+
 /// How a path's centre line is made from its lanelets.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CentreRule {
@@ -54,6 +69,7 @@ pub struct PathBuilder<'a> {
     numerics: Numerics,
     shared: SharedRule<'a>,
     centre: CentreRule,
+    join: SharedJoin,
 }
 
 impl<'a> PathBuilder<'a> {
@@ -64,7 +80,14 @@ impl<'a> PathBuilder<'a> {
             numerics,
             shared,
             centre: CentreRule::PointwiseMean,
+            join: SharedJoin::Blend,
         }
+    }
+
+    /// The same builder joining the shared boundaries by `join`.
+    pub fn with_shared_join(mut self, join: SharedJoin) -> Self {
+        self.join = join;
+        self
     }
 
     /// The same builder with centre lines made by `centre`.
@@ -108,10 +131,20 @@ impl<'a> PathBuilder<'a> {
         let mut joined_centre: Vec<Point> = Vec::new();
         for lanelet in &lanelets {
             let (left_of, right_of) = self.shared_sources(lanelet);
+            let left_connects = connects(n, &left, &lanelet.left_boundary.points);
+            let right_connects = connects(n, &right, &lanelet.right_boundary.points);
             append(n, &mut left, &lanelet.left_boundary.points, false);
             append(n, &mut right, &lanelet.right_boundary.points, false);
-            append(n, &mut left_shared, &left_of.left_boundary.points, true);
-            append(n, &mut right_shared, &right_of.right_boundary.points, true);
+            match self.join {
+                SharedJoin::Blend => {
+                    append(n, &mut left_shared, &left_of.left_boundary.points, true);
+                    append(n, &mut right_shared, &right_of.right_boundary.points, true);
+                }
+                SharedJoin::LikeOwn => {
+                    append_like_own(&mut left_shared, &left_of.left_boundary.points, left_connects);
+                    append_like_own(&mut right_shared, &right_of.right_boundary.points, right_connects);
+                }
+            }
             if self.centre == CentreRule::LaneletCentreLines {
                 append(n, &mut joined_centre, &lanelet.center_line.points, false);
             }
@@ -135,7 +168,7 @@ impl<'a> PathBuilder<'a> {
         };
 
         // Re-close the shared boundaries of loops (step 6).
-        if is_loop {
+        if is_loop && self.join == SharedJoin::Blend {
             reclose(n, &mut left_shared);
             reclose(n, &mut right_shared);
         }
@@ -212,6 +245,19 @@ fn append(n: Numerics, list: &mut Vec<Point>, piece: &[Point], blend: bool) {
     } else {
         list.extend_from_slice(piece);
     }
+}
+
+/// Whether `piece` continues `list` (its first point within [`CONNECT_TOLERANCE_M`] of the
+/// last one); an empty list is continued by nothing.
+fn connects(n: Numerics, list: &[Point], piece: &[Point]) -> bool {
+    matches!((list.last(), piece.first()), (Some(&last), Some(&head)) if n.distance(last, head) < CONNECT_TOLERANCE_M)
+}
+
+/// Appends `piece` to a shared boundary as SigmaRL 1.2.0 did: without its first point when the
+/// own boundary of that side connected (`own_connects`), else whole.
+fn append_like_own(list: &mut Vec<Point>, piece: &[Point], own_connects: bool) {
+    let skip = usize::from(own_connects && !list.is_empty()).min(piece.len());
+    list.extend_from_slice(&piece[skip..]);
 }
 
 /// Re-closes a loop's shared boundary whose ends are more than [`RECLOSE_DISTANCE_M`] apart:

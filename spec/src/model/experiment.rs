@@ -169,6 +169,12 @@ pub struct MapFile {
     /// Reference paths defined by the spec, in addition to the map's own numbering.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub ref_paths: Vec<RefPathDefinition>,
+    /// The SigmaRL release whose reference paths the map's paths follow (CommonRoad maps):
+    /// `1.5.0` (the default) blends the road boundaries where the lanes beside a path change,
+    /// `1.2.0` (its ITSC 2024 and ICRA 2025 checkpoints' paths) joins them as they are. The
+    /// boundaries observed and scored follow it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tag: Option<super::SigmarlTag>,
 }
 
 /// Map file formats.
