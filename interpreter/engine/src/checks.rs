@@ -20,6 +20,7 @@ impl InterpreterChecks for BuildChecks {
 
     fn check(&self, spec: &Spec, resources: &Resources, ctx: &mut CheckContext<'_>) {
         check_weights(spec, resources, ctx);
+        check_control_period(spec, ctx);
         check_onnx(spec, resources, ctx);
         check_processes(spec, resources, ctx);
         if matches!(spec.map, MapSpec::File(_) | MapSpec::Sigmarl(_)) && resources.map_file.is_none() {
@@ -64,6 +65,44 @@ pub(crate) fn unsupported_reason(fidelity: &Fidelity) -> Option<String> {
         Fidelity::Lab(lab) => crate::lab::discovery_config(lab).err(),
         Fidelity::Simulated(_) => None,
     }
+}
+
+/// A fidelity that runs the lab's vehicle stack (planned trajectories, or the lab itself)
+/// steps its vehicles every 0.02 s: the policy's step must be a whole number of those periods.
+fn check_control_period(spec: &Spec, ctx: &mut CheckContext<'_>) {
+    if cpmx_stack::control_periods(spec.timing.dt).is_some() {
+        return;
+    }
+    let stacked: Vec<&str> = spec
+        .fidelities
+        .iter()
+        .filter(|(_, f)| match f {
+            Fidelity::Lab(_) => true,
+            Fidelity::Simulated(s) => s.control == cpmx_spec::model::Control::Trajectory,
+        })
+        .map(|(name, _)| name.as_str())
+        .collect();
+    if stacked.is_empty() {
+        return;
+    }
+    let span = ctx.span("/timing/dt");
+    ctx.push(
+        Problem::error(
+            "cpmx::check::control-period",
+            format!(
+                "`timing.dt: {}` is no multiple of the vehicles' {} s control period, which fidelit{} `{}` \
+                 run{} on",
+                spec.timing.dt,
+                cpmx_stack::CONTROL_PERIOD_S,
+                if stacked.len() == 1 { "y" } else { "ies" },
+                stacked.join("`, `"),
+                if stacked.len() == 1 { "s" } else { "" },
+            ),
+            span,
+            "not a whole number of periods",
+        )
+        .with_help("choose a step of 0.02 s periods (e.g. 0.04 or 0.06), or drive those fidelities with `control: direct`"),
+    );
 }
 
 /// Every network loads, its layers chain, its first layer takes the observation's values and

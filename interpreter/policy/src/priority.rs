@@ -301,3 +301,146 @@ impl Policy for PrioritizedPolicy {
         Box::new(copy)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::actor::Activation;
+    use crate::geometry::AgentPaths;
+    use crate::observation::{AgentState, NeighbourViews};
+    use cpmx_vehicle::VehicleParams;
+
+    /// One nearest neighbour observed, with its two action slots at the end.
+    fn design() -> SigmarlObservation {
+        SigmarlObservation {
+            neighbours: 1,
+            action_slots: true,
+            ..SigmarlObservation::default()
+        }
+    }
+
+    /// A linear actor whose speed location is 0.5 plus the sum of the action slots (so its
+    /// speed tells what it heard), and a priority network scoring the own speed.
+    fn networks() -> (MlpActor, MlpActor) {
+        let size = design().size();
+        let mut weight = vec![0.0; 4 * size];
+        weight[size - 2] = 1.0;
+        weight[size - 1] = 1.0;
+        let actor =
+            MlpActor::from_layers(&[size, 4], &[(&weight, &[0.5, 0.0, 0.0, 0.0])], Activation::Tanh).unwrap();
+        let base = size - 2;
+        let mut score = vec![0.0; 2 * base];
+        score[0] = 1.0;
+        let priority = MlpActor::from_layers(&[base, 2], &[(&score, &[0.0, 0.0])], Activation::Tanh).unwrap();
+        (actor, priority)
+    }
+
+    /// Agent 2 is agent 0's nearest neighbour, agent 0 the nearest of agents 1 and 2; agent 1
+    /// drives fastest, then agent 2, then agent 0.
+    fn agents() -> Vec<AgentState> {
+        [(0.3, 0.0, 0.1), (-0.5, 0.2, 0.3), (1.0, 0.4, 0.2)]
+            .iter()
+            .map(|&(x_m, y_m, speed)| AgentState {
+                x_m,
+                y_m,
+                yaw_rad: 0.1,
+                speed_mps: speed,
+                velocity_mps: [speed, 0.0],
+                steering_rad: 0.0,
+            })
+            .collect()
+    }
+
+    fn speeds(filling: SlotFilling, views: Option<&NeighbourViews>) -> (Vec<f32>, Vec<usize>) {
+        let map = cpmx_world::Map::builtin("intersection").unwrap();
+        let paths = AgentPaths::new([1, 2, 3].map(|id| map.reference_path(id).unwrap()));
+        let agents = agents();
+        let input = ObservationInput {
+            agents: &agents,
+            paths: &paths,
+            vehicle: &VehicleParams::MU_CAR,
+            previous_corners: None,
+            neighbours: views,
+        };
+        let (actor, _) = networks();
+        let rng = ChaCha20Rng::seed_from_u64(0);
+        let mut policy = PrioritizedPolicy::new(
+            actor,
+            design(),
+            filling,
+            OutputHead::SigmarlTanhNormal,
+            ActionMode::Mean,
+            rng,
+        )
+        .unwrap();
+        let mut out = vec![Command::default(); 3];
+        policy.act(&input, &mut out).unwrap();
+        (
+            out.iter().map(|c| c.speed_mps as f32).collect(),
+            policy.order().to_vec(),
+        )
+    }
+
+    #[test]
+    fn higher_ranks_act_first_and_lower_ranks_hear_them() {
+        let learned = || SlotFilling::Propagated(Ranking::Learned(networks().1));
+        let (speeds, order) = speeds(learned(), None);
+        assert_eq!(order, [1, 2, 0]);
+        let alone = 0.5f32.tanh();
+        // Agents 1 and 2 act before their neighbour (agent 0) and hear nothing; agent 0 acts
+        // last and hears agent 2's action.
+        let heard = (0.5 + alone).tanh();
+        assert_close(&speeds, &[heard, alone, alone]);
+
+        // Without a ranking nobody hears anything; with tentative actions everybody does.
+        let (unranked, order) = self::speeds(SlotFilling::Propagated(Ranking::Unranked), None);
+        assert!(order.is_empty());
+        assert_close(&unranked, &[alone; 3]);
+        let (tentative, _) = self::speeds(SlotFilling::Tentative, None);
+        assert_close(&tentative, &[heard; 3]);
+
+        // An action is heard only through an exact view: agent 0 knowing agent 2 from an older
+        // message does not hear its action of this step.
+        let mut views = NeighbourViews::exact(3);
+        views.set(0, 2, NeighbourView::Known(agents()[2]));
+        let (late, _) = self::speeds(learned(), Some(&views));
+        assert_close(&late, &[alone; 3]);
+    }
+
+    fn assert_close(found: &[f32], expected: &[f32]) {
+        let close = found.iter().zip(expected).all(|(a, b)| (a - b).abs() < 1e-6);
+        assert!(
+            close && found.len() == expected.len(),
+            "{found:?} != {expected:?}"
+        );
+    }
+
+    #[test]
+    fn random_ranks_are_permutations_drawn_from_the_stream() {
+        let random = |seed| SlotFilling::Propagated(Ranking::Random(ChaCha20Rng::seed_from_u64(seed)));
+        let (first, order) = speeds(random(7), None);
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, [0, 1, 2]);
+        assert_eq!(speeds(random(7), None), (first, order));
+        let orders: std::collections::BTreeSet<Vec<usize>> =
+            (0..20).map(|seed| speeds(random(seed), None).1).collect();
+        assert!(orders.len() > 3, "{orders:?}");
+    }
+
+    #[test]
+    fn a_priority_network_must_fit_the_observation_without_its_slots() {
+        let (actor, _) = networks();
+        let wrong = MlpActor::from_layers(&[5, 2], &[(&[0.0; 10], &[0.0; 2])], Activation::Tanh).unwrap();
+        let error = PrioritizedPolicy::new(
+            actor,
+            design(),
+            SlotFilling::Propagated(Ranking::Learned(wrong)),
+            OutputHead::SigmarlTanhNormal,
+            ActionMode::Mean,
+            ChaCha20Rng::seed_from_u64(0),
+        )
+        .unwrap_err();
+        assert!(error.to_string().contains("network expects 5 inputs"), "{error}");
+    }
+}

@@ -185,3 +185,40 @@ fn intersection_matches_sigmarl_parse() {
     let b = map.bounds();
     assert_eq!((b.min_x_m, b.max_x_m, b.min_y_m, b.max_y_m), (0.0, 4.5, 0.0, 4.0));
 }
+
+/// SigmaRL 1.2.0 joined each path's shared boundaries as it joined the own ones (a piece loses
+/// its first point, no blend where the lanes beside the path change, loops not re-closed): its
+/// paths have SigmaRL 1.5.0's centre lines and own boundaries, and shared boundaries shorter by
+/// the blends' extra points. Point counts as SigmaRL 1.2.0's own parser gives them.
+#[test]
+fn sigmarl_1_2_0_joins_shared_boundaries_like_the_own_ones() {
+    let blended = map();
+    let joined = map().with_shared_join(cpmx_world::SharedJoin::LikeOwn).unwrap();
+    for (id, left, right) in [(0, 177, 169), (1, 127, 123), (3, 127, 123), (5, 145, 141)] {
+        let (a, b) = (
+            blended.reference_path(id).unwrap(),
+            joined.reference_path(id).unwrap(),
+        );
+        assert_eq!(a.center_line, b.center_line);
+        assert_eq!(
+            (a.left_boundary.clone(), a.right_boundary.clone()),
+            (b.left_boundary.clone(), b.right_boundary.clone())
+        );
+        assert_eq!(
+            (b.left_boundary_shared.len(), b.right_boundary_shared.len()),
+            (left, right),
+            "path {id}"
+        );
+        // Where SigmaRL 1.5.0 re-closes a loop, 1.2.0's ends stay the 0.15 m lane apart.
+        if a.right_boundary_shared.len() == b.right_boundary_shared.len() + 8 {
+            let p = &b.right_boundary_shared.points;
+            let gap = (p[0][0] - p[p.len() - 1][0]).hypot(p[0][1] - p[p.len() - 1][1]);
+            assert!((gap - 0.15).abs() < 1e-3, "path {id}: ends {gap} m apart");
+        }
+    }
+    // Every other path keeps its number.
+    assert_eq!(
+        joined.reference_paths().count(),
+        blended.reference_paths().count()
+    );
+}

@@ -1,0 +1,157 @@
+//! XP-MARL's published models (`sigmarl-published/checkpoints/icra25`) in SigmaRL 1.2.0's loop:
+//! the shipped experiment runs from the data path, a random ranking is a stream of the run
+//! (same seed, same trajectories; another order than none), and `priority:` is refused with a
+//! located diagnostic wherever it cannot mean what it says.
+
+mod support;
+
+use std::path::{Path, PathBuf};
+
+use support::{cpmx_in, ok, reference, root, scratch, unwrapped};
+
+/// The shipped spec with `steps` steps, `count` drawn starts and `policies` instead of its own
+/// (YAML list items; the shipped ones when `None`), written into `dir`.
+fn variant(dir: &Path, steps: u32, count: u32, policies: Option<&str>) -> PathBuf {
+    let shipped = std::fs::read_to_string(root().join("experiments/xp-marl.yaml")).unwrap();
+    let mut text = shipped
+        .replace("steps: 600", &format!("steps: {steps}"))
+        .replace("count: 10,", &format!("count: {count},"));
+    if let Some(policies) = policies {
+        let start = text.find("policies:\n").unwrap();
+        let end = text.find("initial_configurations:").unwrap();
+        text.replace_range(start..end, &format!("policies:\n{policies}"));
+    }
+    let path = dir.join("xp-marl.yaml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// `cpmx COMMAND SPEC --data REFERENCE [ARGS]` in `dir`: exit code and unwrapped stderr.
+fn cpmx_spec(dir: &Path, command: &str, spec: &Path, args: &[&str]) -> (Option<i32>, String, String) {
+    let reference = reference();
+    let mut all = vec![
+        command,
+        spec.to_str().unwrap(),
+        "--data",
+        reference.to_str().unwrap(),
+    ];
+    all.extend_from_slice(args);
+    let out = cpmx_in(dir, &all);
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        unwrapped(&out.stderr),
+    )
+}
+
+#[test]
+fn the_five_models_run_and_a_random_ranking_is_the_runs_stream() {
+    let dir = scratch("xp-marl-run");
+    let spec = variant(&dir, 40, 2, None);
+    let out = cpmx_in(
+        &dir,
+        &[
+            "run",
+            spec.to_str().unwrap(),
+            "--data",
+            reference().to_str().unwrap(),
+            "--out",
+            "a",
+        ],
+    );
+    ok(&out);
+    let trajectory = |folder: &str, policy: &str| {
+        std::fs::read(
+            dir.join(folder)
+                .join(format!("runs/sim/{policy}/sample1/rep1/trajectory.csv")),
+        )
+        .unwrap()
+    };
+    for policy in [
+        "m1-xp-marl",
+        "m2-baseline",
+        "m3-opponent-modelling",
+        "m5-xp-marl-noise",
+    ] {
+        assert!(!trajectory("a", policy).is_empty());
+    }
+    // The random order is drawn from the run's own stream: a second run gives the same
+    // trajectories, and they are not those of the unranked model.
+    let again = cpmx_in(
+        &dir,
+        &[
+            "run",
+            spec.to_str().unwrap(),
+            "--data",
+            reference().to_str().unwrap(),
+            "--out",
+            "b",
+            "--only",
+            "policy=m4-random",
+        ],
+    );
+    ok(&again);
+    assert_eq!(trajectory("a", "m4-random"), trajectory("b", "m4-random"));
+    assert_ne!(trajectory("a", "m4-random"), trajectory("a", "m4-unranked"));
+}
+
+#[test]
+fn priority_is_refused_where_it_cannot_rank() {
+    let dir = scratch("xp-marl-refused");
+    let icra = "sigmarl-published/checkpoints/icra25";
+    let cases = [
+        // An XP-MARL actor without a ranking.
+        (
+            format!("  - {{name: m1, mlp: {{sigmarl: {icra}/M1, tag: 1.2.0}}}}\n"),
+            "was trained with XP-MARL's action propagation (`is_using_prioritized_marl: true`)",
+        ),
+        // A ranking for an actor that observes no actions, or tentative ones.
+        (
+            format!("  - {{name: m2, mlp: {{sigmarl: {icra}/M2, tag: 1.2.0}}, priority: random}}\n"),
+            "`priority` orders the agents of `m2`, whose actor observes no actions of its neighbours",
+        ),
+        (
+            format!("  - {{name: m3, mlp: {{sigmarl: {icra}/M3, tag: 1.2.0}}, priority: none}}\n"),
+            "observes its neighbours' tentative actions (opponent modelling)",
+        ),
+        // A learned ranking from a run that saved none (random priorities).
+        (
+            format!(
+                "  - {{name: m4, mlp: {{sigmarl: {icra}/M4, tag: 1.2.0}}, priority: {{sigmarl: {icra}/M4}}}}\n"
+            ),
+            "holds no `reward<r>_priority_policy.pth`",
+        ),
+        // A ranking for a policy that is no SigmaRL checkpoint.
+        (
+            "  - {name: base, builtin: lane-follow, priority: random}\n".to_owned(),
+            "`priority` ranks the agents of a SigmaRL checkpoint trained with XP-MARL's action propagation",
+        ),
+    ];
+    for (policies, expected) in cases {
+        let spec = variant(&dir, 10, 1, Some(&policies));
+        let (code, _, stderr) = cpmx_spec(&dir, "validate", &spec, &[]);
+        assert_eq!(code, Some(1), "{policies}{stderr}");
+        assert!(stderr.contains(expected), "{policies}: {stderr}");
+        assert!(stderr.contains("xp-marl.yaml:"), "located: {stderr}");
+    }
+}
+
+/// The models act every 0.05 s, which the lab's vehicle stack (0.02 s periods) cannot
+/// schedule: a twin fidelity beside them is refused before any run, at `timing.dt`.
+#[test]
+fn a_planning_fidelity_at_the_models_step_is_refused_at_validate() {
+    let dir = scratch("xp-marl-twin");
+    let spec = variant(&dir, 10, 1, None);
+    let text = std::fs::read_to_string(&spec).unwrap().replace(
+        "  sim: {control: direct, dynamics: kinematic-vmas}\n",
+        "  sim: {control: direct, dynamics: kinematic-vmas}\n  twin: {control: trajectory, dynamics: stdlib:mu-car-greybox}\n\
+         planner: {control_horizon: 4, prediction_horizon: 12, after_control_horizon: {speed: hold, steering: linear-to-zero}}\n",
+    );
+    std::fs::write(&spec, text).unwrap();
+    let (code, _, stderr) = cpmx_spec(&dir, "validate", &spec, &[]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("`timing.dt: 0.05` is no multiple of the vehicles' 0.02 s control period, which fidelity `twin` runs on"),
+        "{stderr}"
+    );
+}
