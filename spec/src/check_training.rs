@@ -502,6 +502,25 @@ fn check_algorithm(training: &TrainingSpec, ctx: &mut CheckContext<'_>) {
 }
 
 fn check_network_and_seeds(training: &TrainingSpec, ctx: &mut CheckContext<'_>) {
+    // What training environments observe: SigmaRL's design without sensor noise or actions.
+    let observation = &training.observation;
+    for (key, given) in [
+        ("uniform_noise", observation.uniform_noise > 0.0),
+        ("neighbour_actions", !observation.neighbour_actions.is_none()),
+    ] {
+        if given {
+            let span = ctx.span(&format!("/training/observation/{key}"));
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::training-observation",
+                    format!("training environments do not observe with `{key}` yet"),
+                    span,
+                    "not in training",
+                )
+                .with_help(format!("remove `{key}` from the training's observation")),
+            );
+        }
+    }
     for (i, width) in training.network.hidden.iter().enumerate() {
         if *width == 0 {
             let span = ctx.span(&format!("/training/network/hidden/{i}"));

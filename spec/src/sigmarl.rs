@@ -191,7 +191,7 @@ impl std::fmt::Display for Refusal {
 }
 
 /// Parameters whose value cpmx's observation has built in: any other value is refused.
-const FIXED: [(&str, bool, &str); 11] = [
+const FIXED: [(&str, bool, &str); 8] = [
     (
         "is_partial_observation",
         true,
@@ -201,16 +201,6 @@ const FIXED: [(&str, bool, &str); 11] = [
         "is_ego_view",
         true,
         "cpmx observes in the ego frame, not from a bird's-eye view",
-    ),
-    (
-        "is_observe_vertices",
-        true,
-        "cpmx observes the other agents' corners, not their pose and size",
-    ),
-    (
-        "is_observe_distance_to_agents",
-        true,
-        "cpmx always observes the distances to the other agents",
     ),
     (
         "is_use_mtv_distance",
@@ -235,12 +225,7 @@ const FIXED: [(&str, bool, &str); 11] = [
     (
         "is_obs_noise",
         false,
-        "cpmx has no observation noise (SigmaRL's uniform noise on normalised values)",
-    ),
-    (
-        "is_add_noise",
-        false,
-        "cpmx has no observation noise (SigmaRL's uniform noise on normalised values)",
+        "cpmx adds SigmaRL 1.2.0's sensor noise (`is_add_noise`), not the later releases' `is_obs_noise`",
     ),
     (
         "is_using_cbf",
@@ -382,6 +367,9 @@ pub fn observation(
     let observed_agents = count("n_nearing_agents_observed", 2, 16, &mut refuse);
     let center_line_distance = flag("is_observe_distance_to_center_line", true, &mut refuse);
     let steering = flag("is_obs_steering", false, &mut refuse);
+    let neighbour_vertices = flag("is_observe_vertices", true, &mut refuse);
+    let neighbour_distance = flag("is_observe_distance_to_agents", true, &mut refuse);
+    let noise = flag("is_add_noise", false, &mut refuse);
     let propagated = flag("is_using_prioritized_marl", false, &mut refuse);
     let tentative = flag("is_using_opponent_modeling", false, &mut refuse);
     let neighbour_actions = match (propagated, tentative) {
@@ -438,6 +426,7 @@ pub fn observation(
         steering,
         lane_width_m,
         neighbour_actions,
+        (neighbour_vertices, neighbour_distance, noise),
     ) {
         (
             Some(ref_points),
@@ -446,6 +435,7 @@ pub fn observation(
             Some(steering),
             Some(lane_width_m),
             Some(neighbour_actions),
+            (Some(neighbour_vertices), Some(neighbour_distance), Some(noise)),
         ) => {
             Ok(ObservationSpec {
                 design: ObservationDesign::Sigmarl,
@@ -461,6 +451,10 @@ pub fn observation(
                 agent0_boundary_lag: true,
                 steering,
                 neighbour_actions,
+                neighbour_vertices,
+                neighbour_distance,
+                // SigmaRL 1.2.0's sensor noise: U[0, 0.2 × the car's width) on every value.
+                uniform_noise: if noise { 0.2 * vehicle.width } else { 0.0 },
             })
         }
         _ => Err(refusals),
@@ -468,7 +462,10 @@ pub fn observation(
 }
 
 /// Parameters mapped to a field of the observation.
-const HONOURED: [&str; 6] = [
+const HONOURED: [&str; 9] = [
+    "is_observe_vertices",
+    "is_observe_distance_to_agents",
+    "is_add_noise",
     "n_points_short_term",
     "n_nearing_agents_observed",
     "is_observe_distance_to_center_line",

@@ -155,6 +155,11 @@ impl RunInputs<'_> {
         (mode, ChaCha20Rng::from_seed(stream_key(self.plan.seed, "policy")))
     }
 
+    /// The run's stream of observation noise (`observation-noise`).
+    fn noise_stream(&self) -> ChaCha20Rng {
+        ChaCha20Rng::from_seed(stream_key(self.plan.seed, "observation-noise"))
+    }
+
     /// A fresh policy for this run, with its random stream (`policy`) from the run's seed.
     pub fn policy(&self) -> Result<Box<dyn Policy>, RunError> {
         let prepared = self
@@ -171,11 +176,13 @@ impl RunInputs<'_> {
                 neighbour_actions,
             } => {
                 let (mode, rng) = self.action_mode(*sample);
+                let noise = self.noise_stream();
                 let actor = actor.as_ref().clone();
                 match neighbour_actions {
                     None => Box::new(
                         MlpPolicy::with_output(actor, *observation, *output, mode, rng)?
-                            .with_action_head(*head),
+                            .with_action_head(*head)
+                            .with_noise_stream(noise),
                     ),
                     Some(source) => {
                         let filling = match source {
@@ -190,7 +197,8 @@ impl RunInputs<'_> {
                         };
                         Box::new(
                             PrioritizedPolicy::new(actor, *observation, filling, *output, mode, rng)?
-                                .with_action_head(*head),
+                                .with_action_head(*head)
+                                .with_noise_stream(noise),
                         )
                     }
                 }
@@ -202,32 +210,32 @@ impl RunInputs<'_> {
                 sample,
             } => {
                 let (mode, rng) = self.action_mode(*sample);
-                Box::new(MlpPolicy::with_network(
-                    network.clone(),
-                    *observation,
-                    *output,
-                    mode,
-                    rng,
-                )?)
+                Box::new(
+                    MlpPolicy::with_network(network.clone(), *observation, *output, mode, rng)?
+                        .with_noise_stream(self.noise_stream()),
+                )
             }
             PreparedPolicy::Process {
                 spec,
                 observation,
                 dir,
-            } => Box::new(ProcessPolicy::start(ProcessConfig {
-                command: spec.command.clone(),
-                dir: dir.clone(),
-                timeout_s: spec.timeout_s,
-                observation: *observation,
-                seed: self.plan.seed,
-                dt_s: self.experiment.spec.timing.dt,
-                name: self.plan.policy.clone(),
-            })?),
+            } => Box::new(
+                ProcessPolicy::start(ProcessConfig {
+                    command: spec.command.clone(),
+                    dir: dir.clone(),
+                    timeout_s: spec.timeout_s,
+                    observation: *observation,
+                    seed: self.plan.seed,
+                    dt_s: self.experiment.spec.timing.dt,
+                    name: self.plan.policy.clone(),
+                })?
+                .with_noise_stream(self.noise_stream()),
+            ),
             PreparedPolicy::External { observation, decider } => {
                 let decider = decider
                     .clone()
                     .ok_or_else(|| RunError::Unbound(self.plan.policy.clone()))?;
-                Box::new(ExternalPolicy::new(decider, *observation))
+                Box::new(ExternalPolicy::new(decider, *observation).with_noise_stream(self.noise_stream()))
             }
             PreparedPolicy::NotTrained { seed } => {
                 return Err(RunError::NotTrained {

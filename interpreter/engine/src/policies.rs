@@ -83,6 +83,9 @@ pub fn observation(o: &ObservationSpec) -> SigmarlObservation {
         observe_boundary_distances: o.boundary_distances,
         observe_steering: o.steering,
         action_slots: !o.neighbour_actions.is_none(),
+        observe_vertices: o.neighbour_vertices,
+        observe_neighbour_distance: o.neighbour_distance,
+        uniform_noise: o.uniform_noise as f32,
         boundary_corners: if o.agent0_boundary_lag {
             BoundaryCorners::LaggedForFirstAgent
         } else {

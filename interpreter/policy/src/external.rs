@@ -41,6 +41,12 @@ pub struct ExternalPolicy {
 }
 
 impl ExternalPolicy {
+    /// The same policy drawing its observation's noise (if the design adds any) from `rng`.
+    pub fn with_noise_stream(mut self, rng: rand_chacha::ChaCha20Rng) -> Self {
+        self.memory.set_noise_stream(rng);
+        self
+    }
+
     /// A policy that observes with `observation` (none: states only) and asks `decider`.
     pub fn new(decider: Arc<dyn Decider>, observation: Option<SigmarlObservation>) -> Self {
         ExternalPolicy {

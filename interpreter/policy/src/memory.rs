@@ -3,6 +3,8 @@
 //! for every policy that observes (network, process and Python policies).
 
 use cpmx_vehicle::{Footprint, footprint_corners};
+use rand::{Rng, RngExt, SeedableRng};
+use rand_chacha::ChaCha20Rng;
 
 use crate::observation::{ObservationError, ObservationInput, SigmarlObservation};
 
@@ -13,6 +15,8 @@ pub(crate) struct ObservationMemory {
     observations: Vec<f32>,
     previous_corners: Vec<Footprint>,
     current_corners: Vec<Footprint>,
+    /// The stream of the observation's uniform noise, when the design adds noise.
+    noise: Option<ChaCha20Rng>,
 }
 
 impl ObservationMemory {
@@ -59,6 +63,12 @@ impl ObservationMemory {
             }
             None => design.observe_all(&observed, &mut self.observations)?,
         }
+        if design.uniform_noise > 0.0 {
+            let rng = self.noise.as_mut().ok_or(ObservationError::NoNoiseStream)?;
+            for value in &mut self.observations {
+                *value += design.uniform_noise * rng.random::<f32>();
+            }
+        }
         self.current_corners.resize(agents, Footprint::default());
         for (slot, a) in self.current_corners.iter_mut().zip(input.agents) {
             *slot = footprint_corners(input.vehicle, a.x_m, a.y_m, a.yaw_rad);
@@ -77,10 +87,20 @@ impl ObservationMemory {
         self.previous_corners.clear();
     }
 
-    /// A memory that remembers what this one does (for a policy's fork).
-    pub(crate) fn remembering(&self) -> ObservationMemory {
+    /// Draws the observation's noise from `rng` (the run's `observation-noise` stream).
+    pub(crate) fn set_noise_stream(&mut self, rng: ChaCha20Rng) {
+        self.noise = Some(rng);
+    }
+
+    /// A memory that remembers what this one does (for a policy's fork), its noise from a
+    /// fresh stream seeded from this one's (so a lookahead does not repeat the run's draws).
+    pub(crate) fn remembering(&mut self) -> ObservationMemory {
         ObservationMemory {
             previous_corners: self.previous_corners.clone(),
+            noise: self
+                .noise
+                .as_mut()
+                .map(|rng| ChaCha20Rng::seed_from_u64(rng.next_u64())),
             ..ObservationMemory::default()
         }
     }

@@ -163,6 +163,12 @@ pub struct SigmarlObservation {
     pub observe_boundary_distances: bool,
     /// Observe each neighbour's centre distance (1 value per neighbour).
     pub observe_neighbour_distance: bool,
+    /// Observe each neighbour's 4 corners (8 values); otherwise its position (2), heading
+    /// relative to the own over 2π (1), length and width (2), over the position normaliser.
+    pub observe_vertices: bool,
+    /// Noise added to every value after normalisation, uniform on [0, this) (SigmaRL 1.2.0's
+    /// `is_add_noise`); drawn by the policy's observation memory from its own stream.
+    pub uniform_noise: f32,
     /// Observe the steering angles (SigmaRL's `is_obs_steering`): the own after the own speed,
     /// each neighbour's after its velocity (1 + `neighbours` values).
     pub observe_steering: bool,
@@ -189,6 +195,8 @@ impl Default for SigmarlObservation {
             observe_center_line_distance: true,
             observe_boundary_distances: true,
             observe_neighbour_distance: true,
+            observe_vertices: true,
+            uniform_noise: 0.0,
             observe_steering: false,
             steering_norm_rad: std::f64::consts::TAU,
             boundary_corners: BoundaryCorners::LaggedForFirstAgent,
@@ -214,13 +222,13 @@ pub enum ObservationError {
     /// The previous corners do not cover every agent.
     #[error("previous corners for {found} agents, expected {agents}")]
     CornerCount { found: usize, agents: usize },
+    /// The design adds noise and the policy was given no stream to draw it from.
+    #[error("the observation adds noise, and the policy has no `observation-noise` stream")]
+    NoNoiseStream,
     /// A reference path has fewer than two centre-line or boundary points.
     #[error("reference path {id} has a centre line or shared boundary with fewer than two points")]
     DegeneratePath { id: usize },
 }
-
-/// Values per neighbour: 4 corners, velocity (2), optionally the distance.
-const NEIGHBOUR_BASE: usize = 8 + 2;
 
 /// Most neighbours the allocation-free selection supports.
 pub const MAX_NEIGHBOURS: usize = 8;
@@ -233,8 +241,14 @@ impl SigmarlObservation {
             + 2 * self.reference_points
             + usize::from(self.observe_center_line_distance)
             + 2 * usize::from(self.observe_boundary_distances)
-            + self.neighbours * (NEIGHBOUR_BASE + steering + usize::from(self.observe_neighbour_distance))
+            + self.neighbours
+                * (self.neighbour_shape() + 2 + steering + usize::from(self.observe_neighbour_distance))
             + self.action_slot_count()
+    }
+
+    /// Values that place and shape one neighbour: its corners, or its pose and size.
+    fn neighbour_shape(&self) -> usize {
+        if self.observe_vertices { 8 } else { 5 }
     }
 
     /// Number of action slots at the end of each agent's observation (2 per observed neighbour,
@@ -390,10 +404,19 @@ impl SigmarlObservation {
         }
         for &(distance_m, j) in chosen[..k].iter().filter(|e| e.0.is_finite()) {
             let other = &state_of(j);
-            for c in footprint_corners(input.vehicle, other.x_m, other.y_m, other.yaw_rad) {
-                let q = frame.to_ego(c);
+            if self.observe_vertices {
+                for c in footprint_corners(input.vehicle, other.x_m, other.y_m, other.yaw_rad) {
+                    let q = frame.to_ego(c);
+                    w.push(q[0] / self.position_norm_m);
+                    w.push(q[1] / self.position_norm_m);
+                }
+            } else {
+                let q = frame.to_ego([other.x_m, other.y_m]);
                 w.push(q[0] / self.position_norm_m);
                 w.push(q[1] / self.position_norm_m);
+                w.push((other.yaw_rad - me.yaw_rad) / std::f64::consts::TAU);
+                w.push(input.vehicle.length_m / self.position_norm_m);
+                w.push(input.vehicle.width_m / self.position_norm_m);
             }
             let (speed, heading) = (other.velocity_norm_mps(), other.yaw_rad - me.yaw_rad);
             w.push(speed * heading.cos() / self.speed_norm_mps);

@@ -177,6 +177,12 @@ impl MlpPolicy {
         Self::with_net(Net::External(network), observation, output, mode, rng)
     }
 
+    /// The same policy drawing its observation's noise (if the design adds any) from `rng`.
+    pub fn with_noise_stream(mut self, rng: ChaCha20Rng) -> Self {
+        self.memory.set_noise_stream(rng);
+        self
+    }
+
     /// The same policy with the actions' half-ranges of `head` (a SigmaRL release's car; the
     /// default is SigmaRL's later ±1 m/s, ±31°).
     pub fn with_action_head(mut self, head: ActionHead) -> Self {
@@ -300,6 +306,7 @@ impl Policy for MlpPolicy {
 
     fn fork(&mut self) -> Box<dyn Policy> {
         let mut copy = self.clone();
+        copy.memory = self.memory.remembering();
         if self.mode == ActionMode::Sample {
             copy.rng = ChaCha20Rng::seed_from_u64(self.rng.next_u64());
         }

@@ -133,6 +133,12 @@ impl PrioritizedPolicy {
         })
     }
 
+    /// The same policy drawing its observation's noise (if the design adds any) from `rng`.
+    pub fn with_noise_stream(mut self, rng: ChaCha20Rng) -> Self {
+        self.memory.set_noise_stream(rng);
+        self
+    }
+
     /// The same policy with the actions' box of `head` (the checkpoint's release's car).
     pub fn with_action_head(mut self, head: ActionHead) -> Self {
         self.head = head;

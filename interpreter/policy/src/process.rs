@@ -251,6 +251,12 @@ impl std::fmt::Debug for ProcessPolicy {
 }
 
 impl ProcessPolicy {
+    /// The same policy drawing its observation's noise (if the design adds any) from `rng`.
+    pub fn with_noise_stream(mut self, rng: rand_chacha::ChaCha20Rng) -> Self {
+        self.memory.set_noise_stream(rng);
+        self
+    }
+
     /// Starts the process (one per run).
     pub fn start(config: ProcessConfig) -> Result<Self, PolicyError> {
         let channel = Channel::start(&config)?;

@@ -474,6 +474,33 @@ pub struct ObservationSpec {
     /// "perfect opponent modelling"). Default: `none`. Read from a checkpoint's `*_data.json`.
     #[serde(default, skip_serializing_if = "NeighbourActions::is_none")]
     pub neighbour_actions: NeighbourActions,
+    /// Observe each observed agent's corners (`true`, the default: SigmaRL's vertices) or,
+    /// with `false`, its position in the ego frame, heading relative to the own over 2π and
+    /// length and width over the position normaliser (SigmaRL's `is_observe_vertices: false`).
+    #[serde(default = "yes", skip_serializing_if = "is_yes")]
+    pub neighbour_vertices: bool,
+    /// Observe each observed agent's centre distance (default `true`; SigmaRL's
+    /// `is_observe_distance_to_agents`).
+    #[serde(default = "yes", skip_serializing_if = "is_yes")]
+    pub neighbour_distance: bool,
+    /// Noise added to every normalised value, uniform on [0, this) and drawn anew each step
+    /// from the run's `observation-noise` stream (SigmaRL 1.2.0's `is_add_noise`: 0.2 × the
+    /// vehicle's width). Default: 0, none. Policies with a network only.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    #[schemars(range(min = 0.0, max = 1.0))]
+    pub uniform_noise: f64,
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn is_yes(value: &bool) -> bool {
+    *value
+}
+
+fn is_zero(value: &f64) -> bool {
+    *value == 0.0
 }
 
 /// Which actions of the observed agents an observation carries.
