@@ -105,3 +105,58 @@ impl ObservationMemory {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::AgentPaths;
+    use crate::observation::AgentState;
+    use cpmx_vehicle::VehicleParams;
+
+    #[test]
+    fn noise_is_uniform_below_its_level_and_drawn_from_the_given_stream() {
+        let map = cpmx_world::Map::builtin("intersection").unwrap();
+        let paths = AgentPaths::new([1, 2].map(|id| map.reference_path(id).unwrap()));
+        let agents = [0.3, -0.5].map(|x_m| AgentState {
+            x_m,
+            yaw_rad: 0.1,
+            velocity_mps: [0.4, 0.0],
+            ..AgentState::default()
+        });
+        let input = ObservationInput {
+            agents: &agents,
+            paths: &paths,
+            vehicle: &VehicleParams::MU_CAR,
+            previous_corners: None,
+            neighbours: None,
+        };
+        let plain = SigmarlObservation::default();
+        let noisy = SigmarlObservation {
+            uniform_noise: 0.016,
+            ..plain
+        };
+        let clean = ObservationMemory::default()
+            .observe(&plain, &input)
+            .unwrap()
+            .to_vec();
+        // Without a stream the noisy design refuses to observe rather than draw from nowhere.
+        assert_eq!(
+            ObservationMemory::default().observe(&noisy, &input).unwrap_err(),
+            ObservationError::NoNoiseStream
+        );
+        let observe = |seed: u64| {
+            let mut memory = ObservationMemory::default();
+            memory.set_noise_stream(ChaCha20Rng::seed_from_u64(seed));
+            memory.observe(&noisy, &input).unwrap().to_vec()
+        };
+        let (a, b, c) = (observe(1), observe(1), observe(2));
+        assert_eq!(a, b);
+        assert_ne!(a, c);
+        for (noisy, clean) in a.iter().zip(&clean) {
+            let added = noisy - clean;
+            assert!((0.0..0.0161).contains(&added), "{added}");
+        }
+        let mean = a.iter().zip(&clean).map(|(n, c)| n - c).sum::<f32>() / a.len() as f32;
+        assert!((0.004..0.012).contains(&mean), "{mean}");
+    }
+}

@@ -1,7 +1,8 @@
-//! XP-MARL's published models (`sigmarl-published/checkpoints/icra25`) in SigmaRL 1.2.0's loop:
-//! the shipped experiment runs from the data path, a random ranking is a stream of the run
-//! (same seed, same trajectories; another order than none), and `priority:` is refused with a
-//! located diagnostic wherever it cannot mean what it says.
+//! The models SigmaRL's authors published at tag 1.2.0, in that release's loop. XP-MARL's
+//! (`sigmarl-published/checkpoints/icra25`): the shipped experiment runs from the data path, a
+//! random ranking is a stream of the run (same seed, same trajectories; another order than
+//! none), and `priority:` is refused with a located diagnostic wherever it cannot mean what it
+//! says. ITSC 2024's (`.../itsc24`) on an unseen scenario, with their sensor noise.
 
 mod support;
 
@@ -154,4 +155,55 @@ fn a_planning_fidelity_at_the_models_step_is_refused_at_validate() {
         stderr.contains("`timing.dt: 0.05` is no multiple of the vehicles' 0.02 s control period, which fidelity `twin` runs on"),
         "{stderr}"
     );
+}
+
+/// ITSC 2024's models on an unseen scenario (docs/maps.md's spec): those whose observation
+/// cpmx makes run, with SigmaRL 1.2.0's sensor noise drawn from the run's stream (same seed,
+/// same trajectory; another seed, another); the bird's-eye view and the boundary points are
+/// refused by name.
+#[test]
+fn itsc24_models_run_on_an_unseen_scenario_with_their_noise() {
+    let dir = scratch("itsc24");
+    let spec = |seed: u32, policies: &str| {
+        let text = format!(
+            "cpmx: 1\nname: unseen\nmap: {{sigmarl: roundabout_1}}\n\
+             vehicle: {{length: 0.16, width: 0.08, wheelbase: 0.16, rear_axle: 0.08, max_steering_deg: 35, \
+             max_steering_rate_deg_s: 900, accel: [-20, 20], max_speed: 1.0}}\n\
+             timing: {{dt: 0.05, steps: 30}}\nagents: 8\npolicies:\n{policies}\
+             initial_configurations:\n  - sample: {{count: 1, seed: 1, min_gap: 0.25}}\n\
+             repetitions: 1\nseed: {seed}\nfidelities:\n  sim: {{control: direct, dynamics: kinematic-vmas}}\n"
+        );
+        let path = dir.join(format!("unseen-{seed}.yaml"));
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let itsc = "sigmarl-published/checkpoints/itsc24";
+    let runnable: String = ["M0", "M2", "M3", "M5"]
+        .iter()
+        .map(|m| {
+            format!(
+                "  - {{name: {}, mlp: {{sigmarl: {itsc}/{m}, tag: 1.2.0}}}}\n",
+                m.to_lowercase()
+            )
+        })
+        .collect();
+    let trajectory = |seed: u32| {
+        let out = format!("out-{seed}");
+        let (code, _, stderr) = cpmx_spec(&dir, "run", &spec(seed, &runnable), &["--out", &out]);
+        assert_eq!(code, Some(0), "{stderr}");
+        std::fs::read(dir.join(out).join("runs/sim/m0/sample1/rep1/trajectory.csv")).unwrap()
+    };
+    let first = trajectory(1);
+    std::fs::remove_dir_all(dir.join("out-1")).unwrap();
+    assert_eq!(first, trajectory(1));
+    assert_ne!(first, trajectory(2));
+    for (model, refused) in [
+        ("M1", "`is_ego_view: false`"),
+        ("M4", "`is_observe_distance_to_boundaries: false`"),
+    ] {
+        let policies = format!("  - {{name: m, mlp: {{sigmarl: {itsc}/{model}, tag: 1.2.0}}}}\n");
+        let (code, _, stderr) = cpmx_spec(&dir, "validate", &spec(3, &policies), &[]);
+        assert_eq!(code, Some(1), "{stderr}");
+        assert!(stderr.contains(refused), "{model}: {stderr}");
+    }
 }
