@@ -191,16 +191,11 @@ impl std::fmt::Display for Refusal {
 }
 
 /// Parameters whose value cpmx's observation has built in: any other value is refused.
-const FIXED: [(&str, bool, &str); 8] = [
+const FIXED: [(&str, bool, &str); 7] = [
     (
         "is_partial_observation",
         true,
         "cpmx observes the nearest agents only, not every agent",
-    ),
-    (
-        "is_ego_view",
-        true,
-        "cpmx observes in the ego frame, not from a bird's-eye view",
     ),
     (
         "is_use_mtv_distance",
@@ -370,6 +365,7 @@ pub fn observation(
     let neighbour_vertices = flag("is_observe_vertices", true, &mut refuse);
     let neighbour_distance = flag("is_observe_distance_to_agents", true, &mut refuse);
     let noise = flag("is_add_noise", false, &mut refuse);
+    let ego_view = flag("is_ego_view", true, &mut refuse);
     let propagated = flag("is_using_prioritized_marl", false, &mut refuse);
     let tentative = flag("is_using_opponent_modeling", false, &mut refuse);
     let neighbour_actions = match (propagated, tentative) {
@@ -426,7 +422,7 @@ pub fn observation(
         steering,
         lane_width_m,
         neighbour_actions,
-        (neighbour_vertices, neighbour_distance, noise),
+        (neighbour_vertices, neighbour_distance, noise, ego_view),
     ) {
         (
             Some(ref_points),
@@ -435,7 +431,7 @@ pub fn observation(
             Some(steering),
             Some(lane_width_m),
             Some(neighbour_actions),
-            (Some(neighbour_vertices), Some(neighbour_distance), Some(noise)),
+            (Some(neighbour_vertices), Some(neighbour_distance), Some(noise), Some(ego_view)),
         ) => {
             Ok(ObservationSpec {
                 design: ObservationDesign::Sigmarl,
@@ -455,6 +451,9 @@ pub fn observation(
                 neighbour_distance,
                 // SigmaRL 1.2.0's sensor noise: U[0, 0.2 × the car's width) on every value.
                 uniform_noise: if noise { 0.2 * vehicle.width } else { 0.0 },
+                // SigmaRL's world (VMAS's x and y semi-dimensions of its CPM scenarios, which
+                // its environment keeps on every map).
+                bird_view_scale_m: (!ego_view).then_some([4.5, 4.0]),
             })
         }
         _ => Err(refusals),
@@ -462,7 +461,8 @@ pub fn observation(
 }
 
 /// Parameters mapped to a field of the observation.
-const HONOURED: [&str; 9] = [
+const HONOURED: [&str; 10] = [
+    "is_ego_view",
     "is_observe_vertices",
     "is_observe_distance_to_agents",
     "is_add_noise",
@@ -516,7 +516,7 @@ mod tests {
     #[test]
     fn every_setting_cpmx_cannot_honour_is_refused_by_name_and_value() {
         let p = parameters(&[
-            ("is_ego_view", false.into()),
+            ("is_observe_distance_to_boundaries", false.into()),
             ("is_obs_noise", true.into()),
             ("is_new_thing", 3.into()),
             ("scenario_type", "intersection_1".into()),
@@ -530,23 +530,48 @@ mod tests {
             names,
             [
                 "dt",
-                "is_ego_view",
                 "is_new_thing",
                 "is_obs_noise",
+                "is_observe_distance_to_boundaries",
                 "n_points_short_term",
                 "scenario_type"
             ]
         );
         assert_eq!(refusals.len(), 6);
         let text: Vec<String> = refusals.iter().map(ToString::to_string).collect();
-        assert!(
-            text.iter()
-                .any(|t| t.starts_with("`is_ego_view: false`: cpmx observes in the ego frame"))
-        );
+        assert!(text.iter().any(|t| {
+            t.starts_with("`is_observe_distance_to_boundaries: false`: cpmx observes the distances")
+        }));
         assert!(
             text.iter()
                 .any(|t| t.starts_with("`is_new_thing: 3`: a parameter cpmx does not know"))
         );
+    }
+
+    /// SigmaRL 1.2.0's observation switches (ITSC 2024's ablations, XP-MARL's action slots)
+    /// become the observation's fields.
+    #[test]
+    fn release_1_2_0_switches_are_honoured() {
+        let p = parameters(&[
+            ("is_ego_view", false.into()),
+            ("is_observe_vertices", false.into()),
+            ("is_observe_distance_to_agents", false.into()),
+            ("is_add_noise", true.into()),
+            ("is_using_prioritized_marl", true.into()),
+            ("dt", 0.05.into()),
+        ]);
+        let o = observation(&p, &mu_car(), 0.05).unwrap();
+        assert_eq!(o.bird_view_scale_m, Some([4.5, 4.0]));
+        assert!(!o.neighbour_vertices && !o.neighbour_distance);
+        assert!((o.uniform_noise - 0.2 * mu_car().width).abs() < 1e-15);
+        assert_eq!(o.neighbour_actions, NeighbourActions::Propagated);
+        let both = parameters(&[
+            ("is_using_prioritized_marl", true.into()),
+            ("is_using_opponent_modeling", true.into()),
+        ]);
+        let refusals = observation(&both, &mu_car(), 0.1).unwrap_err();
+        assert_eq!(refusals.len(), 1);
+        assert_eq!(refusals[0].name, "is_using_opponent_modeling");
     }
 
     #[test]

@@ -86,6 +86,7 @@ pub fn observation(o: &ObservationSpec) -> SigmarlObservation {
         observe_vertices: o.neighbour_vertices,
         observe_neighbour_distance: o.neighbour_distance,
         uniform_noise: o.uniform_noise as f32,
+        bird_view_scale_m: o.bird_view_scale_m,
         boundary_corners: if o.agent0_boundary_lag {
             BoundaryCorners::LaggedForFirstAgent
         } else {

@@ -169,6 +169,10 @@ pub struct SigmarlObservation {
     /// Noise added to every value after normalisation, uniform on [0, this) (SigmaRL 1.2.0's
     /// `is_add_noise`); drawn by the policy's observation memory from its own stream.
     pub uniform_noise: f32,
+    /// Observe in the map frame with positions over these `[x, y]` normalisers [m] (SigmaRL's
+    /// bird's-eye view): own position, heading over 2π and velocity first, then map-frame
+    /// reference points, corners and velocities; `None`: the ego frame.
+    pub bird_view_scale_m: Option<[f64; 2]>,
     /// Observe the steering angles (SigmaRL's `is_obs_steering`): the own after the own speed,
     /// each neighbour's after its velocity (1 + `neighbours` values).
     pub observe_steering: bool,
@@ -197,6 +201,7 @@ impl Default for SigmarlObservation {
             observe_neighbour_distance: true,
             observe_vertices: true,
             uniform_noise: 0.0,
+            bird_view_scale_m: None,
             observe_steering: false,
             steering_norm_rad: std::f64::consts::TAU,
             boundary_corners: BoundaryCorners::LaggedForFirstAgent,
@@ -237,7 +242,8 @@ impl SigmarlObservation {
     /// Number of values per agent (32 for the default parameters).
     pub fn size(&self) -> usize {
         let steering = usize::from(self.observe_steering);
-        1 + steering
+        let own = if self.bird_view_scale_m.is_some() { 5 } else { 1 };
+        own + steering
             + 2 * self.reference_points
             + usize::from(self.observe_center_line_distance)
             + 2 * usize::from(self.observe_boundary_distances)
@@ -339,11 +345,22 @@ impl SigmarlObservation {
     ) {
         let me = &input.agents[ego];
         let path: &PreparedPath = &input.paths.paths[ego];
-        let frame = EgoFrame::new(me);
+        let frame = match self.bird_view_scale_m {
+            Some(scale) => Frame::Map(scale),
+            None => Frame::Ego(EgoFrame::new(me), self.position_norm_m),
+        };
         let mut w = Writer { out, at: 0 };
 
-        // Own speed (and steering).
-        w.push(me.velocity_norm_mps() / self.speed_norm_mps);
+        // Own pose in the map frame, and velocity (ego frame: the speed; map frame: its vector).
+        if let Some([sx, sy]) = self.bird_view_scale_m {
+            w.push(me.x_m / sx);
+            w.push(me.y_m / sy);
+            w.push(me.yaw_rad / std::f64::consts::TAU);
+            w.push(me.velocity_mps[0] / self.speed_norm_mps);
+            w.push(me.velocity_mps[1] / self.speed_norm_mps);
+        } else {
+            w.push(me.velocity_norm_mps() / self.speed_norm_mps);
+        }
         if self.observe_steering {
             w.push(me.steering_rad / self.steering_norm_rad);
         }
@@ -352,9 +369,9 @@ impl SigmarlObservation {
         let nearest = path.center.nearest([me.x_m, me.y_m]);
         let (center_distance_m, closest_index) = nearest.map_or((0.0, 0), |n| (n.distance_m, n.segment + 1));
         for k in 0..self.reference_points {
-            let q = frame.to_ego(path.center_point(closest_index + 1 + k * self.reference_point_stride));
-            w.push(q[0] / self.position_norm_m);
-            w.push(q[1] / self.position_norm_m);
+            let q = frame.normalised(path.center_point(closest_index + 1 + k * self.reference_point_stride));
+            w.push(q[0]);
+            w.push(q[1]);
         }
 
         // Distance to the own centre line.
@@ -406,21 +423,26 @@ impl SigmarlObservation {
             let other = &state_of(j);
             if self.observe_vertices {
                 for c in footprint_corners(input.vehicle, other.x_m, other.y_m, other.yaw_rad) {
-                    let q = frame.to_ego(c);
-                    w.push(q[0] / self.position_norm_m);
-                    w.push(q[1] / self.position_norm_m);
+                    let q = frame.normalised(c);
+                    w.push(q[0]);
+                    w.push(q[1]);
                 }
             } else {
-                let q = frame.to_ego([other.x_m, other.y_m]);
-                w.push(q[0] / self.position_norm_m);
-                w.push(q[1] / self.position_norm_m);
+                let q = frame.normalised([other.x_m, other.y_m]);
+                w.push(q[0]);
+                w.push(q[1]);
                 w.push((other.yaw_rad - me.yaw_rad) / std::f64::consts::TAU);
                 w.push(input.vehicle.length_m / self.position_norm_m);
                 w.push(input.vehicle.width_m / self.position_norm_m);
             }
-            let (speed, heading) = (other.velocity_norm_mps(), other.yaw_rad - me.yaw_rad);
-            w.push(speed * heading.cos() / self.speed_norm_mps);
-            w.push(speed * heading.sin() / self.speed_norm_mps);
+            if self.bird_view_scale_m.is_some() {
+                w.push(other.velocity_mps[0] / self.speed_norm_mps);
+                w.push(other.velocity_mps[1] / self.speed_norm_mps);
+            } else {
+                let (speed, heading) = (other.velocity_norm_mps(), other.yaw_rad - me.yaw_rad);
+                w.push(speed * heading.cos() / self.speed_norm_mps);
+                w.push(speed * heading.sin() / self.speed_norm_mps);
+            }
             if self.observe_steering {
                 w.push(other.steering_rad / self.steering_norm_rad);
             }
@@ -441,6 +463,22 @@ fn insert_sorted(list: &mut [(f64, usize)], item: (f64, usize)) {
     };
     list[pos..].rotate_right(1);
     list[pos] = item;
+}
+
+/// Where observed points are expressed: an agent's ego frame (over the position normaliser), or
+/// the map frame (over its x and y normalisers).
+enum Frame {
+    Ego(EgoFrame, f64),
+    Map([f64; 2]),
+}
+
+impl Frame {
+    fn normalised(&self, p: [f64; 2]) -> [f64; 2] {
+        match self {
+            Frame::Ego(ego, norm_m) => ego.to_ego(p).map(|v| v / norm_m),
+            Frame::Map([sx, sy]) => [p[0] / sx, p[1] / sy],
+        }
+    }
 }
 
 /// The ego frame of an agent: map points relative to its centre, rotated by minus its yaw.

@@ -489,6 +489,12 @@ pub struct ObservationSpec {
     #[serde(default, skip_serializing_if = "is_zero")]
     #[schemars(range(min = 0.0, max = 1.0))]
     pub uniform_noise: f64,
+    /// Observe in the map frame instead of the ego frame (SigmaRL's bird's-eye view,
+    /// `is_ego_view: false`): the own position, heading over 2π and velocity, then reference
+    /// points, the others' corners and velocities in map coordinates, positions over these
+    /// `[x, y]` normalisers [m] (SigmaRL: its world's 4.5 × 4.0). Default: the ego frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bird_view_scale_m: Option<[f64; 2]>,
 }
 
 fn yes() -> bool {
