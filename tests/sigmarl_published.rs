@@ -8,7 +8,7 @@ mod support;
 
 use std::path::{Path, PathBuf};
 
-use support::{cpmx_in, ok, reference, root, scratch, unwrapped};
+use support::{cpmx_in, reference, root, scratch, unwrapped};
 
 /// The shipped spec with `steps` steps, `count` drawn starts and `policies` instead of its own
 /// (YAML list items; the shipped ones when `None`), written into `dir`.
@@ -49,18 +49,8 @@ fn cpmx_spec(dir: &Path, command: &str, spec: &Path, args: &[&str]) -> (Option<i
 fn the_five_models_run_and_a_random_ranking_is_the_runs_stream() {
     let dir = scratch("xp-marl-run");
     let spec = variant(&dir, 40, 2, None);
-    let out = cpmx_in(
-        &dir,
-        &[
-            "run",
-            spec.to_str().unwrap(),
-            "--data",
-            reference().to_str().unwrap(),
-            "--out",
-            "a",
-        ],
-    );
-    ok(&out);
+    let (code, _, stderr) = cpmx_spec(&dir, "run", &spec, &["--out", "a"]);
+    assert_eq!(code, Some(0), "{stderr}");
     let trajectory = |folder: &str, policy: &str| {
         std::fs::read(
             dir.join(folder)
@@ -78,20 +68,8 @@ fn the_five_models_run_and_a_random_ranking_is_the_runs_stream() {
     }
     // The random order is drawn from the run's own stream: a second run gives the same
     // trajectories, and they are not those of the unranked model.
-    let again = cpmx_in(
-        &dir,
-        &[
-            "run",
-            spec.to_str().unwrap(),
-            "--data",
-            reference().to_str().unwrap(),
-            "--out",
-            "b",
-            "--only",
-            "policy=m4-random",
-        ],
-    );
-    ok(&again);
+    let (code, _, stderr) = cpmx_spec(&dir, "run", &spec, &["--out", "b", "--only", "policy=m4-random"]);
+    assert_eq!(code, Some(0), "{stderr}");
     assert_eq!(trajectory("a", "m4-random"), trajectory("b", "m4-random"));
     assert_ne!(trajectory("a", "m4-random"), trajectory("a", "m4-unranked"));
 }

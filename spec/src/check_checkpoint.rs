@@ -2,7 +2,7 @@
 //! its folder, the observation its `*_data.json` describes, and an XP-MARL actor's `priority:`,
 //! each problem located at the policy's node and naming the file.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use crate::check::CheckContext;
 use crate::check_files::{CheckScope, missing_file};
@@ -75,23 +75,13 @@ pub(crate) fn find_checkpoint(
         }
     };
     if let Some(expected) = &mlp.sha256 {
-        let found = std::fs::read(&files.policy).map(|bytes| sha256_hex(&bytes));
-        if found.as_ref().ok() != Some(expected) {
-            let span = ctx.span(&format!("/policies/{i}/mlp/sha256"));
-            ctx.push(
-                Problem::error(
-                    "cpmx::check::file-content",
-                    format!(
-                        "policy `{}`: {} does not have sha256 {expected}",
-                        policy.name,
-                        files.policy.display()
-                    ),
-                    span,
-                    "pinned to other content",
-                )
-                .with_help("name the checkpoint of the pinned version, or remove `sha256` to take any"),
-            );
-        }
+        check_pinned(
+            &policy.name,
+            &files.policy,
+            expected,
+            &format!("/policies/{i}/mlp/sha256"),
+            ctx,
+        );
     }
     let observation = match (&files.data, &policy.observation) {
         // A resolved spec (a run folder's) writes the observation out: it must be the one the
@@ -333,23 +323,38 @@ pub(crate) fn find_priority(
         }
     };
     if let Some(expected) = &priority.sha256
-        && std::fs::read(&file).map(|bytes| sha256_hex(&bytes)).as_ref().ok() != Some(expected)
+        && !check_pinned(
+            &policy.name,
+            &file,
+            expected,
+            &format!("/policies/{i}/priority/sha256"),
+            ctx,
+        )
     {
-        let span = ctx.span(&format!("/policies/{i}/priority/sha256"));
-        ctx.push(
-            Problem::error(
-                "cpmx::check::file-content",
-                format!(
-                    "policy `{}`: {} does not have sha256 {expected}",
-                    policy.name,
-                    file.display()
-                ),
-                span,
-                "pinned to other content",
-            )
-            .with_help("name the priority policy of the pinned version, or remove `sha256` to take any"),
-        );
         return None;
     }
     Some(file)
+}
+
+/// Whether `file` has the SHA-256 `expected` that policy `name` pins it to (at `pointer`); a
+/// problem there when not.
+fn check_pinned(name: &str, file: &Path, expected: &str, pointer: &str, ctx: &mut CheckContext<'_>) -> bool {
+    let found = std::fs::read(file).map(|bytes| sha256_hex(&bytes));
+    if found.as_deref().ok() == Some(expected) {
+        return true;
+    }
+    let span = ctx.span(pointer);
+    ctx.push(
+        Problem::error(
+            "cpmx::check::file-content",
+            format!(
+                "policy `{name}`: {} does not have sha256 {expected}",
+                file.display()
+            ),
+            span,
+            "pinned to other content",
+        )
+        .with_help("name the file of the pinned version, or remove `sha256` to take any"),
+    );
+    false
 }

@@ -64,6 +64,25 @@ pub trait Policy {
     fn fork(&mut self) -> Box<dyn Policy>;
 }
 
+/// The commands of the actions in `outputs`, agent by agent.
+pub(crate) fn write_commands(outputs: &[ActionOutput], out: &mut [Command]) {
+    for (command, output) in out.iter_mut().zip(outputs) {
+        *command = Command {
+            speed_mps: f64::from(output.action[0]),
+            steering_rad: f64::from(output.action[1]),
+        };
+    }
+}
+
+/// The sampling stream of a policy's fork: a fresh one seeded from `rng` when the policy
+/// samples (the copy's draws neither touch nor repeat the policy's), else `rng` as it is.
+pub(crate) fn fork_stream(mode: ActionMode, rng: &mut ChaCha20Rng) -> ChaCha20Rng {
+    match mode {
+        ActionMode::Sample => ChaCha20Rng::seed_from_u64(rng.next_u64()),
+        ActionMode::Mean => rng.clone(),
+    }
+}
+
 /// Check that the command buffer fits the agents.
 pub(crate) fn check_commands(input: &ObservationInput<'_>, out: &[Command]) -> Result<(), PolicyError> {
     if out.len() == input.agents.len() {
@@ -285,18 +304,14 @@ impl Policy for MlpPolicy {
                 .forward(observations, &mut self.raw)
                 .map_err(PolicyError::Network)?,
         }
-        for ((raw, output), command) in self
+        for (raw, output) in self
             .raw
             .chunks_exact(self.output.raw_size())
             .zip(&mut self.outputs)
-            .zip(out.iter_mut())
         {
             *output = self.output.map(&self.head, raw, self.mode, &mut self.rng);
-            *command = Command {
-                speed_mps: f64::from(output.action[0]),
-                steering_rad: f64::from(output.action[1]),
-            };
         }
+        write_commands(&self.outputs, out);
         Ok(())
     }
 
@@ -307,9 +322,7 @@ impl Policy for MlpPolicy {
     fn fork(&mut self) -> Box<dyn Policy> {
         let mut copy = self.clone();
         copy.memory = self.memory.remembering();
-        if self.mode == ActionMode::Sample {
-            copy.rng = ChaCha20Rng::seed_from_u64(self.rng.next_u64());
-        }
+        copy.rng = fork_stream(self.mode, &mut self.rng);
         Box::new(copy)
     }
 }

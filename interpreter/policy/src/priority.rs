@@ -19,7 +19,7 @@ use crate::action::{ActionHead, ActionMode, ActionOutput, OutputHead};
 use crate::actor::{ActorWorkspace, MlpActor};
 use crate::memory::ObservationMemory;
 use crate::observation::{NeighbourView, ObservationInput, SigmarlObservation};
-use crate::policy::{Policy, PolicyError, check_commands, check_input_size};
+use crate::policy::{Policy, PolicyError, check_commands, check_input_size, fork_stream, write_commands};
 
 /// `safe_tanh` bound of the priority score's TanhNormal.
 const SCORE_BOUND: f32 = 1.0 - 1e-6;
@@ -278,12 +278,7 @@ impl Policy for PrioritizedPolicy {
                 }
             }
         }
-        for (command, output) in out.iter_mut().zip(&self.outputs) {
-            *command = Command {
-                speed_mps: f64::from(output.action[0]),
-                steering_rad: f64::from(output.action[1]),
-            };
-        }
+        write_commands(&self.outputs, out);
         Ok(())
     }
 
@@ -294,9 +289,7 @@ impl Policy for PrioritizedPolicy {
     fn fork(&mut self) -> Box<dyn Policy> {
         let mut copy = self.clone();
         copy.memory = self.memory.remembering();
-        if self.mode == ActionMode::Sample {
-            copy.rng = ChaCha20Rng::seed_from_u64(self.rng.next_u64());
-        }
+        copy.rng = fork_stream(self.mode, &mut self.rng);
         if let (
             SlotFilling::Propagated(Ranking::Random(own)),
             SlotFilling::Propagated(Ranking::Random(theirs)),
