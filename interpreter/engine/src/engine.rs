@@ -187,10 +187,10 @@ impl RunInputs<'_> {
                     Some(source) => {
                         let filling = match source {
                             NeighbourActionSource::Learned(priority) => {
-                                SlotFilling::Propagated(Ranking::Learned(priority.as_ref().clone()))
+                                SlotFilling::Propagated(Ranking::Learned(Box::new(priority.as_ref().clone())))
                             }
                             NeighbourActionSource::Random => SlotFilling::Propagated(Ranking::Random(
-                                ChaCha20Rng::from_seed(stream_key(self.plan.seed, "priority")),
+                                Box::new(ChaCha20Rng::from_seed(stream_key(self.plan.seed, "priority"))),
                             )),
                             NeighbourActionSource::Unranked => SlotFilling::Propagated(Ranking::Unranked),
                             NeighbourActionSource::Tentative => SlotFilling::Tentative,

@@ -31,9 +31,9 @@ pub enum Ranking {
     /// slots to the location and scale of a TanhNormal score on [-1, 1]. The score's mode,
     /// `clamp(tanh(loc))` in float32, ranks the agents, the highest first; equal scores keep
     /// the agents' order.
-    Learned(MlpActor),
+    Learned(Box<MlpActor>),
     /// A fresh uniform permutation every step (Fisher–Yates on the run's `priority` stream).
-    Random(ChaCha20Rng),
+    Random(Box<ChaCha20Rng>),
     /// No order: every agent acts at once with its action slots empty.
     Unranked,
 }
@@ -295,7 +295,7 @@ impl Policy for PrioritizedPolicy {
             SlotFilling::Propagated(Ranking::Random(theirs)),
         ) = (&mut self.filling, &mut copy.filling)
         {
-            *theirs = ChaCha20Rng::seed_from_u64(own.next_u64());
+            **theirs = ChaCha20Rng::seed_from_u64(own.next_u64());
         }
         Box::new(copy)
     }
@@ -382,7 +382,7 @@ mod tests {
 
     #[test]
     fn higher_ranks_act_first_and_lower_ranks_hear_them() {
-        let learned = || SlotFilling::Propagated(Ranking::Learned(networks().1));
+        let learned = || SlotFilling::Propagated(Ranking::Learned(Box::new(networks().1)));
         let (speeds, order) = speeds(learned(), None);
         assert_eq!(order, [1, 2, 0]);
         let alone = 0.5f32.tanh();
@@ -416,7 +416,8 @@ mod tests {
 
     #[test]
     fn random_ranks_are_permutations_drawn_from_the_stream() {
-        let random = |seed| SlotFilling::Propagated(Ranking::Random(ChaCha20Rng::seed_from_u64(seed)));
+        let random =
+            |seed| SlotFilling::Propagated(Ranking::Random(Box::new(ChaCha20Rng::seed_from_u64(seed))));
         let (first, order) = speeds(random(7), None);
         let mut sorted = order.clone();
         sorted.sort_unstable();
@@ -434,7 +435,7 @@ mod tests {
         let error = PrioritizedPolicy::new(
             actor,
             design(),
-            SlotFilling::Propagated(Ranking::Learned(wrong)),
+            SlotFilling::Propagated(Ranking::Learned(Box::new(wrong))),
             OutputHead::SigmarlTanhNormal,
             ActionMode::Mean,
             ChaCha20Rng::seed_from_u64(0),
