@@ -375,7 +375,10 @@ fn data_json_settings_cpmx_cannot_honour_are_refused_by_name_and_value() {
     let data = folder.join("reward4.35_data.json");
     let text = std::fs::read_to_string(&data)
         .unwrap()
-        .replace("\"is_ego_view\": true", "\"is_ego_view\": false")
+        .replace(
+            "\"is_observe_distance_to_boundaries\": true",
+            "\"is_observe_distance_to_boundaries\": false",
+        )
         .replace("\"is_obs_noise\": false", "\"is_obs_noise\": true");
     std::fs::write(&data, text).unwrap();
     let path = spec(
@@ -387,8 +390,8 @@ fn data_json_settings_cpmx_cannot_honour_are_refused_by_name_and_value() {
     let (code, stderr) = cpmx_spec(&dir, "validate", &path, &reference);
     assert_eq!(code, Some(1), "{stderr}");
     for expected in [
-        "policy `paper` was trained with `is_ego_view: false`: cpmx observes in the ego frame",
-        "policy `paper` was trained with `is_obs_noise: true`: cpmx has no observation noise",
+        "policy `paper` was trained with `is_observe_distance_to_boundaries: false`: cpmx observes the distances",
+        "policy `paper` was trained with `is_obs_noise: true`: cpmx adds SigmaRL 1.2.0's sensor noise",
         "settings.yaml:",
     ] {
         assert!(stderr.contains(expected), "{expected}\n{stderr}");
