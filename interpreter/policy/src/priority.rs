@@ -209,16 +209,21 @@ impl PrioritizedPolicy {
                     .as_mut()
                     .expect("built with the learned ranking");
                 priority.forward(&self.bases, workspace, &mut self.scores)?;
-                let score = |i: usize| self.scores[2 * i].tanh().clamp(-SCORE_BOUND, SCORE_BOUND);
-                self.order.sort_by(|&a, &b| score(b).total_cmp(&score(a)));
+                // The score's mode, once per agent, where its location was.
+                for pair in self.scores.chunks_exact_mut(2) {
+                    pair[0] = pair[0].tanh().clamp(-SCORE_BOUND, SCORE_BOUND);
+                }
+                let scores = &self.scores;
+                self.order
+                    .sort_by(|&a, &b| scores[2 * b].total_cmp(&scores[2 * a]));
             }
         }
         Ok(())
     }
 
-    /// Writes into agent `i`'s slots the actions `known` holds of its observed neighbours that
-    /// the communication layer lets it hear at once (zeros for the rest).
-    fn fill_slots(&mut self, input: &ObservationInput<'_>, i: usize, known: &[Option<[f32; 2]>]) {
+    /// Writes into agent `i`'s slots the actions `self.acted` holds of its observed neighbours
+    /// that the communication layer lets it hear at once (zeros for the rest).
+    fn fill_slots(&mut self, input: &ObservationInput<'_>, i: usize) {
         let (size, k) = (self.observation.size(), self.observation.neighbours);
         let start = (i + 1) * size - self.observation.action_slot_count();
         for (slot, neighbour) in self.neighbours[i * k..(i + 1) * k].iter().enumerate() {
@@ -226,7 +231,7 @@ impl PrioritizedPolicy {
                 let exact = input
                     .neighbours
                     .is_none_or(|v| v.get(i, j) == NeighbourView::Exact);
-                if exact { known[j] } else { None }
+                if exact { self.acted[j] } else { None }
             });
             let [speed, steering] = heard.unwrap_or([0.0; 2]);
             self.rows[start + 2 * slot] = speed;
@@ -260,9 +265,11 @@ impl Policy for PrioritizedPolicy {
         match &self.filling {
             SlotFilling::Tentative => {
                 self.decide(0, agents)?;
-                let tentative: Vec<Option<[f32; 2]>> = self.outputs.iter().map(|o| Some(o.action)).collect();
+                for (acted, output) in self.acted.iter_mut().zip(&self.outputs) {
+                    *acted = Some(output.action);
+                }
                 for i in 0..agents {
-                    self.fill_slots(input, i, &tentative);
+                    self.fill_slots(input, i);
                 }
                 self.decide(0, agents)?;
             }
@@ -270,9 +277,7 @@ impl Policy for PrioritizedPolicy {
             SlotFilling::Propagated(_) => {
                 for turn in 0..agents {
                     let i = self.order[turn];
-                    let acted = std::mem::take(&mut self.acted);
-                    self.fill_slots(input, i, &acted);
-                    self.acted = acted;
+                    self.fill_slots(input, i);
                     self.decide(i, 1)?;
                     self.acted[i] = Some(self.outputs[i].action);
                 }
