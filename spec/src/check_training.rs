@@ -421,6 +421,7 @@ fn check_reward(spec: &Spec, training: &TrainingSpec, ctx: &mut CheckContext<'_>
         || r.velocity_to_points.is_some()
         || r.time.is_some()
         || r.steering_change.is_some()
+        || r.cbf_margins.is_some()
         || r.collide_agents.is_some()
         || r.collide_boundary.is_some();
     if !any {

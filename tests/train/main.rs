@@ -6,6 +6,7 @@
 #[path = "../support/mod.rs"]
 mod support;
 
+mod safety;
 mod stacked;
 
 use std::path::{Path, PathBuf};

@@ -14,7 +14,6 @@ use cpmx_spec::model::{DynamicsLayer, KinematicKeyword, OnCollision};
 use cpmx_vehicle::{BicycleState, Command, KinematicBicycle, VmasMotion};
 
 use crate::engine::{Engine, RunError, RunInputs};
-use crate::safety::SafetyFilter;
 use crate::starts::InitialState;
 
 /// Runge–Kutta substeps of a `kinematic-rk4` step (within about 1e-6 m of SigmaRL 1.4.0's dopri5).
@@ -52,7 +51,7 @@ impl Engine for SimEngine {
             ref_paths: starts.iter().map(|s| s.ref_path).collect(),
             samples: Vec::with_capacity(spec.timing.steps as usize),
         };
-        let mut safety = SafetyFilter::of_run(
+        let mut safety = crate::safety::filter_of_run(
             inputs.fidelity.and_then(|f| f.safety.as_ref()),
             experiment,
             &recording.ref_paths,
@@ -140,8 +139,7 @@ impl Engine for SimEngine {
             }
         }
         if let Some(filter) = &safety {
-            recording.notes.push(filter.note());
-            recording.statistics.extend(filter.statistics());
+            crate::safety::record(filter, &mut recording);
         }
         Ok(recording)
     }

@@ -22,7 +22,6 @@ use cpmx_spec::model::{OnCollision, Planner as PlannerSpec};
 use cpmx_vehicle::{BicycleState, VehicleParams};
 
 use crate::engine::{Engine, RunError, RunInputs};
-use crate::safety::SafetyFilter;
 use cpmx_stack::{
     CONTROL_PERIOD_NS, CONTROL_PERIOD_S, RUN_START_NS, StampedState, VehicleStack, anchor_ns,
     control_periods, max_state_age_ns, trajectory_points,
@@ -63,7 +62,7 @@ impl Engine for TwinEngine {
         let mut planner = planner(planner_spec, dt_s, experiment.vehicle);
         let mut policy = inputs.policy()?;
         let ref_paths: Vec<usize> = starts.iter().map(|s| s.ref_path).collect();
-        let mut safety = SafetyFilter::of_run(fidelity.safety.as_ref(), experiment, &ref_paths)?;
+        let mut safety = crate::safety::filter_of_run(fidelity.safety.as_ref(), experiment, &ref_paths)?;
         let mut knowledge = inputs.neighbour_knowledge();
         let model = cpmx_vehicle::KinematicBicycle::new(experiment.vehicle);
 
@@ -123,8 +122,7 @@ impl Engine for TwinEngine {
             }
         }
         if let Some(filter) = &safety {
-            recording.notes.push(filter.note());
-            recording.statistics.extend(filter.statistics());
+            crate::safety::record(filter, &mut recording);
         }
         Ok(recording)
     }

@@ -25,6 +25,10 @@ pub struct EnvConfig {
     /// The fidelity's `communication` and `perception` layers: what each agent knows of the
     /// others (none: every other's state exactly, as SigmaRL).
     pub neighbours: crate::neighbours::NeighbourLayers,
+    /// The fidelity's `safety:` filter: the agents' actions go through it before they move
+    /// the cars (or, with vehicle stacks, into the planner's rollout). The learner learns on
+    /// its own sampled actions: the filter is part of the environment.
+    pub safety: Option<cpmx_safety::CbfParameters>,
 }
 
 /// How the agents' actions move them.
@@ -49,6 +53,7 @@ impl Default for EnvConfig {
             dt_s: 0.1,
             plant: Plant::Direct,
             neighbours: crate::neighbours::NeighbourLayers::default(),
+            safety: None,
         }
     }
 }
@@ -161,6 +166,8 @@ pub struct RewardConfig {
     pub time: Option<TimeTerm>,
     /// Penalty for changing the steering command quickly.
     pub steering_change: Option<SteeringChangeTerm>,
+    /// SigmaRL's CBF-informed reward: the filter's rows under the joint sampled action.
+    pub cbf_margins: Option<CbfMarginsTerm>,
     /// Added when the agent's rectangle crosses another agent's (SigmaRL adds its -1 twice: -2).
     pub collide_agents: f64,
     /// Added when the agent's rectangle crosses its shared road boundary (SigmaRL: -2).
@@ -181,6 +188,7 @@ impl Default for RewardConfig {
             velocity_to_points: None,
             time: None,
             steering_change: None,
+            cbf_margins: None,
             collide_agents: -2.0,
             collide_boundary: -2.0,
             clamp: Some((-1.0, 1.0)),
@@ -310,6 +318,20 @@ pub struct SteeringChangeTerm {
     pub threshold_rad: f64,
 }
 
+/// `weight × mean(clamp(g_left / threshold, −1, 0), clamp(g_right / threshold, −1, 0),
+/// clamp(min(g_agents, 0) / threshold, −1, 0))`: the worst values of the CBF filter's rows
+/// (each circle against the lane's boundaries, and against every other agent's circles) under
+/// the step's joint sampled action, at the states the action is taken in (SigmaRL 1.6.0).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CbfMarginsTerm {
+    /// The weight of the mean.
+    pub weight: f64,
+    /// A margin this short costs the whole term.
+    pub threshold: f64,
+    /// The rows and the conversion of commands into inputs.
+    pub parameters: cpmx_safety::margins::MarginParameters,
+}
+
 /// `penalty * mean_{j != i} (1 - clamp(ttc_ij, 0, horizon_s) / horizon_s)`; `ttc_ij` is the
 /// first positive root of `|p + v t| = safe_distance_m` (relative position and velocity),
 /// infinite for agents farther than `within_m`. With SigmaRL's `safe_distance_m = 0` the
@@ -389,6 +411,10 @@ pub enum ConfigError {
     Stack(String),
     #[error("observation size {found} does not fit the layout ({expected} values expected)")]
     Observation { found: usize, expected: usize },
+    #[error(
+        "a reference path's road boundaries have fewer than two points: no lane for the safety filter or the CBF rows"
+    )]
+    Lanes,
 }
 
 impl EnvConfig {

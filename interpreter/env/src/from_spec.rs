@@ -3,14 +3,16 @@
 //! engine owns those conversions: `cpmx_engine::observation`).
 
 use cpmx_policy::SigmarlObservation;
-use cpmx_spec::model::{PathSetName, RampShape, ResetScopeName, TrainingSpec};
+use cpmx_safety::margins::MarginParameters;
+use cpmx_safety::{AgentRows, CbfParameters};
+use cpmx_spec::model::{CbfMarginsSpec, PathSetName, RampShape, ResetScopeName, TrainingSpec};
 use cpmx_vehicle::VehicleParams;
 use cpmx_world::{Map, MapError, PathSet, ReferencePath};
 
 use crate::config::{
-    CentreLineTerm, EnvConfig, NearAgentsTerm, NearBoundaryTerm, Plant, ProgressTerm, Ramp, ResetRule,
-    ResetScope, RewardConfig, ScenarioConfig, SpeedTerm, StartRule, SteeringChangeTerm, TimeTerm, TtcTerm,
-    VelocityToPointsTerm,
+    CbfMarginsTerm, CentreLineTerm, EnvConfig, NearAgentsTerm, NearBoundaryTerm, Plant, ProgressTerm, Ramp,
+    ResetRule, ResetScope, RewardConfig, ScenarioConfig, SpeedTerm, StartRule, SteeringChangeTerm, TimeTerm,
+    TtcTerm, VelocityToPointsTerm,
 };
 
 /// The environment configuration a `training:` section declares, with the plant of its
@@ -78,6 +80,10 @@ pub fn config_from_training(
                 penalty: c.penalty,
                 threshold_rad: c.threshold_rad,
             }),
+            cbf_margins: r
+                .cbf_margins
+                .as_ref()
+                .map(|c| cbf_margins_term(c, &vehicle, dt_s)),
             near_agents_ttc: r.near_agents_ttc.as_ref().map(|t| TtcTerm {
                 penalty: t.penalty,
                 within_m: t.within_m,
@@ -101,6 +107,43 @@ pub fn config_from_training(
         dt_s,
         plant,
         neighbours: crate::neighbours::NeighbourLayers::default(),
+        safety: None,
+    }
+}
+
+/// The CBF-informed term for `vehicle` stepping every `dt_s`: SigmaRL 1.6.0's rows
+/// (`CBFQP.initialize_params`: finite differences of 2 cm, no safety buffer, every pair of
+/// agents) and its conversion of commands (speed from −0.5 m/s, the rates to ±5 m/s² and
+/// ±π/2 rad/s: its `AGENTS`).
+fn cbf_margins_term(spec: &CbfMarginsSpec, vehicle: &VehicleParams, dt_s: f64) -> CbfMarginsTerm {
+    let circles = spec.circles as usize;
+    let agents = AgentRows {
+        length_m: vehicle.length_m,
+        width_m: vehicle.width_m,
+        range_m: f64::INFINITY,
+    };
+    let sigmarl = CbfParameters::sigmarl(dt_s);
+    CbfMarginsTerm {
+        weight: spec.weight,
+        threshold: spec.threshold,
+        parameters: MarginParameters {
+            rows: CbfParameters {
+                circles,
+                length_m: vehicle.length_m,
+                rear_axle_m: vehicle.rear_axle_m,
+                wheelbase_m: vehicle.wheelbase_m,
+                circle_radius_m: agents.circle_radius_m(circles),
+                gain: spec.gain,
+                step_s: f64::from(spec.horizon_steps) * dt_s,
+                acceleration_limit_mps2: 5.0,
+                steering_rate_limit_radps: std::f64::consts::FRAC_PI_2,
+                speed_range_mps: [-0.5, vehicle.max_speed_mps as f32],
+                max_steering_rad: vehicle.max_steering_rad as f32,
+                agents: Some(agents),
+                ..sigmarl
+            },
+            command_step_s: dt_s,
+        },
     }
 }
 

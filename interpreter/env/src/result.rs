@@ -40,6 +40,11 @@ pub struct StepResult {
     pub drawn_parameter_sums: Vec<f64>,
     /// Episodes whose fidelity was drawn at this step.
     pub draws: u64,
+    /// Agent-steps whose action the fidelity's safety filter changed this step (0 without
+    /// one; with vehicle stacks, every rolled-out step of the planner counts).
+    pub filtered: u64,
+    /// Agent-steps where the filter had no answer and the clamped action went through.
+    pub filter_fallbacks: u64,
 }
 
 /// One agent at one step.
@@ -71,6 +76,7 @@ pub struct RewardTermMeans {
     pub velocity_to_points: f64,
     pub time: f64,
     pub steering_change: f64,
+    pub cbf_margins: f64,
     /// Mean of the (clamped) reward.
     pub total: f64,
 }
@@ -105,6 +111,10 @@ pub(crate) struct StepTotals {
     pub env_resets: u64,
     pub agent_resets: u64,
     pub starts_relaxed: u64,
+    /// Agent-steps whose action the safety filter changed.
+    pub filtered: u64,
+    /// Agent-steps where the filter had no answer and the clamped action went through.
+    pub filter_fallbacks: u64,
 }
 
 impl StepTotals {
@@ -121,6 +131,8 @@ impl StepTotals {
         self.env_resets += o.env_resets;
         self.agent_resets += o.agent_resets;
         self.starts_relaxed += o.starts_relaxed;
+        self.filtered += o.filtered;
+        self.filter_fallbacks += o.filter_fallbacks;
     }
 }
 
@@ -156,6 +168,7 @@ impl StepResult {
             velocity_to_points: t.terms.velocity_to_points / k,
             time: t.terms.time / k,
             steering_change: t.terms.steering_change / k,
+            cbf_margins: t.terms.cbf_margins / k,
             total: t.terms.total / k,
         };
         self.collisions = CollisionCounts {
@@ -167,5 +180,7 @@ impl StepResult {
             agents: t.agent_resets,
             relaxed_starts: t.starts_relaxed,
         };
+        self.filtered = t.filtered;
+        self.filter_fallbacks = t.filter_fallbacks;
     }
 }

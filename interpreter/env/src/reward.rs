@@ -31,6 +31,8 @@ pub struct RewardTerms {
     pub time: f64,
     /// Steering-change penalty.
     pub steering_change: f64,
+    /// The CBF-informed term.
+    pub cbf_margins: f64,
     /// Agent-agent collision penalty.
     pub collide_agents: f64,
     /// Boundary collision penalty.
@@ -53,6 +55,7 @@ impl std::ops::AddAssign<&RewardTerms> for RewardTerms {
         self.velocity_to_points += t.velocity_to_points;
         self.time += t.time;
         self.steering_change += t.steering_change;
+        self.cbf_margins += t.cbf_margins;
         self.collide_agents += t.collide_agents;
         self.collide_boundary += t.collide_boundary;
         self.total += t.total;
@@ -93,6 +96,8 @@ pub struct RewardInput<'a> {
     pub steering_commands_rad: [f64; 2],
     /// The steering limit [rad].
     pub max_steering_rad: f64,
+    /// The agent's CBF-informed reward before its weight (in [−1, 0]; 0 without the term).
+    pub cbf_margins: f64,
 }
 
 /// The linear ramp of SigmaRL's `decreasing_fcn`: 1 at `x0`, 0 at `x1`, `x` clamped to `[x0, x1]`.
@@ -275,6 +280,10 @@ pub fn reward(config: &RewardConfig, input: &RewardInput<'_>) -> RewardTerms {
             .steering_change
             .as_ref()
             .map_or(0.0, |c| steering_change(c, input)),
+        cbf_margins: config
+            .cbf_margins
+            .as_ref()
+            .map_or(0.0, |c| c.weight * input.cbf_margins),
         collide_agents: if input.collides_with_agents {
             config.collide_agents
         } else {
@@ -297,7 +306,8 @@ pub fn reward(config: &RewardConfig, input: &RewardInput<'_>) -> RewardTerms {
         + t.near_agents
         + t.velocity_to_points
         + t.time
-        + t.steering_change;
+        + t.steering_change
+        + t.cbf_margins;
     t.total = match config.clamp {
         Some((low, high)) => t.sum_unclamped.clamp(low, high),
         None => t.sum_unclamped,
@@ -340,6 +350,7 @@ mod tests {
             max_speed_mps: 1.0,
             steering_commands_rad,
             max_steering_rad: 0.5,
+            cbf_margins: 0.0,
         }
     }
 

@@ -24,8 +24,9 @@
 //! shorter than a month).
 
 use cpmx_follower::TrajectoryPoint;
-use cpmx_planner::{Planner, PlannerParams};
+use cpmx_planner::{CommandFilter, Planner, PlannerParams};
 use cpmx_policy::{AgentPaths, MlpPolicy, Policy};
+use cpmx_safety::layer::LayerFilter;
 use cpmx_spec::model::{DrawnFidelity, Lookahead, SimulatedFidelity};
 use cpmx_stack::{
     CONTROL_PERIOD_NS, CONTROL_PERIOD_S, InitialState, RUN_START_NS, StampedState, VehicleStack, anchor_ns,
@@ -253,6 +254,7 @@ impl StackWorld {
         first: &[Command],
         paths: &AgentPaths,
         vehicle: &VehicleParams,
+        filter: Option<&mut LayerFilter>,
     ) -> Result<Vec<(BicycleState, [f64; 2])>, String> {
         let states: Vec<BicycleState> = self.listed.iter().map(|l| l.state).collect();
         let mut hold = HoldCommands;
@@ -262,7 +264,14 @@ impl StackWorld {
         };
         let trajectories = self
             .planner
-            .plan_from_commands(first, lookahead, &states, paths, 0.0)
+            .plan_from_commands(
+                first,
+                lookahead,
+                filter.map(|f| f as &mut dyn CommandFilter),
+                &states,
+                paths,
+                0.0,
+            )
             .map_err(|e| e.to_string())?;
         // The corners of this tick's reported states lag into the next observation.
         self.listed_corners = Some(

@@ -26,6 +26,10 @@ pub struct StepResult {
     pub drawn_parameter_sums: Vec<f64>,
     /// Episodes whose parameters were drawn this step.
     pub draws: u64,
+    /// Agent-steps whose action the environment's safety filter changed this step.
+    pub filtered: u64,
+    /// Agent-steps the filter had no answer for.
+    pub filter_fallbacks: u64,
 }
 
 /// A batch of `E` environments with `N` agents each that share one policy.
@@ -48,6 +52,11 @@ pub trait Environment {
     fn set_actor(&mut self, actor: &crate::Mlp) -> Result<(), String> {
         let _ = actor;
         Ok(())
+    }
+    /// Whether a safety filter changes the actions before they move the vehicles (the
+    /// learner learns on its own sampled actions; the filter's counts go into the records).
+    fn filters(&self) -> bool {
+        false
     }
     /// Names of the parameters drawn per episode (none by default).
     fn randomised_parameters(&self) -> Vec<String> {

@@ -38,4 +38,4 @@ pub use env::{Environment, StepResult};
 pub use mlp::{Mlp, Tape};
 pub use optim::{AdamConfig, AdamState, clip_grad_norm, learning_rate};
 pub use ppo::{LossConfig, LossInput, Losses, gae, ppo_loss};
-pub use trainer::{Hyperparameters, IterationRecord, TrainError, Trainer, stream_key};
+pub use trainer::{FilterCounts, Hyperparameters, IterationRecord, TrainError, Trainer, stream_key};

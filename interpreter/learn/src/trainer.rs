@@ -84,6 +84,17 @@ pub struct IterationRecord {
     /// the policy's noise, which grows when a training collapses (the one-sample entropy
     /// estimate cannot show it).
     pub action_scale_means: [f64; 2],
+    /// What the environment's safety filter did in the batch, when it has one.
+    pub filter: Option<FilterCounts>,
+}
+
+/// What a safety filter in the environment did over a batch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FilterCounts {
+    /// Agent-steps whose action it changed.
+    pub changed: u64,
+    /// Agent-steps it had no answer for (the clamped action went through).
+    pub fallbacks: u64,
 }
 
 /// One iteration's collected batch, env-major.
@@ -350,6 +361,7 @@ impl<E: Environment> Trainer<E> {
             agent_resets: 0,
             draws: 0,
             drawn_parameter_means: vec![0.0; self.env.randomised_parameters().len()],
+            filter: self.env.filters().then(FilterCounts::default),
             policy_loss: 0.0,
             value_loss: 0.0,
             entropy_loss: 0.0,
@@ -415,6 +427,10 @@ impl<E: Environment> Trainer<E> {
                 *sum += v / steps as f64;
             }
             record.collisions += result.collisions;
+            if let Some(f) = &mut record.filter {
+                f.changed += result.filtered;
+                f.fallbacks += result.filter_fallbacks;
+            }
             record.env_resets += result.env_resets;
             record.agent_resets += result.agent_resets;
             if result.draws > 0 {

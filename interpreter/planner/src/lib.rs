@@ -133,16 +133,24 @@ impl Planner {
 
     /// [`Planner::plan`] with the first step's commands already chosen (a learner's sampled
     /// actions on the observation of `states`): `lookahead` is called on the predicted states
-    /// of the further Hc - 1 steps only.
+    /// of the further Hc - 1 steps only; with a `filter`, every rolled-out step's commands go
+    /// through it (as in [`Planner::plan_filtered`]).
     pub fn plan_from_commands(
         &mut self,
         first: &[Command],
         lookahead: &mut dyn Policy,
+        filter: Option<&mut dyn CommandFilter>,
         states: &[BicycleState],
         paths: &AgentPaths,
         t_s: f64,
     ) -> Result<Vec<PlannedTrajectory>, PolicyError> {
-        self.roll_out(FirstStep::Commands { first, lookahead }, None, states, paths, t_s)
+        self.roll_out(
+            FirstStep::Commands { first, lookahead },
+            filter,
+            states,
+            paths,
+            t_s,
+        )
     }
 
     fn roll_out(
@@ -385,7 +393,7 @@ mod tests {
             .unwrap();
         let mut lookahead = Constant { command, calls: 0 };
         let given = Planner::new(PAPER, VehicleParams::MU_CAR)
-            .plan_from_commands(&[command], &mut lookahead, &[start], &paths, 2.0)
+            .plan_from_commands(&[command], &mut lookahead, None, &[start], &paths, 2.0)
             .unwrap();
         assert_eq!(planned, given, "the same commands give the same plan");
         assert_eq!(lookahead.calls, 3, "Hc - 1 predicted steps");
@@ -398,7 +406,7 @@ mod tests {
             calls: 0,
         };
         let turned = Planner::new(PAPER, VehicleParams::MU_CAR)
-            .plan_from_commands(&[command], &mut straight, &[start], &paths, 2.0)
+            .plan_from_commands(&[command], &mut straight, None, &[start], &paths, 2.0)
             .unwrap();
         assert!(turned[0][1].steering_rad > 0.0 && turned[0][2].steering_rad == 0.0);
     }

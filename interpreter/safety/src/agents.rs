@@ -203,7 +203,7 @@ fn groups(count: usize, near: &[(usize, usize)]) -> Vec<Vec<usize>> {
 
 /// The rows between the circles of vehicles `pair` in `states`: for each circle pair,
 /// `λh + ḣΔt + ½ḧΔt² ≥ 0` with h = ‖Δp‖² − (2r)², ḣ = 2Δp·Δv, ḧ = 2‖Δv‖² + 2Δp·Δp̈.
-fn rows_between(
+pub(crate) fn rows_between(
     p: &CbfParameters,
     agents: &AgentRows,
     pair: [usize; 2],

@@ -3,10 +3,14 @@
 //! QP of the ITSC 2025 paper (one vehicle against its lane's boundaries, solved with
 //! clarabel), on the pseudo-distance of [`pseudo_distance`]; [`agents`] solves a step's
 //! vehicles together where rows between them keep them apart (SigmaRL's later centralised QP). The crate computes what a filter
-//! does for one vehicle and step; the stacks that run it in a fidelity are the engine's.
+//! does for one vehicle and step; [`layer`] is a fidelity's `safety:` layer as the engines and
+//! the training environments run it; [`margins`] evaluates the rows under a joint action
+//! without solving (SigmaRL's CBF-informed reward).
 
 pub mod agents;
 pub mod cbf;
+pub mod layer;
+pub mod margins;
 pub mod pseudo_distance;
 mod qp;
 

@@ -11,7 +11,9 @@
 //! grad_norm, clip_fraction`), `lr`, `best` (1 when the actor became the best one), wall
 //! time `collect_s, update_s`, and the mean pre-tanh scale of the sampled actions
 //! `action_scale_speed, action_scale_steering` (the policy's noise: it grows when a training
-//! collapses). Everything but the wall times is the same on any machine and thread count. A
+//! collapses), and with a safety layer in the fidelity `filtered` (agent-steps whose action
+//! it changed; with vehicle stacks, of every rolled-out step) and `filter_fallbacks`
+//! (agent-steps it had no answer for). Everything but the wall times is the same on any machine and thread count. A
 //! curve written before the scale columns existed gets them empty on a resume.
 
 use std::fmt::Write as _;
@@ -19,9 +21,10 @@ use std::fmt::Write as _;
 use cpmx_learn::IterationRecord;
 
 /// The CSV header line (without newline) for the reward terms `terms`
-/// ([`crate::reward_term_names`]) and the fidelity parameters drawn per episode `drawn` (none
-/// unless the fidelity is randomised).
-pub fn header(terms: &[&str], drawn: &[String]) -> String {
+/// ([`crate::reward_term_names`]), the fidelity parameters drawn per episode `drawn` (none
+/// unless the fidelity is randomised) and, when the fidelity `filters` its actions through a
+/// safety layer, its counts.
+pub fn header(terms: &[&str], drawn: &[String], filters: bool) -> String {
     let mut h = String::from("iteration,samples,episode_reward_mean,episodes");
     for term in terms {
         let _ = write!(h, ",reward_{term}");
@@ -35,6 +38,9 @@ pub fn header(terms: &[&str], drawn: &[String]) -> String {
     }
     h.push_str(",policy_loss,value_loss,entropy_loss,grad_norm,clip_fraction,lr,best,collect_s,update_s");
     h.push_str(",action_scale_speed,action_scale_steering");
+    if filters {
+        h.push_str(",filtered,filter_fallbacks");
+    }
     h
 }
 
@@ -72,6 +78,9 @@ pub fn row(r: &IterationRecord) -> String {
         r.update_seconds
     );
     let _ = write!(s, ",{},{}", r.action_scale_means[0], r.action_scale_means[1]);
+    if let Some(f) = &r.filter {
+        let _ = write!(s, ",{},{}", f.changed, f.fallbacks);
+    }
     s
 }
 
@@ -312,6 +321,7 @@ mod tests {
             collect_seconds: 0.25,
             update_seconds: 0.5,
             action_scale_means: [0.75, 1.5],
+            filter: None,
         }
     }
 
@@ -325,10 +335,10 @@ mod tests {
             "collide_boundary",
             "total",
         ];
-        let columns = header(&terms, &[]).split(',').count();
+        let columns = header(&terms, &[], false).split(',').count();
         let text = format!(
             "{}\n{}\n{}\n",
-            header(&terms, &[]),
+            header(&terms, &[], false),
             row(&record(1, -0.25)),
             row(&record(2, f64::NAN))
         );
@@ -337,15 +347,15 @@ mod tests {
         }
         assert_eq!(reward_points(&text), vec![(1.0, -0.25)]);
         assert_eq!(last_best(&text), Some((1, -0.25)));
-        assert_eq!(rows_through(&text, 1, header(&terms, &[])).len(), 2);
-        assert_eq!(rows_through(&text, 5, header(&terms, &[])).len(), 3);
+        assert_eq!(rows_through(&text, 1, header(&terms, &[], false)).len(), 2);
+        assert_eq!(rows_through(&text, 5, header(&terms, &[], false)).len(), 3);
         assert!(text.lines().nth(1).unwrap().ends_with(",0.75,1.5"));
         // A curve written before the scale columns: resumed, its rows get them empty.
         let old: String = text
             .lines()
             .map(|l| l.rsplitn(3, ',').last().unwrap().to_owned() + "\n")
             .collect();
-        let resumed = rows_through(&old, 5, header(&terms, &[]));
+        let resumed = rows_through(&old, 5, header(&terms, &[], false));
         assert!(resumed[1].ends_with(",,"), "{}", resumed[1]);
         assert!(resumed.iter().all(|l| l.split(',').count() == columns));
         // A randomised fidelity adds the draws and a column per drawn parameter.
@@ -355,7 +365,7 @@ mod tests {
             drawn_parameter_means: vec![81.5],
             ..record(3, 0.5)
         };
-        let (h, r) = (header(&terms, &drawn), row(&randomised));
+        let (h, r) = (header(&terms, &drawn, false), row(&randomised));
         assert!(
             h.contains(",agent_resets,draws,drawn_actuation.delay_ms,policy_loss,"),
             "{h}"

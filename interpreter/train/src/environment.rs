@@ -37,6 +37,9 @@ pub fn reward_term_names(reward: &RewardConfig) -> Vec<&'static str> {
     if reward.steering_change.is_some() {
         names.push("steering_change");
     }
+    if reward.cbf_margins.is_some() {
+        names.push("cbf_margins");
+    }
     names.push("total");
     names
 }
@@ -54,6 +57,7 @@ fn term_mean(means: &RewardTermMeans, name: &str) -> f64 {
         "velocity_to_points" => means.velocity_to_points,
         "time" => means.time,
         "steering_change" => means.steering_change,
+        "cbf_margins" => means.cbf_margins,
         _ => means.total,
     }
 }
@@ -117,6 +121,8 @@ impl Environment for TrainingEnv {
             agent_resets: r.resets.agents,
             drawn_parameter_sums: r.drawn_parameter_sums.clone(),
             draws: r.draws,
+            filtered: r.filtered,
+            filter_fallbacks: r.filter_fallbacks,
         })
     }
 
@@ -130,6 +136,10 @@ impl Environment for TrainingEnv {
 
     fn randomised_parameters(&self) -> Vec<String> {
         self.env.randomised_parameters()
+    }
+
+    fn filters(&self) -> bool {
+        self.env.config().safety.is_some()
     }
 
     fn save_state(&self) -> Vec<u8> {

@@ -198,6 +198,7 @@ impl SeedRun {
                 curve::header(
                     &reward_term_names(&setup.env.reward),
                     &setup.randomised_parameters(),
+                    setup.env.safety.is_some(),
                 ),
             )
             .join("\n");
@@ -241,7 +242,8 @@ impl SeedRun {
                 "{}\n",
                 curve::header(
                     &reward_term_names(&setup.env.reward),
-                    &setup.randomised_parameters()
+                    &setup.randomised_parameters(),
+                    setup.env.safety.is_some(),
                 )
             ),
             collapse_watch: collapse::Watch::default(),

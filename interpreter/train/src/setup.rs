@@ -161,6 +161,16 @@ impl TrainingSetup {
                 communication: f.communication.clone(),
                 perception: f.perception.clone(),
             };
+            // The filter as `cpmx run` applies it in this fidelity (the same parameters,
+            // lanes and circles).
+            env.safety = f.safety.as_ref().map(|layer| {
+                cpmx_safety::layer::parameters(
+                    layer,
+                    &vehicle,
+                    &cpmx_engine::footprint_params(spec),
+                    spec.timing.dt,
+                )
+            });
         }
         env.check().map_err(|e| SetupError::Invalid(e.to_string()))?;
         let hyperparameters = hyperparameters(training, &vehicle);
@@ -224,7 +234,8 @@ fn hyperparameters(training: &TrainingSpec, vehicle: &cpmx_vehicle::VehicleParam
     }
 }
 
-/// The plant of the fidelity to train in: SigmaRL's simulation for `control: direct` (the
+/// The plant of the fidelity to train in (its `safety:` filter, if any, goes into the
+/// environment's configuration): SigmaRL's simulation for `control: direct` (the
 /// kinematic bicycle with exact states: the spec's checks refuse other layers with it), the
 /// lab's control architecture with the fidelity's layers and the spec's planner (and the
 /// section's `lookahead`) for `control: trajectory`; a lab driver is refused.
@@ -238,10 +249,6 @@ fn plant_of(checked: &CheckedSpec, name: &str, lookahead: Lookahead) -> Result<P
     match checked.spec.fidelities.get(name) {
         None => refuse("the spec defines no such fidelity"),
         Some(Fidelity::Lab(_)) => refuse("it drives the lab; policies train in simulation only"),
-        Some(Fidelity::Simulated(f)) if f.safety.is_some() => refuse(
-            "it filters the actions through a `safety:` layer, which training environments do not run yet: \
-             train in the fidelity without it",
-        ),
         Some(Fidelity::Simulated(f))
             if matches!(
                 f.dynamics,

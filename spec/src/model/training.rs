@@ -287,6 +287,13 @@ pub struct RewardSpec {
     /// trained.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub steering_change: Option<SteeringChangeSpec>,
+    /// SigmaRL's CBF-informed reward (ITSC 2026, tag 1.6.0): the safety filter's rows (each
+    /// circle against the lane's left and right boundaries, and against every other
+    /// agent's circles) evaluated under the joint sampled action, without solving or
+    /// filtering; `weight × mean(clamp(g_left / threshold, −1, 0), clamp(g_right / …),
+    /// clamp(min(g_agents, 0) / …))`, each `g` the worst row of its kind.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cbf_margins: Option<CbfMarginsSpec>,
     /// Added when the agent's rectangle crosses another agent's (SigmaRL adds its -1 twice: -2).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub collide_agents: Option<f64>,
@@ -429,6 +436,52 @@ pub struct SteeringChangeSpec {
     /// vehicle's steering limit.
     #[schemars(range(min = 0))]
     pub threshold_rad: f64,
+}
+
+/// The CBF-informed reward term: SigmaRL 1.6.0's constraint values under the joint action.
+/// The rows are the filter's truncated-Taylor rows `λh + ḣΔt + ½ḧΔt²` on circles that cover
+/// the training vehicle (the lane rows keep each circle's covering radius from the boundary;
+/// the pair rows keep two circles a diameter apart); each sampled command becomes the
+/// acceleration and steering rate that reach it over one `dt` (speed clamped to [−0.5, max
+/// speed], steering to the vehicle's limit, the rates to ±5 m/s² and ±π/2 rad/s, SigmaRL's).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CbfMarginsSpec {
+    /// The mean of the three clamped terms is multiplied by this (SigmaRL: 1).
+    #[serde(default = "default_one")]
+    pub weight: f64,
+    /// A row's value is divided by this before it is clamped to [−1, 0]: a margin this short
+    /// costs the whole term (SigmaRL's `h_nom`, the paper's CBF constraint threshold: 0.1).
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub threshold: f64,
+    /// The class-K gain λ (SigmaRL: 0.5).
+    #[serde(default = "default_cbf_margin_gain")]
+    #[schemars(range(min = 0))]
+    pub gain: f64,
+    /// The Taylor horizon Δt in steps of `dt` (SigmaRL: 2).
+    #[serde(default = "default_cbf_margin_horizon")]
+    #[schemars(range(min = 1, max = 100))]
+    pub horizon_steps: u32,
+    /// Circles along the vehicle (SigmaRL: 3).
+    #[serde(default = "default_cbf_margin_circles")]
+    #[schemars(range(min = 1, max = 20))]
+    pub circles: u32,
+}
+
+fn default_one() -> f64 {
+    1.0
+}
+
+fn default_cbf_margin_gain() -> f64 {
+    0.5
+}
+
+fn default_cbf_margin_horizon() -> u32 {
+    2
+}
+
+fn default_cbf_margin_circles() -> u32 {
+    3
 }
 
 /// The time-to-collision penalty.

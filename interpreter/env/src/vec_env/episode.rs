@@ -6,6 +6,11 @@ use cpmx_policy::{AgentPaths, AgentState, BoundaryCorners, ObservationInput};
 use cpmx_vehicle::{BicycleState, Command, Footprint, KinematicBicycle, Precision, footprint_corners};
 use cpmx_world::Point;
 use rand_chacha::ChaCha20Rng;
+use std::sync::Arc;
+
+use cpmx_safety::layer::{Lane, LayerFilter};
+use cpmx_safety::margins::joint_margins;
+use cpmx_safety::{CbfState, Vehicle};
 
 use crate::collision::{rectangle_crosses_segment, rectangles_cross};
 use crate::config::{EnvConfig, Plant, ResetScope};
@@ -49,6 +54,10 @@ pub(super) struct Env {
     pub(super) final_observation: Option<Vec<f32>>,
     /// The fidelity's communication and perception layers, if any.
     pub(super) neighbours: Option<EnvNeighbours>,
+    /// The fidelity's safety filter, if any (each agent in its path's lane).
+    pub(super) filter: Option<LayerFilter>,
+    /// Each training path's lane, when the filter or the CBF-informed reward needs them.
+    pub(super) lanes: Option<Arc<[Lane]>>,
     pub(super) scratch: Scratch,
 }
 
@@ -84,6 +93,9 @@ impl Env {
         self.paths.paths[i] = path.prepared.clone();
         let s = placement.state;
         let pos = [s.x_m, s.y_m];
+        if let Some(filter) = &mut self.filter {
+            filter.set_lane(i, placement.path);
+        }
         let agent = &mut self.agents[i];
         agent.placement = placement;
         agent.prev_pos = pos;
@@ -207,14 +219,23 @@ impl Env {
         s.corners.clear();
         s.steering_cmds.clear();
 
-        // 1. Move: one bicycle step, or a planning period of the vehicle stacks.
-        let commands: Vec<Command> = actions
+        // 1. Move: one bicycle step, or a planning period of the vehicle stacks; the
+        // CBF-informed reward's margins of the sampled actions first, then the safety filter.
+        let mut commands: Vec<Command> = actions
             .chunks_exact(2)
             .map(|act| Command {
                 speed_mps: f64::from(act[0]),
                 steering_rad: f64::from(act[1]),
             })
             .collect();
+        let cbf_margins = self.cbf_margin_rewards(config, &commands);
+        let mut totals = StepTotals::default();
+        if let (Some(filter), None) = (&mut self.filter, &self.stack) {
+            let states: Vec<BicycleState> = self.agents.iter().map(|a| a.placement.state).collect();
+            let velocities: Vec<[f64; 2]> = self.agents.iter().map(|a| a.placement.velocity_mps).collect();
+            filter.apply(&states, &velocities, &mut commands);
+        }
+        let s = &mut self.scratch;
         let limit = config.vehicle.max_steering_rad;
         s.steering_cmds
             .extend(commands.iter().map(|c| c.steering_rad.clamp(-limit, limit)));
@@ -229,7 +250,8 @@ impl Env {
                     (out.state, out.velocity_mps)
                 })
                 .collect(),
-            Some(stack) => match stack.advance(&commands, &self.paths, &config.vehicle) {
+            Some(stack) => match stack.advance(&commands, &self.paths, &config.vehicle, self.filter.as_mut())
+            {
                 Ok(moved) => moved,
                 Err(e) => {
                     self.failure.get_or_insert(e);
@@ -275,7 +297,11 @@ impl Env {
         }
 
         // 3. Rewards, then the short-term points of the new positions.
-        let mut totals = StepTotals::default();
+        if let Some(filter) = &mut self.filter {
+            let counts = filter.take_counts();
+            totals.filtered += counts.changed;
+            totals.filter_fallbacks += counts.infeasible + counts.not_finite + counts.unsolved;
+        }
         let lag = config.observation.boundary_corners == BoundaryCorners::LaggedForFirstAgent;
         let half_width = config.vehicle.width_m / 2.0;
         let max_step_m = config.vehicle.max_speed_mps * config.dt_s;
@@ -316,6 +342,7 @@ impl Env {
                     max_speed_mps: config.vehicle.max_speed_mps,
                     steering_commands_rad: [s.steering_cmds[i], a.prev_steering_cmd_rad],
                     max_steering_rad: config.vehicle.max_steering_rad,
+                    cbf_margins: cbf_margins.as_ref().map_or(0.0, |m| m[i]),
                 },
             );
             s.closest.push(nearest.map_or(0, |n| n.segment + 1));
@@ -387,6 +414,43 @@ impl Env {
             time_limit: time_limit && !ended,
         };
         (end, totals)
+    }
+}
+
+impl Env {
+    /// Each agent's CBF-informed reward (before its weight) for the joint `commands` in the
+    /// current states; `None` without the term.
+    fn cbf_margin_rewards(&self, config: &EnvConfig, commands: &[Command]) -> Option<Vec<f64>> {
+        let term = config.reward.cbf_margins.as_ref()?;
+        let lanes = self.lanes.as_ref()?;
+        let vehicles: Vec<Vehicle<'_>> = self
+            .agents
+            .iter()
+            .zip(commands)
+            .map(|(a, c)| {
+                let (s, v) = (a.placement.state, a.placement.velocity_mps);
+                let lane = &lanes[a.placement.path];
+                Vehicle {
+                    // SigmaRL's rows see the speed as the velocity's norm.
+                    state: CbfState {
+                        x_m: s.x_m as f32,
+                        y_m: s.y_m as f32,
+                        yaw_rad: s.yaw_rad as f32,
+                        speed_mps: v[0].hypot(v[1]) as f32,
+                        steering_rad: s.steering_rad as f32,
+                    },
+                    nominal: [c.speed_mps as f32, c.steering_rad as f32],
+                    left: &lane.0,
+                    right: &lane.1,
+                }
+            })
+            .collect();
+        Some(
+            joint_margins(&term.parameters, &vehicles)
+                .iter()
+                .map(|m| m.reward(term.threshold))
+                .collect(),
+        )
     }
 }
 

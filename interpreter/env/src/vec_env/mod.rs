@@ -22,6 +22,9 @@ use cpmx_world::{Point, ReferencePath};
 use rand::SeedableRng;
 use rand_chacha::ChaCha20Rng;
 use rayon::prelude::*;
+use std::sync::Arc;
+
+use cpmx_safety::layer::{self, Lane, LayerFilter};
 
 use crate::config::{ConfigError, EnvConfig, Plant};
 use crate::neighbours::EnvNeighbours;
@@ -50,6 +53,24 @@ impl VecEnv {
     /// environments are placed (as by [`VecEnv::reset_all`]) before this returns.
     pub fn new(config: EnvConfig, paths: &[ReferencePath], seed: u64) -> Result<Self, ConfigError> {
         config.check()?;
+        // Each path's lane (its shared road boundaries), for the filter and the CBF rows.
+        let lanes: Option<Arc<[Lane]>> = if config.safety.is_some() || config.reward.cbf_margins.is_some() {
+            let lane_of = |p: &ReferencePath| {
+                Some((
+                    layer::boundary(&p.left_boundary_shared)?,
+                    layer::boundary(&p.right_boundary_shared)?,
+                ))
+            };
+            Some(
+                paths
+                    .iter()
+                    .map(lane_of)
+                    .collect::<Option<Arc<[Lane]>>>()
+                    .ok_or(ConfigError::Lanes)?,
+            )
+        } else {
+            None
+        };
         let paths = prepare_paths(paths, config.scenario.start.first_index)?;
         let (n, points) = (
             config.scenario.agents,
@@ -71,6 +92,12 @@ impl VecEnv {
                 ),
             });
         }
+        let filter = match (&config.safety, &lanes) {
+            (Some(parameters), Some(lanes)) => {
+                Some(LayerFilter::new(parameters.clone(), lanes.clone(), vec![0; n]))
+            }
+            _ => None,
+        };
         let envs = stacks
             .into_iter()
             .enumerate()
@@ -93,6 +120,8 @@ impl VecEnv {
                 failure: None,
                 final_observation: None,
                 neighbours: EnvNeighbours::new(&config.neighbours, n, seed, e),
+                filter: filter.clone(),
+                lanes: lanes.clone(),
                 scratch: Scratch::default(),
             })
             .collect();
