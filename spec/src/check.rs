@@ -35,6 +35,9 @@ pub struct Resources {
     pub initial_actors: std::collections::BTreeMap<u64, PathBuf>,
     /// The poses of each `from_poses` entry, read, by initial-configuration index.
     pub poses: Vec<Option<crate::poses::MeasuredPoses>>,
+    /// The margin network each safety layer names (`safety.cbf.agents.predictor`), by the
+    /// name the spec gives it.
+    pub margin_predictors: std::collections::BTreeMap<String, PathBuf>,
     /// The spec's folder (where policy processes run).
     pub spec_dir: PathBuf,
 }

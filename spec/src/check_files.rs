@@ -123,6 +123,32 @@ pub(crate) fn find_files(
             }
         }
     }
+    for (name, fidelity) in &spec.fidelities {
+        let crate::model::Fidelity::Simulated(simulated) = fidelity else {
+            continue;
+        };
+        let Some(file) = simulated
+            .safety
+            .as_ref()
+            .and_then(|s| s.cbf.agents.as_ref())
+            .and_then(|a| a.predictor.as_ref())
+        else {
+            continue;
+        };
+        match data.find(file) {
+            Ok(path) => {
+                resources.margin_predictors.insert(file.clone(), path);
+            }
+            Err(_) if scope == CheckScope::Measure => {}
+            Err(tried) => {
+                let span = ctx.span(&format!(
+                    "/fidelities/{}/safety/cbf/agents/predictor",
+                    crate::yaml::escape_pointer(name)
+                ));
+                ctx.push(missing_file("margin network", file, &tried, data.option, span));
+            }
+        }
+    }
     let mut observations = vec![None; spec.policies.len()];
     for (i, policy) in spec.policies.iter().enumerate() {
         let found = policy

@@ -53,6 +53,12 @@ pub enum PrepareError {
     Priority { policy: String, reason: String },
     #[error("initial configuration `{name}`: {reason}")]
     Start { name: String, reason: String },
+    /// A safety layer's margin network that does not load.
+    #[error("the margin network {}: {reason}", path.display())]
+    MarginPredictor {
+        path: std::path::PathBuf,
+        reason: String,
+    },
     #[error(
         "policy `{policy}` names the actor trained with seed {seed}, which was not found: run `cpmx train` first"
     )]
@@ -75,6 +81,8 @@ pub struct Experiment {
     pub policies: Vec<(String, PreparedPolicy)>,
     /// Initial states by configuration name, in matrix order.
     pub starts: Vec<(String, ConfigurationStarts)>,
+    /// The margin networks the safety layers name, loaded, by the name the spec gives them.
+    pub margin_predictors: BTreeMap<String, Arc<cpmx_safety::MarginPredictor>>,
 }
 
 /// What scoring recorded runs needs: the spec, its map, vehicle and metric parameters. No
@@ -175,6 +183,7 @@ impl Experiment {
             metrics_by_fidelity: swept_metrics(checked),
             policies,
             starts,
+            margin_predictors: load_margin_predictors(&checked.resources)?,
         })
     }
 
@@ -350,6 +359,33 @@ pub fn vehicle_params(v: &VehicleSpec) -> VehicleParams {
 /// The vehicle whose footprint the spec's metrics score: `metrics.footprint`, else `vehicle`.
 pub fn footprint_params(spec: &Spec) -> VehicleParams {
     vehicle_params(spec.metrics.footprint.as_ref().unwrap_or(&spec.vehicle))
+}
+
+/// The margin networks the spec's safety layers name (`safety.cbf.agents.predictor`), loaded
+/// from `torch.save`'s files as SigmaRL saves them (the state dict under `model_state_dict`,
+/// the error bound a NumPy scalar under `error_upper_bound`), by the name the spec gives them.
+pub fn load_margin_predictors(
+    resources: &cpmx_spec::Resources,
+) -> Result<BTreeMap<String, Arc<cpmx_safety::MarginPredictor>>, PrepareError> {
+    resources
+        .margin_predictors
+        .iter()
+        .map(|(name, path)| {
+            let failed = |reason: String| PrepareError::MarginPredictor {
+                path: path.clone(),
+                reason,
+            };
+            let tensors = cpmx_policy::torch::read_state_dict_under(path, "model_state_dict")
+                .map_err(|e| failed(e.to_string()))?;
+            let bound = cpmx_policy::torch::read_float32_scalar(path, "error_upper_bound")
+                .map_err(|e| failed(e.to_string()))?;
+            let layers: Vec<(String, Vec<usize>, Vec<f32>)> =
+                tensors.into_iter().map(|t| (t.name, t.shape, t.values)).collect();
+            let predictor = cpmx_safety::MarginPredictor::new(&layers, f64::from(bound))
+                .map_err(|e| failed(e.to_string()))?;
+            Ok((name.clone(), Arc::new(predictor)))
+        })
+        .collect()
 }
 
 /// The spec's metric parameters as the metrics crate's.

@@ -26,8 +26,8 @@ pub use cpmx_stack::{CONTROL_PERIOD_S, GreyBoxMpcModel, VehicleStack};
 pub use cpmx_stack::{control_periods, trajectory_points};
 pub use engine::{Engine, Operator, RunError, RunInputs, engine_for};
 pub use experiment::{
-    Experiment, PrepareError, Scoring, footprint_params, load_map, load_map_spec, metrics_config,
-    vehicle_params,
+    Experiment, PrepareError, Scoring, footprint_params, load_map, load_map_spec, load_margin_predictors,
+    metrics_config, vehicle_params,
 };
 pub use policies::{NeighbourActionSource, PreparedPolicy, observation};
 pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, measure_recording, simulate};

@@ -31,11 +31,18 @@ pub(crate) fn filter_of_run(
         })
         .collect::<Option<std::sync::Arc<[_]>>>()
         .ok_or(RunError::SafetyLanes)?;
+    let predictor = layer
+        .cbf
+        .agents
+        .as_ref()
+        .and_then(|a| a.predictor.as_ref())
+        .and_then(|name| experiment.margin_predictors.get(name).cloned());
     let parameters = layer::parameters(
         layer,
         &experiment.vehicle,
         &experiment.footprint,
         experiment.spec.timing.dt,
+        predictor,
     );
     Ok(Some(LayerFilter::new(
         parameters,

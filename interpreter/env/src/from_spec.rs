@@ -4,7 +4,7 @@
 
 use cpmx_policy::SigmarlObservation;
 use cpmx_safety::margins::MarginParameters;
-use cpmx_safety::{AgentRows, CbfParameters};
+use cpmx_safety::{AgentRows, Arithmetic, CbfParameters};
 use cpmx_spec::model::{CbfMarginsSpec, PathSetName, RampShape, ResetScopeName, TrainingSpec};
 use cpmx_vehicle::VehicleParams;
 use cpmx_world::{Map, MapError, PathSet, ReferencePath};
@@ -113,14 +113,15 @@ pub fn config_from_training(
 
 /// The CBF-informed term for `vehicle` stepping every `dt_s`: SigmaRL 1.6.0's rows
 /// (`CBFQP.initialize_params`: finite differences of 2 cm, no safety buffer, every pair of
-/// agents) and its conversion of commands (speed from −0.5 m/s, the rates to ±5 m/s² and
-/// ±π/2 rad/s: its `AGENTS`).
+/// agents, its pinned NumPy 1.26's arithmetic) and its conversion of commands (speed from
+/// −0.5 m/s, the rates to ±5 m/s² and ±π/2 rad/s: its `AGENTS`).
 fn cbf_margins_term(spec: &CbfMarginsSpec, vehicle: &VehicleParams, dt_s: f64) -> CbfMarginsTerm {
     let circles = spec.circles as usize;
     let agents = AgentRows {
         length_m: vehicle.length_m,
         width_m: vehicle.width_m,
         range_m: f64::INFINITY,
+        predictor: None,
     };
     let sigmarl = CbfParameters::sigmarl(dt_s);
     CbfMarginsTerm {
@@ -140,6 +141,7 @@ fn cbf_margins_term(spec: &CbfMarginsSpec, vehicle: &VehicleParams, dt_s: f64) -
                 speed_range_mps: [-0.5, vehicle.max_speed_mps as f32],
                 max_steering_rad: vehicle.max_steering_rad as f32,
                 agents: Some(agents),
+                arithmetic: Arithmetic::Numpy1,
                 ..sigmarl
             },
             command_step_s: dt_s,

@@ -81,13 +81,26 @@ pub enum TorchError {
 /// The float32 tensors of the state dict in the checkpoint at `path`, sorted by name.
 /// Entries that are not tensors (SigmaRL's `__batch_size`, `__device`) are left out.
 pub fn read_state_dict(path: &Path) -> Result<Vec<NamedTensor>, TorchError> {
+    read_tensors(path, None)
+}
+
+/// The float32 tensors of the state dict saved under `key` of the dictionary in the
+/// checkpoint at `path` (`torch.save({"model_state_dict": ..., ...})`), sorted by name.
+pub fn read_state_dict_under(path: &Path, key: &str) -> Result<Vec<NamedTensor>, TorchError> {
+    read_tensors(path, Some(key))
+}
+
+fn read_tensors(path: &Path, key: Option<&str>) -> Result<Vec<NamedTensor>, TorchError> {
     check_archive(path)?;
     let content = |reason: String| TorchError::Content {
         path: path.to_owned(),
         reason,
     };
-    let reader =
-        PytorchReader::new(path).map_err(|e| content(format!("its state dict does not read: {e}")))?;
+    let reader = match key {
+        None => PytorchReader::new(path),
+        Some(key) => PytorchReader::with_top_level_key(path, key),
+    }
+    .map_err(|e| content(format!("its state dict does not read: {e}")))?;
     if !matches!(reader.metadata().format_type, FileFormat::Zip) {
         return Err(content("not torch.save's zip format".to_owned()));
     }
@@ -122,6 +135,93 @@ pub fn read_state_dict(path: &Path) -> Result<Vec<NamedTensor>, TorchError> {
     }
     tensors.sort_by(|a, b| a.name.cmp(&b.name));
     Ok(tensors)
+}
+
+/// The NumPy `float32` scalar saved under `key` of the dictionary in the checkpoint at `path`
+/// (SigmaRL's margin network keeps its `error_upper_bound` so). `pytorch-reader` does not
+/// interpret NumPy scalars; their pickle is short and fixed (`numpy.core.multiarray.scalar`
+/// of `dtype('f4')`, little-endian, with the four bytes as a latin-1 string through
+/// `_codecs.encode`), so this reads exactly that and refuses anything else.
+pub fn read_float32_scalar(path: &Path, key: &str) -> Result<f32, TorchError> {
+    check_archive(path)?;
+    let content = |reason: String| TorchError::Content {
+        path: path.to_owned(),
+        reason,
+    };
+    let io = |source| TorchError::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let mut archive = zip::ZipArchive::new(std::io::BufReader::new(file))
+        .map_err(|e| content(format!("its archive does not read: {e}")))?;
+    let name = archive
+        .file_names()
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| content(format!("its entries' names do not read: {e}")))?
+        .into_iter()
+        .find(|n| n.ends_with("/data.pkl"))
+        .map(|n| n.into_owned())
+        .ok_or_else(|| content("it has no `data.pkl`".to_owned()))?;
+    let mut pickle = Vec::new();
+    std::io::Read::read_to_end(
+        &mut archive
+            .by_name(&name)
+            .map_err(|e| content(format!("`{name}` does not read: {e}")))?,
+        &mut pickle,
+    )
+    .map_err(io)?;
+    numpy_float32_after(&pickle, key).map_err(|reason| content(format!("`{key}`: {reason}")))
+}
+
+/// The `float32` of the NumPy scalar that follows the pickled string `key` in `pickle`.
+fn numpy_float32_after(pickle: &[u8], key: &str) -> Result<f32, String> {
+    let string = |text: &str| {
+        let mut op = vec![b'X'];
+        op.extend_from_slice(&(text.len() as u32).to_le_bytes());
+        op.extend_from_slice(text.as_bytes());
+        op
+    };
+    let find = |haystack: &[u8], needle: &[u8]| haystack.windows(needle.len()).position(|w| w == needle);
+    let start = find(pickle, &string(key)).ok_or("no such key in the pickle")? + string(key).len();
+    // The scalar's whole pickle is well under 200 bytes.
+    let window = &pickle[start..pickle.len().min(start + 200)];
+    let scalar = [
+        b"numpy.core.multiarray\nscalar\n".as_slice(),
+        b"numpy._core.multiarray\nscalar\n",
+    ];
+    if !scalar.iter().any(|s| find(window, s).is_some_and(|at| at < 8)) {
+        return Err("not a NumPy scalar".to_owned());
+    }
+    if find(window, &string("f4")).is_none() || find(window, &string("<")).is_none() {
+        return Err("not a little-endian float32 NumPy scalar".to_owned());
+    }
+    let encode = b"c_codecs\nencode\n";
+    let at = find(window, encode).ok_or("its bytes are not pickled as `_codecs.encode`")? + encode.len();
+    let rest = &window[at..];
+    // An optional memo store (`q` + one byte, or `r` + four).
+    let rest = match rest.first() {
+        Some(b'q') => &rest[2.min(rest.len())..],
+        Some(b'r') => &rest[5.min(rest.len())..],
+        _ => rest,
+    };
+    let (&op, rest) = rest.split_first().ok_or("the pickle ends early")?;
+    if op != b'X' || rest.len() < 4 {
+        return Err("its bytes are not a string".to_owned());
+    }
+    let length = u32::from_le_bytes([rest[0], rest[1], rest[2], rest[3]]) as usize;
+    let text = rest
+        .get(4..4 + length)
+        .and_then(|b| std::str::from_utf8(b).ok())
+        .ok_or("its bytes are not a UTF-8 string")?;
+    let bytes: Vec<u8> = text
+        .chars()
+        .map(|c| u8::try_from(u32::from(c)).map_err(|_| "its string is not latin-1".to_owned()))
+        .collect::<Result<_, _>>()?;
+    let bytes: [u8; 4] = bytes
+        .try_into()
+        .map_err(|b: Vec<u8>| format!("{} bytes, not the four of a float32", b.len()))?;
+    Ok(f32::from_le_bytes(bytes))
 }
 
 /// The archive is one `torch.save` wrote: a zip whose entries lie under one folder with its
@@ -216,6 +316,39 @@ mod tests {
         );
         assert!(e.contains("actor_policy.pth"), "{e}");
         std::fs::remove_dir_all(dir).unwrap();
+    }
+
+    /// SigmaRL's margin network of ECC 2025: its state dict under `model_state_dict` and its
+    /// error bound, a NumPy scalar (0.012842575 in SigmaRL's `torch.load`).
+    #[test]
+    fn the_margin_networks_tensors_and_its_numpy_error_bound_read() {
+        let path = cpmx_testdata::reference_file("sigmarl-published/checkpoints/ecc25/sm_predictor.pth");
+        let tensors = read_state_dict_under(&path, "model_state_dict").unwrap();
+        let shapes: Vec<(&str, &[usize])> = tensors
+            .iter()
+            .map(|t| (t.name.as_str(), t.shape.as_slice()))
+            .collect();
+        assert_eq!(
+            shapes,
+            [
+                ("model.0.bias", [64].as_slice()),
+                ("model.0.weight", &[64, 3]),
+                ("model.2.bias", &[64]),
+                ("model.2.weight", &[64, 64]),
+                ("model.4.bias", &[1]),
+                ("model.4.weight", &[1, 64]),
+            ]
+        );
+        assert_eq!(
+            read_float32_scalar(&path, "error_upper_bound").unwrap(),
+            0.012842575
+        );
+        let e = read_float32_scalar(&path, "val_losses_history")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not a NumPy scalar"), "{e}");
+        let e = read_float32_scalar(&path, "no_such_key").unwrap_err().to_string();
+        assert!(e.contains("no such key"), "{e}");
     }
 
     #[test]

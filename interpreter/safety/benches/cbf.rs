@@ -71,6 +71,7 @@ fn bench(c: &mut Criterion) {
             length_m: 0.22,
             width_m: 0.107,
             range_m: 1.0,
+            predictor: None,
         }),
         slack_weight: Some(1e9),
         ..single

@@ -7,9 +7,12 @@
 //! a row between them are solved together, in one QP with their boundary rows. Unlike
 //! SigmaRL's grouped QP, no neighbour's input is assumed zero.
 
+use std::sync::Arc;
+
 use crate::cbf::{
-    CbfOutcome, CbfParameters, CbfRow, CbfState, Command, Fallback, Motion, active_rows, filter,
+    Arithmetic, CbfOutcome, CbfParameters, CbfRow, CbfState, Command, Fallback, Motion, active_rows, filter,
 };
+use crate::predictor::{MarginPredictor, predicted_row};
 use crate::pseudo_distance::Boundary;
 use crate::qp::{QpRow, solve_relaxing};
 
@@ -23,6 +26,10 @@ pub struct AgentRows {
     pub width_m: f64,
     /// Two vehicles whose centres are closer than this get rows [m].
     pub range_m: f64,
+    /// The margin between two cars: `None`, circles (each of the filter's circles of one car
+    /// against each of the other's, kept a diameter apart); or one row on the MTV-based margin
+    /// a network predicts from their relative pose (SigmaRL's ECC 2025 margin).
+    pub predictor: Option<Arc<MarginPredictor>>,
 }
 
 impl AgentRows {
@@ -46,19 +53,33 @@ pub struct Vehicle<'a> {
     pub right: &'a Boundary,
 }
 
-/// A row between two vehicles' circles: `Σ coefficients · u + constant ≥ 0`.
+/// A row between two vehicles: `Σ coefficients · u + constant ≥ 0`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PairRow {
     /// The two vehicles (indices into the step's vehicles).
     pub vehicles: [usize; 2],
-    /// Their circles (0 at the rear).
-    pub circles: [usize; 2],
-    /// h = ‖p_i − p_j‖² − (2r)² [m²].
-    pub margin_m2: f64,
+    /// The margin the row keeps.
+    pub margin: PairMargin,
     /// Each vehicle's coefficients of acceleration and steering rate.
     pub coefficients: [[f64; 2]; 2],
     /// The constant.
     pub constant: f64,
+}
+
+/// The margin a row between two vehicles keeps positive.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PairMargin {
+    /// Between two circles (0 at the rear): h = ‖p_i − p_j‖² − (2r)².
+    Circles {
+        circles: [usize; 2],
+        /// h [m²].
+        barrier_m2: f64,
+    },
+    /// The predicted MTV-based margin of the two footprints less the network's error bound.
+    Predicted {
+        /// h [m].
+        barrier_m: f64,
+    },
 }
 
 /// What the filter did for a step's vehicles.
@@ -209,6 +230,17 @@ pub(crate) fn rows_between(
     pair: [usize; 2],
     states: [CbfState; 2],
 ) -> Vec<PairRow> {
+    if let Some(predictor) = &agents.predictor {
+        let row = predicted_row(p, predictor, [agents.length_m, agents.width_m], states);
+        return vec![PairRow {
+            vehicles: pair,
+            margin: PairMargin::Predicted {
+                barrier_m: row.barrier_m,
+            },
+            coefficients: row.coefficients,
+            constant: row.constant,
+        }];
+    }
     let step = agents.length_m / p.circles as f64;
     let offsets: Vec<f64> = (0..p.circles)
         .map(|k| -agents.length_m / 2.0 + step / 2.0 + k as f64 * step)
@@ -218,10 +250,21 @@ pub(crate) fn rows_between(
     let circles = states.map(|s| {
         let motion = Motion::of(p, s);
         let (sin, cos) = f64::from(s.yaw_rad).sin_cos();
+        let (sin32, cos32) = s.yaw_rad.sin_cos();
         offsets
             .iter()
             .map(|&offset| {
-                let centre = [f64::from(s.x_m) + offset * cos, f64::from(s.y_m) + offset * sin];
+                let centre = match p.arithmetic {
+                    Arithmetic::Numpy2 => [f64::from(s.x_m) + offset * cos, f64::from(s.y_m) + offset * sin],
+                    // `get_circle_centers` in float32.
+                    Arithmetic::Numpy1 => {
+                        let offset32 = offset as f32;
+                        [
+                            f64::from(cos32 * offset32 + s.x_m),
+                            f64::from(sin32 * offset32 + s.y_m),
+                        ]
+                    }
+                };
                 let (velocity, acceleration) = motion.point(offset);
                 (centre, velocity, acceleration)
             })
@@ -230,7 +273,13 @@ pub(crate) fn rows_between(
     let mut rows = Vec::with_capacity(p.circles * p.circles);
     for (ci, (pi, vi, ai)) in circles[0].iter().enumerate() {
         for (cj, (pj, vj, aj)) in circles[1].iter().enumerate() {
-            let dp = [pi[0] - pj[0], pi[1] - pj[1]];
+            let dp = match p.arithmetic {
+                Arithmetic::Numpy2 => [pi[0] - pj[0], pi[1] - pj[1]],
+                Arithmetic::Numpy1 => [
+                    f64::from(pi[0] as f32 - pj[0] as f32),
+                    f64::from(pi[1] as f32 - pj[1] as f32),
+                ],
+            };
             let dv = [vi[0] - vj[0], vi[1] - vj[1]];
             let margin = dp[0] * dp[0] + dp[1] * dp[1] - safe_sq;
             let rate = 2.0 * (dp[0] * dv[0] + dp[1] * dv[1]);
@@ -242,8 +291,10 @@ pub(crate) fn rows_between(
             };
             rows.push(PairRow {
                 vehicles: pair,
-                circles: [ci, cj],
-                margin_m2: margin,
+                margin: PairMargin::Circles {
+                    circles: [ci, cj],
+                    barrier_m2: margin,
+                },
                 coefficients: [on(ai, 1.0), on(aj, -1.0)],
                 constant: p.gain * margin + rate * p.step_s + half_dt_sq * drift,
             });
@@ -327,6 +378,7 @@ mod tests {
                 length_m: 0.22,
                 width_m: 0.107,
                 range_m: 1.0,
+                predictor: None,
             }),
             ..CbfParameters::sigmarl(0.1)
         }

@@ -50,6 +50,24 @@ pub struct CbfParameters {
     /// Where the QP has no solution: the weight of each row's squared slack in a relaxed QP
     /// (SigmaRL's later QP: 1e9); `None`: the clamped nominal command goes through (1.4.0).
     pub slack_weight: Option<f64>,
+    /// How the `float16` distances combine with SigmaRL's `float64` constants.
+    pub arithmetic: Arithmetic,
+}
+
+/// How NumPy combines the pseudo-distance's `float16` values with Python's numbers, which
+/// moves a row by up to 7e-4: SigmaRL's code is the same, NumPy's rules are not.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Arithmetic {
+    /// NumPy 2 (NEP 50): Python numbers become `float16` first and every operation rounds to
+    /// `float16`; the rows between cars take their circles' centres in `f64`. The filter as
+    /// checked against SigmaRL 1.4.0's own under NumPy 2.
+    #[default]
+    Numpy2,
+    /// NumPy 1.26, which SigmaRL 1.6.0 pins: a difference of two `float16` values is rounded,
+    /// anything with a Python number is `float64` (the margin, the divisions, the curvature's
+    /// `x₊ − 2x + x₋`); the circles' centres are `float32`. SigmaRL 1.6.0's CBF-informed reward
+    /// as it computed it.
+    Numpy1,
 }
 
 impl CbfParameters {
@@ -72,6 +90,7 @@ impl CbfParameters {
             max_steering_rad: std::f64::consts::FRAC_PI_4 as f32,
             agents: None,
             slack_weight: None,
+            arithmetic: Arithmetic::Numpy2,
         }
     }
 
@@ -114,8 +133,8 @@ pub struct CbfRow {
     pub circle: usize,
     /// The boundary.
     pub side: Side,
-    /// h: the pseudo-distance less the circle's radius (`float16`) [m].
-    pub margin_m: f32,
+    /// h: the pseudo-distance less the circle's radius [m].
+    pub margin_m: f64,
     /// ḣ [m/s].
     pub margin_rate_mps: f64,
     /// Coefficients of acceleration and steering rate.
@@ -331,24 +350,51 @@ pub fn rows(p: &CbfParameters, s: CbfState, left: &Boundary, right: &Boundary) -
         ];
         for (side, boundary) in [(Side::Left, left), (Side::Right, right)] {
             let d = offsets.map(|o| boundary.pseudo_distance([centre[0] + o[0], centre[1] + o[1]]));
-            // The finite differences, each operation rounded to float16.
-            let gradient = [
-                float16(float16(d[1] - d[0]) / step16),
-                float16(float16(d[2] - d[0]) / step16),
-            ];
-            let second = |plus: f32, minus: f32| {
-                let numerator = float16(float16(plus - float16(2.0 * d[0])) + minus);
-                float16(numerator / step_sq16)
+            let (margin, g, hessian, lambda_h) = match p.arithmetic {
+                Arithmetic::Numpy2 => {
+                    // The finite differences, each operation rounded to float16.
+                    let gradient = [
+                        float16(float16(d[1] - d[0]) / step16),
+                        float16(float16(d[2] - d[0]) / step16),
+                    ];
+                    let second = |plus: f32, minus: f32| {
+                        let numerator = float16(float16(plus - float16(2.0 * d[0])) + minus);
+                        f64::from(float16(numerator / step_sq16))
+                    };
+                    let mixed = f64::from(float16(
+                        float16(float16(float16(d[5] - d[6]) - d[7]) + d[8]) / step_4sq16,
+                    ));
+                    let margin = float16(d[0] - radius16);
+                    (
+                        f64::from(margin),
+                        [f64::from(gradient[0]), f64::from(gradient[1])],
+                        [[second(d[1], d[3]), mixed], [mixed, second(d[2], d[4])]],
+                        f64::from(float16(gain16 * margin)),
+                    )
+                }
+                Arithmetic::Numpy1 => {
+                    let step = p.difference_step_m;
+                    let d64 = d.map(f64::from);
+                    let second = |plus: f64, minus: f64| (plus - 2.0 * d64[0] + minus) / (step * step);
+                    let mixed =
+                        f64::from(float16(float16(float16(d[5] - d[6]) - d[7]) + d[8])) / (4.0 * step * step);
+                    let margin = d64[0] - p.circle_radius_m;
+                    (
+                        margin,
+                        [
+                            f64::from(float16(d[1] - d[0])) / step,
+                            f64::from(float16(d[2] - d[0])) / step,
+                        ],
+                        [[second(d64[1], d64[3]), mixed], [mixed, second(d64[2], d64[4])]],
+                        p.gain * margin,
+                    )
+                }
             };
-            let mixed = float16(float16(float16(float16(d[5] - d[6]) - d[7]) + d[8]) / step_4sq16);
-            let hessian = [[second(d[1], d[3]), mixed], [mixed, second(d[2], d[4])]];
-            let margin = float16(d[0] - radius16);
-            let g = [f64::from(gradient[0]), f64::from(gradient[1])];
             let margin_rate = g[0] * velocity[0] + g[1] * velocity[1];
             // ṗᵀ H ṗ as NumPy's (ṗᵀ H) ṗ in f64.
             let hv = [
-                velocity[0] * f64::from(hessian[0][0]) + velocity[1] * f64::from(hessian[1][0]),
-                velocity[0] * f64::from(hessian[0][1]) + velocity[1] * f64::from(hessian[1][1]),
+                velocity[0] * hessian[0][0] + velocity[1] * hessian[1][0],
+                velocity[0] * hessian[0][1] + velocity[1] * hessian[1][1],
             ];
             let curvature = hv[0] * velocity[0] + hv[1] * velocity[1];
             // ḧ = g·p̈ + ṗᵀHṗ, affine in u; the row λh + ḣΔt + ½ḧΔt².
@@ -356,7 +402,6 @@ pub fn rows(p: &CbfParameters, s: CbfState, left: &Boundary, right: &Boundary) -
                 g[0] * acceleration[0][j] + g[1] * acceleration[1][j] + if j == 0 { curvature } else { 0.0 }
             });
             let half_dt_sq = 0.5 * p.step_s * p.step_s;
-            let lambda_h = f64::from(float16(gain16 * margin));
             rows.push(CbfRow {
                 circle,
                 side,
@@ -375,14 +420,14 @@ pub fn rows(p: &CbfParameters, s: CbfState, left: &Boundary, right: &Boundary) -
 /// (`compute_dstate_2nd_time`, `f64`), each second derivative as `[constant, ∂/∂a, ∂/∂ω]`.
 #[derive(Clone, Copy)]
 pub(crate) struct Motion {
-    dx: f64,
-    dy: f64,
-    dyaw: f64,
-    sin_yaw: f64,
-    cos_yaw: f64,
-    ddx: [f64; 3],
-    ddy: [f64; 3],
-    ddyaw: [f64; 3],
+    pub(crate) dx: f64,
+    pub(crate) dy: f64,
+    pub(crate) dyaw: f64,
+    pub(crate) sin_yaw: f64,
+    pub(crate) cos_yaw: f64,
+    pub(crate) ddx: [f64; 3],
+    pub(crate) ddy: [f64; 3],
+    pub(crate) ddyaw: [f64; 3],
 }
 
 impl Motion {

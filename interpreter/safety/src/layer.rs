@@ -10,7 +10,7 @@ use cpmx_spec::model::SafetyLayer;
 use cpmx_vehicle::{BicycleState, Command, VehicleParams};
 use cpmx_world::Polyline;
 
-use crate::{AgentRows, Boundary, CbfParameters, CbfState, Fallback, Vehicle, filter_step};
+use crate::{AgentRows, Boundary, CbfParameters, CbfState, Fallback, MarginPredictor, Vehicle, filter_step};
 
 /// A lane the filter keeps a vehicle in: its left and right road boundaries.
 pub type Lane = (Boundary, Boundary);
@@ -53,12 +53,14 @@ pub fn boundary(line: &Polyline) -> Option<Boundary> {
 }
 
 /// The filter's parameters of `layer`, for a vehicle of `vehicle`'s geometry stepping every
-/// `dt_s`, vehicles kept apart (where the layer asks) by circles that cover `footprint`.
+/// `dt_s`, vehicles kept apart (where the layer asks) by circles that cover `footprint`, or by
+/// the margin `predictor` (the network the layer names, loaded).
 pub fn parameters(
     layer: &SafetyLayer,
     vehicle: &VehicleParams,
     footprint: &VehicleParams,
     dt_s: f64,
+    predictor: Option<Arc<MarginPredictor>>,
 ) -> CbfParameters {
     let cbf = &layer.cbf;
     CbfParameters {
@@ -79,8 +81,10 @@ pub fn parameters(
             length_m: footprint.length_m,
             width_m: footprint.width_m,
             range_m: agents.range_m,
+            predictor: predictor.clone(),
         }),
         slack_weight: cbf.slack_weight,
+        arithmetic: crate::Arithmetic::Numpy2,
     }
 }
 

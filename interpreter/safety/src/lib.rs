@@ -11,11 +11,13 @@ pub mod agents;
 pub mod cbf;
 pub mod layer;
 pub mod margins;
+pub mod predictor;
 pub mod pseudo_distance;
 mod qp;
 
-pub use agents::{AgentRows, PairRow, StepOutcome, Vehicle, filter_step};
-pub use cbf::{CbfOutcome, CbfParameters, CbfRow, CbfState, Fallback, Side, filter};
+pub use agents::{AgentRows, PairMargin, PairRow, StepOutcome, Vehicle, filter_step};
+pub use cbf::{Arithmetic, CbfOutcome, CbfParameters, CbfRow, CbfState, Fallback, Side, filter};
+pub use predictor::{MarginPredictor, PredictorError};
 pub use pseudo_distance::Boundary;
 
 /// `x` rounded to the nearest `float16` (ties to even), as NumPy and torch round.

@@ -115,6 +115,7 @@ mod tests {
             length_m: 0.16,
             width_m: 0.08,
             range_m: f64::INFINITY,
+            predictor: None,
         };
         MarginParameters {
             rows: CbfParameters {

@@ -163,14 +163,22 @@ impl TrainingSetup {
             };
             // The filter as `cpmx run` applies it in this fidelity (the same parameters,
             // lanes and circles).
-            env.safety = f.safety.as_ref().map(|layer| {
-                cpmx_safety::layer::parameters(
+            if let Some(layer) = &f.safety {
+                let predictors = cpmx_engine::load_margin_predictors(&checked.resources)?;
+                let predictor = layer
+                    .cbf
+                    .agents
+                    .as_ref()
+                    .and_then(|a| a.predictor.as_ref())
+                    .and_then(|name| predictors.get(name).cloned());
+                env.safety = Some(cpmx_safety::layer::parameters(
                     layer,
                     &vehicle,
                     &cpmx_engine::footprint_params(spec),
                     spec.timing.dt,
-                )
-            });
+                    predictor,
+                ));
+            }
         }
         env.check().map_err(|e| SetupError::Invalid(e.to_string()))?;
         let hyperparameters = hyperparameters(training, &vehicle);

@@ -60,14 +60,25 @@ pub struct CbfFilter {
 
 /// The rows between vehicles: each vehicle as `circles` circles that cover the footprint
 /// collisions are scored with (`metrics.footprint`, else the vehicle); for two vehicles in
-/// range, every pair of their circles keeps twice the radius apart; the answer is one QP's
-/// over all the vehicles (vehicles whose lone answers break no such row keep them).
+/// range, every pair of their circles keeps twice the radius apart (or, with `predictor`, one
+/// row keeps the footprints' predicted margin); the answer is one QP's over all the vehicles
+/// (vehicles whose lone answers break no such row keep them).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct CbfAgents {
     /// Two vehicles whose centres are closer than this are kept apart [m].
     #[schemars(extend("exclusiveMinimum" = 0))]
     pub range_m: f64,
+    /// SigmaRL's MTV-based margin (ECC 2025) instead of the circles: the network that predicts
+    /// the minimum translation vector between two footprints from their relative pose
+    /// (`sm_predictor.pth` as SigmaRL saves it, relative to the spec's folder or found on the
+    /// data path, e.g. `sigmarl-published/checkpoints/ecc25/sm_predictor.pth`); one row per
+    /// pair keeps the predicted margin less the network's error bound positive. Positions are
+    /// scaled by the footprint's length, as SigmaRL scales them by its car's (the network
+    /// learned SigmaRL's 0.16 m × 0.08 m car).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(length(min = 1))]
+    pub predictor: Option<String>,
 }
 
 /// The CBF-QP's weights (SigmaRL: 30 and 1).

@@ -428,15 +428,15 @@ impl Env {
             .iter()
             .zip(commands)
             .map(|(a, c)| {
-                let (s, v) = (a.placement.state, a.placement.velocity_mps);
+                let s = a.placement.state;
                 let lane = &lanes[a.placement.path];
                 Vehicle {
-                    // SigmaRL's rows see the speed as the velocity's norm.
+                    // SigmaRL 1.6.0's margins take the signed speed of the state.
                     state: CbfState {
                         x_m: s.x_m as f32,
                         y_m: s.y_m as f32,
                         yaw_rad: s.yaw_rad as f32,
-                        speed_mps: v[0].hypot(v[1]) as f32,
+                        speed_mps: s.speed_mps as f32,
                         steering_rad: s.steering_rad as f32,
                     },
                     nominal: [c.speed_mps as f32, c.steering_rad as f32],
