@@ -1,6 +1,7 @@
 //! A fidelity's `safety:` layer (`stdlib:sigmarl-cbf`): the paper's actor driven through
 //! SigmaRL's CBF filter in sim and in the twin's planner, what the filter did kept in each
-//! run's notes; the layer refused where it does not run yet (training).
+//! run's notes; SigmaRL's MTV-based margin between cars; the integration the training
+//! environments do not run refused.
 
 mod support;
 
@@ -156,7 +157,9 @@ fn the_papers_actors_that_collide_from_the_labs_starts_are_kept_apart_by_the_fil
          sim-cbf: {control: direct, dynamics: kinematic, safety: stdlib:sigmarl-cbf}\n  \
          twin: {control: trajectory, dynamics: stdlib:mu-car-greybox, sensing: stdlib:cpm-ips, actuation: {delay_ms: 80}}\n  \
          twin-cbf: {control: trajectory, dynamics: stdlib:mu-car-greybox, sensing: stdlib:cpm-ips, actuation: {delay_ms: 80}, \
-         safety: stdlib:sigmarl-cbf}",
+         safety: stdlib:sigmarl-cbf}\n  \
+         sim-mtv-cbf: {control: direct, dynamics: kinematic, safety: {extends: stdlib:sigmarl-cbf, \
+         cbf: {agents: {range_m: 1.0, predictor: sigmarl-published/checkpoints/ecc25/sm_predictor.pth}}}}",
         "",
     );
     // The paper's three actors, each from its own lab runs' starts, for the whole 18 s.
@@ -190,17 +193,40 @@ fn the_papers_actors_that_collide_from_the_labs_starts_are_kept_apart_by_the_fil
             kept += row["safety.kept_apart"].parse::<f64>().unwrap();
         }
     }
-    assert_eq!(runs, 54);
+    assert_eq!(runs, 81);
     assert!(kept > 0.0, "the rows between the cars never held");
     // docs/specs.md: "collide in 4 of their 27 sim runs".
     assert_eq!(colliding_sim_runs, 4, "{rows:?}");
     assert!(collisions["twin"] > 0.0, "{collisions:?}");
     // Through the planner of the twin too: the filter changes every rolled-out step.
+    // And with SigmaRL's MTV-based margin between the cars (ECC 2025's network).
     assert_eq!(
-        collisions["sim-cbf"] + collisions["twin-cbf"],
+        collisions["sim-cbf"] + collisions["twin-cbf"] + collisions["sim-mtv-cbf"],
         0.0,
         "{collisions:?}"
     );
+}
+
+#[test]
+fn a_margin_network_that_is_missing_or_is_no_margin_network_is_refused() {
+    let dir = scratch("safety-filter-predictor");
+    let fidelity = |file: &str| {
+        format!(
+            "  sim-mtv: {{control: direct, dynamics: kinematic, safety: {{extends: stdlib:sigmarl-cbf, \
+             cbf: {{agents: {{range_m: 1.0, predictor: {file}}}}}}}}}"
+        )
+    };
+    let path = spec(&dir, &fidelity("ecc25/no_such_predictor.pth"), "");
+    let (code, text) = cpmx(&dir, "validate", &path, None);
+    assert_eq!(code, Some(1), "{text}");
+    assert!(text.contains("ecc25/no_such_predictor.pth"), "{text}");
+    assert!(text.contains("safety.yaml:"), "located: {text}");
+    // An actor's checkpoint is a torch file, but not the margin network.
+    let path = spec(&dir, &fidelity("paper-at25/seed1/final_policy.pth"), "");
+    let out = dir.join("out");
+    let (code, text) = cpmx(&dir, "run", &path, Some(&out));
+    assert_ne!(code, Some(0), "{text}");
+    assert!(text.contains("the margin network"), "{text}");
 }
 
 #[test]

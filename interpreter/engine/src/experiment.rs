@@ -53,12 +53,9 @@ pub enum PrepareError {
     Priority { policy: String, reason: String },
     #[error("initial configuration `{name}`: {reason}")]
     Start { name: String, reason: String },
-    /// A safety layer's margin network that does not load.
-    #[error("the margin network {}: {reason}", path.display())]
-    MarginPredictor {
-        path: std::path::PathBuf,
-        reason: String,
-    },
+    /// A safety layer's margin network that does not load (the reason names the file).
+    #[error("the safety layer's margin network: {0}")]
+    MarginPredictor(String),
     #[error(
         "policy `{policy}` names the actor trained with seed {seed}, which was not found: run `cpmx train` first"
     )]
@@ -371,10 +368,7 @@ pub fn load_margin_predictors(
         .margin_predictors
         .iter()
         .map(|(name, path)| {
-            let failed = |reason: String| PrepareError::MarginPredictor {
-                path: path.clone(),
-                reason,
-            };
+            let failed = PrepareError::MarginPredictor;
             let tensors = cpmx_policy::torch::read_state_dict_under(path, "model_state_dict")
                 .map_err(|e| failed(e.to_string()))?;
             let bound = cpmx_policy::torch::read_float32_scalar(path, "error_upper_bound")
@@ -382,7 +376,7 @@ pub fn load_margin_predictors(
             let layers: Vec<(String, Vec<usize>, Vec<f32>)> =
                 tensors.into_iter().map(|t| (t.name, t.shape, t.values)).collect();
             let predictor = cpmx_safety::MarginPredictor::new(&layers, f64::from(bound))
-                .map_err(|e| failed(e.to_string()))?;
+                .map_err(|e| failed(format!("{}: {e}", path.display())))?;
             Ok((name.clone(), Arc::new(predictor)))
         })
         .collect()
