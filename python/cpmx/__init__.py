@@ -270,6 +270,7 @@ def cbf_filter(
         ValueError: A boundary with fewer than two points, ``circles`` < 1 or ``dt_s`` <= 0.
 
     """
+
     def points(boundary: Sequence[Sequence[float]] | np.ndarray) -> list[list[float]]:
         return np.asarray(boundary, dtype=np.float32).reshape(-1, 2).tolist()
 
