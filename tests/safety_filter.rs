@@ -127,10 +127,42 @@ fn the_filter_runs_between_the_actor_and_the_car_and_says_what_it_did() {
                 "{row:?}"
             );
             assert!(row["safety.changed"].parse::<f64>().unwrap() > 0.0, "{row:?}");
+            assert!(
+                !row.contains_key("safety.solve_s"),
+                "timed only when asked: {row:?}"
+            );
         } else {
             assert_eq!(row["safety.agent_steps"], "", "{row:?}");
         }
     }
+    // `--timing` adds the filter's time, the same trajectories.
+    let timed = dir.join("timed");
+    let reference = reference();
+    let output = cpmx_in(
+        &dir,
+        &[
+            "run",
+            path.to_str().unwrap(),
+            "--data",
+            reference.to_str().unwrap(),
+            "--out",
+            timed.to_str().unwrap(),
+            "--timing",
+        ],
+    );
+    assert!(output.status.success(), "{}", unwrapped(&output.stderr));
+    let row = per_run(&timed)
+        .into_iter()
+        .find(|r| r["fidelity"] == "sim-cbf")
+        .unwrap();
+    assert!(row["safety.solve_s"].parse::<f64>().unwrap() > 0.0, "{row:?}");
+    assert!(
+        row["safety.largest_solve_us"].parse::<f64>().unwrap() > 0.0,
+        "{row:?}"
+    );
+    let timed_trajectory =
+        std::fs::read_to_string(timed.join("runs/sim-cbf/paper/init1/rep1/trajectory.csv")).unwrap();
+    assert_eq!(timed_trajectory, filtered);
 }
 
 #[test]

@@ -142,6 +142,7 @@ pub fn run<'py>(
         stop: Some(stop.clone()),
         operator: None,
         made_by: format!("cpmx Python package {}", env!("CARGO_PKG_VERSION")),
+        timing: false,
     };
 
     // Run in a thread of its own; this one waits without the GIL and looks for Ctrl-C.

@@ -38,6 +38,12 @@ pub struct RunArgs {
     /// runs whose inputs it changed are left out of the summaries until they are run again.
     #[arg(long)]
     pub force: bool,
+    /// Also record how long each run's layers took (`safety.solve_s`: the safety filter's
+    /// time over the run; `safety.largest_solve_us`: its longest step per agent). Wall-clock
+    /// figures differ between machines and runs; without this flag a run folder's numbers are
+    /// the same everywhere.
+    #[arg(long)]
+    pub timing: bool,
     #[command(flatten)]
     pub data: DataArgs,
 }
@@ -74,6 +80,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         stop: Some(crate::interrupt::flag()),
         operator: Some(operator),
         made_by: crate::made_by(),
+        timing: args.timing,
     };
 
     // Policies bound from Python run only from Python.

@@ -69,6 +69,7 @@ fn run(experiment: &Experiment, plan: &RunPlan) -> usize {
             fidelity: None,
             stop: None,
             operator: None,
+            timing: false,
         })
         .expect("the sim run");
     recording.samples.len()

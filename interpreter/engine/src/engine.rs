@@ -92,6 +92,8 @@ pub struct RunInputs<'a> {
     pub stop: Option<&'a AtomicBool>,
     /// Where the lab driver tells the operator what it waits for (the preflight's table).
     pub operator: Option<&'a Operator>,
+    /// Whether to record how long the layers took (`cpmx run --timing`).
+    pub timing: bool,
 }
 
 /// Where a lab run tells the operator what it waits for, while it waits (the library prints

@@ -50,6 +50,9 @@ pub struct RunOptions {
     pub stop: Option<Arc<AtomicBool>>,
     /// Where lab runs tell the operator what they wait for (the preflight's table).
     pub operator: Option<Operator>,
+    /// Also record how long the layers took (the safety filter's solve time): wall-clock
+    /// figures, which differ between machines and runs, so off by default.
+    pub timing: bool,
 }
 
 /// What became of one run.
@@ -199,6 +202,7 @@ fn execute_one(
     let context = EngineContext {
         stop: options.stop.as_deref(),
         operator: options.operator.as_ref(),
+        timing: options.timing,
     };
     let failed = |reason: String, notes: &[String], latency_s: &[f64]| {
         let failure = Failure {
@@ -268,11 +272,13 @@ fn earlier_recording(out: &Path, plan: &RunPlan) -> Vec<String> {
     }
 }
 
-/// What the runner hands an engine besides the run: the stop flag and the operator.
+/// What the runner hands an engine besides the run: the stop flag, the operator and whether
+/// to time the layers.
 #[derive(Clone, Copy)]
 struct EngineContext<'a> {
     stop: Option<&'a AtomicBool>,
     operator: Option<&'a Operator>,
+    timing: bool,
 }
 
 /// Why a run has no result: a reason, and what it recorded before it failed, if anything.
@@ -336,6 +342,7 @@ pub fn simulate(experiment: &Experiment, plan: &RunPlan) -> Result<(Recording, R
     let context = EngineContext {
         stop: None,
         operator: None,
+        timing: false,
     };
     let recording = run_engine(experiment, plan, fidelity.as_ref(), context).map_err(RunFailure::reason)?;
     let metrics = measure(experiment, &plan.fidelity, &recording)?;
@@ -377,6 +384,7 @@ fn run_engine(
         fidelity: drawn,
         stop: context.stop,
         operator: context.operator,
+        timing: context.timing,
     })?)
 }
 

@@ -12,10 +12,12 @@ use crate::experiment::Experiment;
 
 /// The filter of a run whose fidelity has the safety `layer`, if any, for agents on
 /// `ref_paths` of `experiment`'s map (each path's left and right road boundaries).
+/// With `timing`, the filter times its steps (`cpmx run --timing`).
 pub(crate) fn filter_of_run(
     layer: Option<&SafetyLayer>,
     experiment: &Experiment,
     ref_paths: &[usize],
+    timing: bool,
 ) -> Result<Option<LayerFilter>, RunError> {
     let Some(layer) = layer else {
         return Ok(None);
@@ -44,11 +46,9 @@ pub(crate) fn filter_of_run(
         experiment.spec.timing.dt,
         predictor,
     );
-    Ok(Some(LayerFilter::new(
-        parameters,
-        lanes,
-        (0..ref_paths.len()).collect(),
-    )))
+    Ok(Some(
+        LayerFilter::new(parameters, lanes, (0..ref_paths.len()).collect()).with_timing(timing),
+    ))
 }
 
 /// What the filter did over the run, into its notes and statistics.

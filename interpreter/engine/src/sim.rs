@@ -55,6 +55,7 @@ impl Engine for SimEngine {
             inputs.fidelity.and_then(|f| f.safety.as_ref()),
             experiment,
             &recording.ref_paths,
+            inputs.timing,
         )?;
         let mut knowledge = inputs.neighbour_knowledge();
         let mut agents = vec![AgentState::default(); states.len()];

@@ -23,6 +23,8 @@ pub struct LayerFilter {
     lanes: Arc<[Lane]>,
     lane_of_agent: Vec<usize>,
     counts: Counts,
+    /// Whether to time each step's filter (`with_timing`).
+    timing: bool,
 }
 
 /// What the filter did (over a run, or since the counts were last taken).
@@ -44,6 +46,17 @@ pub struct Counts {
     pub kept_apart: u64,
     /// The largest change of the speed [m/s] and of the steering [rad] command.
     pub largest_change: [f64; 2],
+    /// How long the filter took, when timed ([`LayerFilter::with_timing`]).
+    pub solve_time: Option<SolveTime>,
+}
+
+/// The filter's wall-clock time (which differs between machines and runs).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SolveTime {
+    /// Over every step filtered [s].
+    pub total_s: f64,
+    /// The longest step, per agent-step of it [s].
+    pub largest_per_agent_s: f64,
 }
 
 /// A polyline as the filter's boundary (`f32`, as SigmaRL holds it); `None` with fewer than
@@ -104,7 +117,18 @@ impl LayerFilter {
             lanes,
             lane_of_agent,
             counts: Counts::default(),
+            timing: false,
         }
+    }
+
+    /// The filter, timing each step it filters when `timing` is set (the counts gain
+    /// `solve_time`).
+    pub fn with_timing(mut self, timing: bool) -> LayerFilter {
+        self.timing = timing;
+        if timing {
+            self.counts.solve_time = Some(SolveTime::default());
+        }
+        self
     }
 
     /// Agent `agent` now drives in lane `lane` (a training environment's new placement).
@@ -118,6 +142,7 @@ impl LayerFilter {
 
     /// Filters every agent's command for its `state` (moving at `velocities`).
     pub fn apply(&mut self, states: &[BicycleState], velocities: &[[f64; 2]], commands: &mut [Command]) {
+        let started = self.timing.then(std::time::Instant::now);
         let vehicles: Vec<Vehicle<'_>> = states
             .iter()
             .zip(velocities)
@@ -139,6 +164,13 @@ impl LayerFilter {
             .collect();
         let step = filter_step(&self.parameters, &vehicles);
         let c = &mut self.counts;
+        if let (Some(started), Some(time)) = (started, &mut c.solve_time) {
+            let seconds = started.elapsed().as_secs_f64();
+            time.total_s += seconds;
+            time.largest_per_agent_s = time
+                .largest_per_agent_s
+                .max(seconds / commands.len().max(1) as f64);
+        }
         let mut kept_apart = vec![false; commands.len()];
         for &k in &step.active_pairs {
             for v in step.pair_rows[k].vehicles {
@@ -180,7 +212,11 @@ impl LayerFilter {
 
     /// What the filter did since the counts were last taken; the counts start again.
     pub fn take_counts(&mut self) -> Counts {
-        std::mem::take(&mut self.counts)
+        let fresh = Counts {
+            solve_time: self.timing.then(SolveTime::default),
+            ..Counts::default()
+        };
+        std::mem::replace(&mut self.counts, fresh)
     }
 }
 
@@ -196,6 +232,11 @@ impl Counts {
         self.kept_apart += other.kept_apart;
         for (mine, theirs) in self.largest_change.iter_mut().zip(other.largest_change) {
             *mine = mine.max(theirs);
+        }
+        if let Some(theirs) = other.solve_time {
+            let mine = self.solve_time.get_or_insert_with(SolveTime::default);
+            mine.total_s += theirs.total_s;
+            mine.largest_per_agent_s = mine.largest_per_agent_s.max(theirs.largest_per_agent_s);
         }
     }
 
@@ -213,6 +254,12 @@ impl Counts {
             ("safety.largest_steering_change_rad", self.largest_change[1]),
         ]
         .into_iter()
+        .chain(self.solve_time.iter().flat_map(|t| {
+            [
+                ("safety.solve_s", t.total_s),
+                ("safety.largest_solve_us", 1e6 * t.largest_per_agent_s),
+            ]
+        }))
         .map(|(name, value)| (name.to_owned(), value))
         .collect()
     }

@@ -79,6 +79,8 @@ pub struct RunRequest {
     pub operator: Option<Operator>,
     /// The build that runs (`cpmx 0.1.0 (commit 09b1a77)`), recorded in `provenance.json`.
     pub made_by: String,
+    /// Also record how long the layers took (wall clock: not the same on another machine).
+    pub timing: bool,
 }
 
 /// Why a matrix could not be run; nothing was run (runs that fail are outcomes, not this).
@@ -301,6 +303,7 @@ pub fn run_matrix(
         resume: request.resume,
         stop: request.stop.clone(),
         operator: request.operator.clone(),
+        timing: request.timing,
     };
     let context = folder::context_hash(checked);
     let outcomes =

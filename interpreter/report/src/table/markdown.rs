@@ -74,7 +74,8 @@ fn layer_table(out: &mut String, summary: &Summary) {
             .iter()
             .map(|name| match group.layer_counts.get(*name) {
                 None => String::new(),
-                Some(v) if crate::aggregate::is_largest(name) => format!("{v:.3}"),
+                // Largest values and durations (`_s`) are measurements, the rest counts.
+                Some(v) if crate::aggregate::is_largest(name) || name.ends_with("_s") => format!("{v:.3}"),
                 Some(v) => format!("{v:.0}"),
             })
             .collect();
