@@ -291,6 +291,24 @@ fn one_and_two_threads_give_identical_actors() {
     assert_same_files(&a, &b);
 }
 
+/// Trains the spec `text` (its `OUT` the training folder) with one thread and with two, in
+/// scratch folders `<name>-1` and `<name>-2`; asserts both trained the same files and returns
+/// the first folder and `cpmx train`'s table.
+fn train_with_one_and_two_threads(name: &str, text: &str) -> (PathBuf, String) {
+    let mut trained = Vec::new();
+    for jobs in ["1", "2"] {
+        let dir = scratch(&format!("{name}-{jobs}"));
+        let out = dir.join("out");
+        let spec = dir.join(format!("{name}.yaml"));
+        std::fs::write(&spec, text.replace("OUT", out.to_str().unwrap())).unwrap();
+        let table = ok(&train(&dir, &spec, &["--jobs", jobs]));
+        trained.push((dir, table, weights_and_curves(&out)));
+    }
+    assert_same_files(&trained[0].2, &trained[1].2);
+    let (dir, table, _) = trained.swap_remove(0);
+    (dir, table)
+}
+
 /// Two folders' files are equal; names the ones that are not (their bytes are long).
 fn assert_same_files(a: &[(PathBuf, Vec<u8>)], b: &[(PathBuf, Vec<u8>)]) {
     let names = |f: &[(PathBuf, Vec<u8>)]| f.iter().map(|(p, _)| p.clone()).collect::<Vec<_>>();

@@ -4,8 +4,8 @@
 
 use std::process::Command;
 
-use crate::support::{ok, reference, scratch};
-use crate::{assert_same_files, column, train, weights_and_curves};
+use crate::column;
+use crate::support::{ok, reference};
 
 /// A small scenario trained in the sim, in the sim with the filter, and through the planner
 /// with the filter, each with the CBF-informed reward beside SigmaRL's paper-era reward.
@@ -48,17 +48,7 @@ training:
 /// same actors and curves; the actor trained through the filter runs in every fidelity.
 #[test]
 fn training_through_the_filter_and_with_the_cbf_informed_reward() {
-    let mut trained = Vec::new();
-    for jobs in ["1", "2"] {
-        let dir = scratch(&format!("train-filtered-{jobs}"));
-        let out = dir.join("out");
-        let spec = dir.join("filtered.yaml");
-        std::fs::write(&spec, FILTERED.replace("OUT", out.to_str().unwrap())).unwrap();
-        ok(&train(&dir, &spec, &["--jobs", jobs]));
-        trained.push((dir, weights_and_curves(&out)));
-    }
-    assert_same_files(&trained[0].1, &trained[1].1);
-    let (dir, _) = &trained[0];
+    let (dir, _) = crate::train_with_one_and_two_threads("train-filtered", FILTERED);
     let out = dir.join("out");
     let header = |fidelity: &str| {
         let curve = std::fs::read_to_string(out.join(fidelity).join("5/learning_curve.csv")).unwrap();
@@ -83,7 +73,7 @@ fn training_through_the_filter_and_with_the_cbf_informed_reward() {
     ok(&Command::new(env!("CARGO_BIN_EXE_cpmx"))
         .args([
             "run",
-            dir.join("filtered.yaml").to_str().unwrap(),
+            dir.join("train-filtered.yaml").to_str().unwrap(),
             "--out",
             run_out.to_str().unwrap(),
         ])

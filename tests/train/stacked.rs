@@ -3,8 +3,8 @@
 
 use std::process::Command;
 
-use crate::support::{ok, reference, scratch};
-use crate::{assert_same_files, column, train, weights_and_curves};
+use crate::column;
+use crate::support::{ok, reference};
 
 /// The small scenario in the lab's control architecture: a `control: trajectory` fidelity
 /// (`sim-mpc`) and a twin whose actuation delay and positioning noise are drawn per episode.
@@ -51,18 +51,8 @@ training:
 /// actors run in every fidelity.
 #[test]
 fn training_in_the_labs_control_architecture_is_deterministic_and_its_actors_run_everywhere() {
-    let mut trained = Vec::new();
-    for jobs in ["1", "2"] {
-        let dir = scratch(&format!("train-stacked-{jobs}"));
-        let out = dir.join("out");
-        let spec = dir.join("stacked.yaml");
-        std::fs::write(&spec, STACKED.replace("OUT", out.to_str().unwrap())).unwrap();
-        let table = ok(&train(&dir, &spec, &["--jobs", jobs]));
-        assert!(table.contains("| twin-random seed 3 | 3 |"), "{table}");
-        trained.push((dir, weights_and_curves(&out)));
-    }
-    assert_same_files(&trained[0].1, &trained[1].1);
-    let (dir, _) = &trained[0];
+    let (dir, table) = crate::train_with_one_and_two_threads("train-stacked", STACKED);
+    assert!(table.contains("| twin-random seed 3 | 3 |"), "{table}");
     let out = dir.join("out");
     let curve = std::fs::read_to_string(out.join("twin-random/3/learning_curve.csv")).unwrap();
     assert!(
@@ -87,7 +77,7 @@ fn training_in_the_labs_control_architecture_is_deterministic_and_its_actors_run
     ok(&Command::new(env!("CARGO_BIN_EXE_cpmx"))
         .args([
             "run",
-            dir.join("stacked.yaml").to_str().unwrap(),
+            dir.join("train-stacked.yaml").to_str().unwrap(),
             "--out",
             run_out.to_str().unwrap(),
         ])

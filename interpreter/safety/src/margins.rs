@@ -168,7 +168,7 @@ mod tests {
     fn two_cars_driving_at_each_other_share_the_pair_penalty_and_it_depends_on_both_actions() {
         let (left, right) = lane();
         let p = parameters();
-        let pair = |nominal_b: [f32; 2]| {
+        let head_on = |nominal_b: [f32; 2]| {
             let a = Vehicle {
                 state: at(0.0, 0.0, 0.0),
                 nominal: [1.0, 0.0],
@@ -180,12 +180,12 @@ mod tests {
                 nominal: nominal_b,
                 ..a
             };
-            joint_margins(&p, &[a, b])
+            [a, b]
         };
-        let both_fast = pair([1.0, 0.0]);
+        let both_fast = joint_margins(&p, &head_on([1.0, 0.0]));
         assert!(both_fast[0].agents < 0.0, "{both_fast:?}");
         assert_eq!(both_fast[0].agents, both_fast[1].agents);
-        let one_brakes = pair([-0.5, 0.0]);
+        let one_brakes = joint_margins(&p, &head_on([-0.5, 0.0]));
         assert!(
             one_brakes[0].agents > both_fast[0].agents,
             "{one_brakes:?} vs {both_fast:?}"
@@ -198,16 +198,6 @@ mod tests {
             },
             ..p
         };
-        let a = Vehicle {
-            state: at(0.0, 0.0, 0.0),
-            nominal: [1.0, 0.0],
-            left: &left,
-            right: &right,
-        };
-        let b = Vehicle {
-            state: at(0.3, 0.0, std::f32::consts::PI),
-            ..a
-        };
-        assert_eq!(joint_margins(&alone, &[a, b])[0].agents, 0.0);
+        assert_eq!(joint_margins(&alone, &head_on([1.0, 0.0]))[0].agents, 0.0);
     }
 }
