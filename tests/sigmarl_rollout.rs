@@ -58,6 +58,7 @@ fn cpmx_reproduces_sigmarls_rollout() {
             fidelity: None,
             stop: None,
             operator: None,
+            timing: false,
         })
         .unwrap();
 
