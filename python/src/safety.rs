@@ -7,7 +7,7 @@ use pyo3::prelude::*;
 
 /// A CBF row as Python receives it: circle, side, margin [m], coefficients of acceleration and
 /// steering rate, constant.
-type Row = (usize, &'static str, f32, f64, f64, f64);
+type Row = (usize, &'static str, f64, f64, f64, f64);
 
 /// The filtered action, why the nominal one went through (`None`, `"infeasible"`,
 /// `"not-finite"`, `"unsolved"`), the active rows' indices and every row.
