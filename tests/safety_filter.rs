@@ -258,7 +258,7 @@ fn a_margin_network_that_is_missing_or_is_no_margin_network_is_refused() {
     let out = dir.join("out");
     let (code, text) = cpmx(&dir, "run", &path, Some(&out));
     assert_ne!(code, Some(0), "{text}");
-    assert!(text.contains("the margin network"), "{text}");
+    assert!(text.contains("the safety layer's margin network"), "{text}");
 }
 
 #[test]
