@@ -309,6 +309,25 @@ fn train_with_one_and_two_threads(name: &str, text: &str) -> (PathBuf, String) {
     (dir, table)
 }
 
+/// `cpmx run` of the spec `name` in `dir` (written by [`train_with_one_and_two_threads`], whose
+/// actors it names) into `dir/run`; its `per_run.csv`.
+fn run_trained_spec(dir: &Path, name: &str) -> String {
+    let run_out = dir.join("run");
+    ok(&Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .args([
+            "run",
+            dir.join(name).to_str().unwrap(),
+            "--out",
+            run_out.to_str().unwrap(),
+        ])
+        .arg("--data")
+        .arg(reference())
+        .env_remove("CPMX_DATA")
+        .output()
+        .unwrap());
+    std::fs::read_to_string(run_out.join("per_run.csv")).unwrap()
+}
+
 /// Two folders' files are equal; names the ones that are not (their bytes are long).
 fn assert_same_files(a: &[(PathBuf, Vec<u8>)], b: &[(PathBuf, Vec<u8>)]) {
     let names = |f: &[(PathBuf, Vec<u8>)]| f.iter().map(|(p, _)| p.clone()).collect::<Vec<_>>();

@@ -2,10 +2,7 @@
 //! learner's actions as `cpmx run` applies it to a policy's) and with SigmaRL's CBF-informed
 //! reward (`reward.cbf_margins`: the filter's rows under the joint sampled action).
 
-use std::process::Command;
-
 use crate::column;
-use crate::support::{ok, reference};
 
 /// A small scenario trained in the sim, in the sim with the filter, and through the planner
 /// with the filter, each with the CBF-informed reward beside SigmaRL's paper-era reward.
@@ -69,20 +66,7 @@ fn training_through_the_filter_and_with_the_cbf_informed_reward() {
         assert!(margins.iter().all(|&m| m <= 0.0), "{fidelity}: {margins:?}");
         assert!(margins.iter().any(|&m| m < 0.0), "{fidelity}: {margins:?}");
     }
-    let run_out = dir.join("run");
-    ok(&Command::new(env!("CARGO_BIN_EXE_cpmx"))
-        .args([
-            "run",
-            dir.join("train-filtered.yaml").to_str().unwrap(),
-            "--out",
-            run_out.to_str().unwrap(),
-        ])
-        .arg("--data")
-        .arg(reference())
-        .env_remove("CPMX_DATA")
-        .output()
-        .unwrap());
-    let per_run = std::fs::read_to_string(run_out.join("per_run.csv")).unwrap();
+    let per_run = crate::run_trained_spec(&dir, "train-filtered.yaml");
     for fidelity in ["sim", "sim-safe", "sim-mpc-safe"] {
         assert!(
             per_run.contains(&format!("{fidelity}/through-filter/crossing/rep1")),

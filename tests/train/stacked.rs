@@ -1,10 +1,7 @@
 //! Training in the lab's control architecture (`control: trajectory`) and in a twin
 //! randomised per episode, from one spec.
 
-use std::process::Command;
-
 use crate::column;
-use crate::support::{ok, reference};
 
 /// The small scenario in the lab's control architecture: a `control: trajectory` fidelity
 /// (`sim-mpc`) and a twin whose actuation delay and positioning noise are drawn per episode.
@@ -73,20 +70,7 @@ fn training_in_the_labs_control_architecture_is_deterministic_and_its_actors_run
         "{delays:?}"
     );
     // Both actors in every fidelity.
-    let run_out = dir.join("run");
-    ok(&Command::new(env!("CARGO_BIN_EXE_cpmx"))
-        .args([
-            "run",
-            dir.join("train-stacked.yaml").to_str().unwrap(),
-            "--out",
-            run_out.to_str().unwrap(),
-        ])
-        .arg("--data")
-        .arg(reference())
-        .env_remove("CPMX_DATA")
-        .output()
-        .unwrap());
-    let per_run = std::fs::read_to_string(run_out.join("per_run.csv")).unwrap();
+    let per_run = crate::run_trained_spec(&dir, "train-stacked.yaml");
     for fidelity in ["sim", "sim-mpc", "twin-random"] {
         for policy in ["from-sim-mpc", "from-twin"] {
             assert!(
