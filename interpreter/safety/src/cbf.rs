@@ -249,9 +249,14 @@ pub(crate) struct Command {
 
 impl Command {
     pub(crate) fn of(p: &CbfParameters, state: CbfState, nominal: [f32; 2]) -> Command {
+        Command::over(p, state, nominal, p.step_s)
+    }
+
+    /// [`Command::of`] reached over `step_s` instead of the rows' step.
+    pub(crate) fn over(p: &CbfParameters, state: CbfState, nominal: [f32; 2], step_s: f64) -> Command {
         let speed = nominal[0].clamp(p.speed_range_mps[0], p.speed_range_mps[1]);
         let steering = nominal[1].clamp(-p.max_steering_rad, p.max_steering_rad);
-        let dt32 = p.step_s as f32;
+        let dt32 = step_s as f32;
         let input = [
             ((speed - state.speed_mps) / dt32).clamp(
                 -p.acceleration_limit_mps2 as f32,

@@ -44,13 +44,9 @@ impl VehicleMargins {
 
 /// Every vehicle's margins under the joint action of the vehicles' `nominal` commands.
 pub fn joint_margins(p: &MarginParameters, vehicles: &[Vehicle<'_>]) -> Vec<VehicleMargins> {
-    let conversion = CbfParameters {
-        step_s: p.command_step_s,
-        ..p.rows.clone()
-    };
     let inputs: Vec<[f64; 2]> = vehicles
         .iter()
-        .map(|v| Command::of(&conversion, v.state, v.nominal).input64())
+        .map(|v| Command::over(&p.rows, v.state, v.nominal, p.command_step_s).input64())
         .collect();
     let mut margins: Vec<VehicleMargins> = vehicles
         .iter()

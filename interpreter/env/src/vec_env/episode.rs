@@ -84,6 +84,9 @@ pub(super) struct Scratch {
     pub(super) avoid: Vec<Point>,
     /// This step's steering commands, clamped to the limit [rad].
     pub(super) steering_cmds: Vec<f64>,
+    /// The states and velocities the safety filter sees this step.
+    pub(super) filter_states: Vec<BicycleState>,
+    pub(super) filter_velocities: Vec<[f64; 2]>,
 }
 
 impl Env {
@@ -231,9 +234,14 @@ impl Env {
         let cbf_margins = self.cbf_margin_rewards(config, &commands);
         let mut totals = StepTotals::default();
         if let (Some(filter), None) = (&mut self.filter, &self.stack) {
-            let states: Vec<BicycleState> = self.agents.iter().map(|a| a.placement.state).collect();
-            let velocities: Vec<[f64; 2]> = self.agents.iter().map(|a| a.placement.velocity_mps).collect();
-            filter.apply(&states, &velocities, &mut commands);
+            let s = &mut self.scratch;
+            s.filter_states.clear();
+            s.filter_states
+                .extend(self.agents.iter().map(|a| a.placement.state));
+            s.filter_velocities.clear();
+            s.filter_velocities
+                .extend(self.agents.iter().map(|a| a.placement.velocity_mps));
+            filter.apply(&s.filter_states, &s.filter_velocities, &mut commands);
         }
         let s = &mut self.scratch;
         let limit = config.vehicle.max_steering_rad;
