@@ -66,6 +66,10 @@ enum Command {
         spec: PathBuf,
         /// A trajectory CSV (header `t,agent,x,y,yaw,vx,vy,steering,ref_path`).
         recording: PathBuf,
+        /// The initial configuration whose map the recording drove on, when the spec's
+        /// configurations name maps of their own (default: the spec's `map`).
+        #[arg(long, value_name = "NAME")]
+        configuration: Option<String>,
         #[command(flatten)]
         data: DataArgs,
     },
@@ -121,8 +125,9 @@ fn main() -> ExitCode {
         Command::Evaluate {
             spec,
             recording,
+            configuration,
             data,
-        } => commands::evaluate::run(&spec, &recording, &data),
+        } => commands::evaluate::run(&spec, &recording, configuration.as_deref(), &data),
         Command::Lab { command } => commands::lab::run(&command),
         #[cfg(feature = "onnx")]
         Command::Export(args) => commands::export::run(&args),

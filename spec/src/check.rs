@@ -20,6 +20,9 @@ use crate::yaml::{NodeSpans, SpannedDocument, escape_pointer};
 pub struct Resources {
     /// The map file, when the map is a file.
     pub map_file: Option<PathBuf>,
+    /// The file of each initial-configuration entry's own `map`, when it names one that is a
+    /// file (or SigmaRL's scenario table), by entry index.
+    pub configuration_map_files: Vec<Option<PathBuf>>,
     /// The network file of each policy with an `mlp` (its weights) or an `onnx` (its file), by
     /// policy index.
     pub weights: Vec<Option<PathBuf>>,
@@ -170,11 +173,12 @@ fn fidelity_is_deterministic(fidelity: &Fidelity) -> bool {
 /// Warns when repetitions of a deterministic fidelity and policy would be copies of each
 /// other (they are counted once in the statistics, so running them only costs time).
 fn check_repetitions(spec: &Spec, ctx: &mut CheckContext<'_>) {
-    // Measured starts per run make every repetition start elsewhere.
-    let per_run_starts = spec
-        .initial_configurations
-        .iter()
-        .all(|c| matches!(c, InitialConfiguration::FromPoses(_)));
+    // Measured starts per run, or a draw per repetition, make every repetition start elsewhere.
+    let per_run_starts = spec.initial_configurations.iter().all(|c| match c {
+        InitialConfiguration::FromPoses(_) => true,
+        InitialConfiguration::Sampled(s) => s.sample.draw == crate::model::SampleDraw::PerRepetition,
+        InitialConfiguration::Explicit(_) | InitialConfiguration::FromRuns(_) => false,
+    });
     if spec.repetitions < 2 || per_run_starts {
         return;
     }
@@ -289,20 +293,24 @@ fn check_names(spec: &Spec, ctx: &mut CheckContext<'_>) {
     report_duplicates("policy", "policies", &policies, ctx);
 
     let mut configurations = Vec::new();
-    let mut sample_counter = 0;
+    let sampled = crate::matrix::sampled_names(spec);
     for (i, c) in spec.initial_configurations.iter().enumerate() {
         match c {
             InitialConfiguration::Explicit(e) => {
                 configurations.push((format!("/initial_configurations/{i}/name"), e.name.clone()))
             }
             InitialConfiguration::Sampled(s) => {
-                for _ in 0..s.sample.count {
-                    sample_counter += 1;
-                    configurations.push((
-                        format!("/initial_configurations/{i}"),
-                        format!("sample{sample_counter}"),
-                    ));
-                }
+                let pointer = if s.name.is_some() {
+                    format!("/initial_configurations/{i}/name")
+                } else {
+                    format!("/initial_configurations/{i}")
+                };
+                configurations.extend(
+                    sampled
+                        .iter()
+                        .filter(|(entry, _, _)| *entry == i)
+                        .map(|(_, _, name)| (pointer.clone(), name.clone())),
+                );
             }
             InitialConfiguration::FromRuns(_) | InitialConfiguration::FromPoses(_) => {}
         }
@@ -470,13 +478,45 @@ fn check_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
     }
 }
 
+/// A sample entry places another number of agents than the spec's `agents` only on its own map.
+fn check_sample_agents(
+    spec: &Spec,
+    entry: usize,
+    s: &crate::model::SampledStarts,
+    ctx: &mut CheckContext<'_>,
+) {
+    let Some(agents) = s.sample.agents else {
+        return;
+    };
+    if s.map.is_some() || agents == spec.agents {
+        return;
+    }
+    let span = ctx.span(&format!("/initial_configurations/{entry}/sample/agents"));
+    ctx.push(
+        Problem::error(
+            "cpmx::check::agent-count",
+            format!(
+                "this sample places {agents} agent{}, but the spec has `agents: {}` on its map",
+                if agents == 1 { "" } else { "s" },
+                spec.agents
+            ),
+            span,
+            format!("{agents} agents"),
+        )
+        .with_help("give the entry its own `map`, or change `agents`"),
+    );
+}
+
 fn check_configurations(spec: &Spec, ctx: &mut CheckContext<'_>) {
     for (i, c) in spec.initial_configurations.iter().enumerate() {
+        if let InitialConfiguration::Sampled(s) = c {
+            check_sample_agents(spec, i, s, ctx);
+        }
         let InitialConfiguration::Explicit(e) = c else {
             continue;
         };
         let base = format!("/initial_configurations/{i}");
-        if e.agents.len() != spec.agents as usize {
+        if e.map.is_none() && e.agents.len() != spec.agents as usize {
             let span = ctx.span(&format!("{base}/agents"));
             ctx.push(
                 Problem::error(

@@ -57,6 +57,22 @@ pub(crate) fn check_fidelities(spec: &Spec, ctx: &mut CheckContext<'_>) {
             check_safety_layer(&pointer, simulated, ctx);
         }
         if let Fidelity::Lab(lab) = fidelity {
+            for (i, c) in spec.initial_configurations.iter().enumerate() {
+                if c.own_map().is_some() {
+                    let span = ctx.span(&format!("/initial_configurations/{i}/map"));
+                    ctx.push(
+                        Problem::error(
+                            "cpmx::check::lab-map",
+                            format!(
+                                "fidelity `{name}` is the lab, which drives on the spec's `map`; this configuration names its own"
+                            ),
+                            span,
+                            "another map",
+                        )
+                        .with_help("run this configuration in an experiment without the lab fidelity"),
+                    );
+                }
+            }
             if lab.vehicle_ids.len() != spec.agents as usize {
                 let span = ctx.span(&format!("{pointer}/vehicle_ids"));
                 ctx.push(

@@ -73,6 +73,34 @@ pub enum CheckScope {
     Measure,
 }
 
+/// The file a `map:` value names (SigmaRL's scenario table for `{sigmarl}`), found on the data
+/// path; a missing one is an error at `pointer` (`/map`, or a configuration's own `map`).
+fn find_map_file(
+    map: &MapSpec,
+    pointer: &str,
+    data: &DataPath,
+    ctx: &mut CheckContext<'_>,
+) -> Option<PathBuf> {
+    let (what, file, sha256, at) = match map {
+        MapSpec::Builtin(_) => return None,
+        MapSpec::Sigmarl(map) => (
+            "SigmaRL's scenario table",
+            map.table_file(),
+            map.sha256.as_deref(),
+            if map.table.is_some() { "table" } else { "sigmarl" },
+        ),
+        MapSpec::File(map) => ("map file", map.file.as_str(), map.sha256.as_deref(), "file"),
+    };
+    match data.find_pinned(file, sha256) {
+        Ok(path) => Some(path),
+        Err(missing) => {
+            let span = ctx.span(&format!("{pointer}/{at}"));
+            ctx.push(missing_pinned(what, file, sha256, &missing, data.option, span));
+            None
+        }
+    }
+}
+
 pub(crate) fn find_files(
     spec: &Spec,
     data: &DataPath,
@@ -87,42 +115,16 @@ pub(crate) fn find_files(
             .unwrap_or_else(|| PathBuf::from(".")),
         ..Resources::default()
     };
-    if let MapSpec::Sigmarl(map) = &spec.map {
-        match data.find_pinned(map.table_file(), map.sha256.as_deref()) {
-            Ok(path) => resources.map_file = Some(path),
-            Err(missing) => {
-                let span = ctx.span(if map.table.is_some() {
-                    "/map/table"
-                } else {
-                    "/map/sigmarl"
-                });
-                ctx.push(missing_pinned(
-                    "SigmaRL's scenario table",
-                    map.table_file(),
-                    map.sha256.as_deref(),
-                    &missing,
-                    data.option,
-                    span,
-                ));
-            }
-        }
-    }
-    if let MapSpec::File(map) = &spec.map {
-        match data.find_pinned(&map.file, map.sha256.as_deref()) {
-            Ok(path) => resources.map_file = Some(path),
-            Err(missing) => {
-                let span = ctx.span("/map/file");
-                ctx.push(missing_pinned(
-                    "map file",
-                    &map.file,
-                    map.sha256.as_deref(),
-                    &missing,
-                    data.option,
-                    span,
-                ));
-            }
-        }
-    }
+    resources.map_file = find_map_file(&spec.map, "/map", data, ctx);
+    resources.configuration_map_files = spec
+        .initial_configurations
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            c.own_map()
+                .and_then(|map| find_map_file(map, &format!("/initial_configurations/{i}/map"), data, ctx))
+        })
+        .collect();
     for (name, fidelity) in &spec.fidelities {
         let crate::model::Fidelity::Simulated(simulated) = fidelity else {
             continue;

@@ -119,6 +119,18 @@ pub enum ConfigurationSource {
     Measured { entry: usize },
 }
 
+impl ConfigurationSource {
+    /// The index of the `initial_configurations` entry it comes from.
+    pub fn entry(&self) -> usize {
+        match self {
+            ConfigurationSource::Explicit { entry }
+            | ConfigurationSource::Sampled { entry, .. }
+            | ConfigurationSource::Recorded { entry, .. }
+            | ConfigurationSource::Measured { entry } => *entry,
+        }
+    }
+}
+
 /// A named initial configuration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NamedConfiguration {
@@ -131,21 +143,23 @@ pub struct NamedConfiguration {
 /// and the configurations a `from_poses` file names, in the file's order.
 pub fn configurations(spec: &Spec, resources: &Resources) -> Vec<NamedConfiguration> {
     let mut out = Vec::new();
-    let mut sample_counter = 0;
+    let sampled = sampled_names(spec);
     for (entry, c) in spec.initial_configurations.iter().enumerate() {
         match c {
             InitialConfiguration::Explicit(e) => out.push(NamedConfiguration {
                 name: e.name.clone(),
                 source: ConfigurationSource::Explicit { entry },
             }),
-            InitialConfiguration::Sampled(s) => {
-                for index in 0..s.sample.count {
-                    sample_counter += 1;
-                    out.push(NamedConfiguration {
-                        name: format!("sample{sample_counter}"),
-                        source: ConfigurationSource::Sampled { entry, index },
-                    });
-                }
+            InitialConfiguration::Sampled(_) => {
+                out.extend(
+                    sampled
+                        .iter()
+                        .filter(|(e, _, _)| *e == entry)
+                        .map(|(_, index, name)| NamedConfiguration {
+                            name: name.clone(),
+                            source: ConfigurationSource::Sampled { entry, index: *index },
+                        }),
+                );
             }
             InitialConfiguration::FromRuns(f) => {
                 let Some(dir) = resources.from_runs.get(entry).and_then(Option::as_ref) else {
@@ -169,6 +183,30 @@ pub fn configurations(spec: &Spec, resources: &Resources) -> Vec<NamedConfigurat
                     });
                 }
             }
+        }
+    }
+    out
+}
+
+/// The names of the `sample` entries' draws, as (entry, draw index, name): `NAME` (one draw) or
+/// `NAME1..` of a named entry, `sample1..` numbered across the unnamed entries.
+pub fn sampled_names(spec: &Spec) -> Vec<(usize, u32, String)> {
+    let mut out = Vec::new();
+    let mut unnamed = 0;
+    for (entry, c) in spec.initial_configurations.iter().enumerate() {
+        let InitialConfiguration::Sampled(s) = c else {
+            continue;
+        };
+        for index in 0..s.sample.count {
+            let name = match &s.name {
+                Some(name) if s.sample.count == 1 => name.clone(),
+                Some(name) => format!("{name}{}", index + 1),
+                None => {
+                    unnamed += 1;
+                    format!("sample{unnamed}")
+                }
+            };
+            out.push((entry, index, name));
         }
     }
     out

@@ -1,5 +1,6 @@
-//! `cpmx evaluate SPEC RECORDING.csv`: the spec's metrics of a recording made elsewhere, as one
-//! JSON object with every metric and the raw counts behind it. Needs only the spec's map.
+//! `cpmx evaluate SPEC RECORDING.csv [--configuration NAME]`: the spec's metrics of a recording
+//! made elsewhere, as one JSON object with every metric and the raw counts behind it. Needs only
+//! the spec's map (or the named configuration's own).
 
 use std::io::IsTerminal;
 use std::path::Path;
@@ -11,7 +12,12 @@ use cpmx_spec::{CheckScope, DataPath, SpecSource};
 use super::Failure;
 use crate::DataArgs;
 
-pub fn run(spec: &Path, recording: &Path, data: &DataArgs) -> Result<(), Failure> {
+pub fn run(
+    spec: &Path,
+    recording: &Path,
+    configuration: Option<&str>,
+    data: &DataArgs,
+) -> Result<(), Failure> {
     let source = SpecSource::read(spec).map_err(|e| {
         eprintln!("error: cannot read spec `{}`: {e}", spec.display());
         Failure::InvalidInput
@@ -35,6 +41,27 @@ pub fn run(spec: &Path, recording: &Path, data: &DataArgs) -> Result<(), Failure
         eprintln!("error: {e}");
         Failure::InvalidInput
     })?;
+    let configuration = match configuration {
+        Some(name) if !checked.configurations.iter().any(|c| c.name == name) => {
+            let known: Vec<&str> = checked.configurations.iter().map(|c| c.name.as_str()).collect();
+            eprintln!(
+                "error: the spec has no initial configuration `{name}`; its configurations are {}",
+                known.join(", ")
+            );
+            return Err(Failure::InvalidInput);
+        }
+        Some(name) => name,
+        None if scoring.has_several_maps() => {
+            let own: Vec<&str> = scoring.configuration_maps.keys().map(String::as_str).collect();
+            eprintln!(
+                "error: the spec's configurations drive on several maps; say which one the recording drove on with `--configuration NAME` (those with a map of their own: {})",
+                own.join(", ")
+            );
+            return Err(Failure::InvalidInput);
+        }
+        // No configuration names a map of its own: every one is on the spec's `map`.
+        None => "",
+    };
     let file = std::fs::File::open(recording).map_err(|e| {
         eprintln!("error: cannot read `{}`: {e}", recording.display());
         Failure::InvalidInput
@@ -43,7 +70,7 @@ pub fn run(spec: &Path, recording: &Path, data: &DataArgs) -> Result<(), Failure
         eprintln!("error: `{}`: {e}", recording.display());
         Failure::InvalidInput
     })?;
-    let metrics = scoring.measure(&recording_data).map_err(|e| {
+    let metrics = scoring.measure(configuration, &recording_data).map_err(|e| {
         eprintln!("error: `{}`: {e}", recording.display());
         Failure::InvalidInput
     })?;

@@ -48,7 +48,7 @@ pub fn run(spec: &Path, format: PlanFormat, data: &DataArgs) -> Result<(), Failu
         &checked.spec,
         &checked.configurations,
         &checked.resources,
-        &scoring.map,
+        (&scoring.map, &scoring.configuration_maps),
         &scoring.vehicle,
     )
     .map_err(|e| {

@@ -280,7 +280,7 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
         let recording =
             Recording::read_csv(bytes.as_slice()).map_err(|e| fail(format!("{}: {e}", path.display())))?;
         let metrics = scoring
-            .measure_in(&plan.fidelity, &recording)
+            .measure_in(plan, &recording)
             .map_err(|e| fail(format!("{}: {e}", path.display())))?;
         records.push(RunRecord {
             plan: plan.clone(),

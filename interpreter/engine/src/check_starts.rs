@@ -5,17 +5,23 @@
 //! is warned about, not refused, within the tolerance).
 
 use cpmx_metrics::collision::{PlacedBox, mtv_distance_m};
-use cpmx_spec::model::{FromPosesSpec, InitialConfiguration, SampleSpec};
+use cpmx_spec::model::{FromPosesSpec, InitialConfiguration, SampleDraw, SampleSpec};
 use cpmx_spec::poses::MeasuredPoses;
 use cpmx_spec::{CheckContext, Problem, Resources, Spec};
 use cpmx_vehicle::{VehicleParams, footprint_corners};
 use cpmx_world::Map;
 
 use crate::experiment::vehicle_params;
-use crate::starts::{InitialState, explicit_start, sample_starts};
+use crate::starts::{Draw, InitialState, explicit_start, sample_starts};
 
-/// Every start of the spec's configurations.
-pub(crate) fn check_starts(spec: &Spec, resources: &Resources, map: &Map, ctx: &mut CheckContext<'_>) {
+/// Every start of the spec's configurations, each entry on its map (`maps`, by entry: `None`
+/// where the entry's own map did not load, which was said).
+pub(crate) fn check_starts(
+    spec: &Spec,
+    resources: &Resources,
+    maps: &[Option<&Map>],
+    ctx: &mut CheckContext<'_>,
+) {
     let vehicle = vehicle_params(&spec.vehicle);
     // A start stands on the road with the car the runs simulate and, where the metrics score
     // another (the lab's µCar, whose measured poses a spec may start from), with that one too.
@@ -27,9 +33,13 @@ pub(crate) fn check_starts(spec: &Spec, resources: &Resources, map: &Map, ctx: &
         }
     }
     for (c, configuration) in spec.initial_configurations.iter().enumerate() {
+        let Some(map) = maps.get(c).copied().flatten() else {
+            continue;
+        };
         match configuration {
             InitialConfiguration::Sampled(sampled) => {
-                check_sampled_starts(spec, c, &sampled.sample, map, &vehicle, ctx);
+                let agents = configuration.agents(spec.agents);
+                check_sampled_starts(spec, c, &sampled.sample, agents, map, &vehicle, ctx);
             }
             InitialConfiguration::Explicit(e) => check_explicit(c, e, map, &cars, ctx),
             InitialConfiguration::FromPoses(f) => {
@@ -288,27 +298,39 @@ fn check_sampled_starts(
     spec: &Spec,
     entry: usize,
     sample: &SampleSpec,
+    agents: usize,
     map: &Map,
     vehicle: &VehicleParams,
     ctx: &mut CheckContext<'_>,
 ) {
-    let Some((index, reason)) = (0..sample.count).find_map(|index| {
-        sample_starts(sample, index, spec.agents as usize, map, vehicle)
+    let repetitions: Vec<Option<u32>> = match sample.draw {
+        SampleDraw::PerConfiguration => vec![None],
+        SampleDraw::PerRepetition => (1..=spec.repetitions).map(Some).collect(),
+    };
+    let mut draws = (0..sample.count).flat_map(|index| {
+        repetitions
+            .iter()
+            .map(move |&repetition| Draw { index, repetition })
+    });
+    let Some((draw, reason)) = draws.find_map(|draw| {
+        sample_starts(sample, draw, agents, map, vehicle)
             .err()
-            .map(|reason| (index, reason))
+            .map(|reason| (draw, reason))
     }) else {
         return;
+    };
+    let which = match draw.repetition {
+        None => format!("draw {} of {}", draw.index + 1, sample.count),
+        Some(repetition) => format!(
+            "the draw of repetition {repetition} of configuration {}",
+            draw.index + 1
+        ),
     };
     let span = ctx.span(&format!("/initial_configurations/{entry}/sample"));
     ctx.push(
         Problem::error(
             "cpmx::map::no-room",
-            format!(
-                "draw {} of {} of this sample cannot place {} agents: {reason}",
-                index + 1,
-                sample.count,
-                spec.agents
-            ),
+            format!("{which} of this sample cannot place {agents} agents: {reason}"),
             span,
             "no room on this map",
         )

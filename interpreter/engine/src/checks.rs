@@ -2,11 +2,14 @@
 //! only the map and the networks can tell (reference path ids, starts that leave the road or
 //! overlap, regions, weights whose tensors do not fit the observation).
 
+use std::path::Path;
+
 use cpmx_policy::ActorError;
 use cpmx_spec::model::{Fidelity, MapSpec};
 use cpmx_spec::{CheckContext, InterpreterChecks, Problem, Resources, Spec};
+use cpmx_world::Map;
 
-use crate::experiment::{PrepareError, load_map};
+use crate::experiment::{PrepareError, load_map_spec};
 use crate::policies::{load_network, observation};
 
 /// The checks of this build of cpmx.
@@ -23,36 +26,66 @@ impl InterpreterChecks for BuildChecks {
         check_control_period(spec, ctx);
         check_onnx(spec, resources, ctx);
         check_processes(spec, resources, ctx);
-        if matches!(spec.map, MapSpec::File(_) | MapSpec::Sigmarl(_)) && resources.map_file.is_none() {
-            // The data path did not find the file: the spec's checks said so.
+        let Some(map) = checked_map(&spec.map, resources.map_file.as_deref(), "/map", ctx) else {
             return;
-        }
-        let map = match load_map(spec, resources.map_file.as_deref()) {
-            Ok(map) => map,
-            Err(e) => {
-                let pointer = match (&spec.map, &e) {
-                    (MapSpec::File(_), PrepareError::Map(cpmx_world::MapError::UnknownRegion { .. })) => {
-                        "/map/region"
-                    }
-                    (MapSpec::File(_), PrepareError::RefPath { .. }) => "/map/ref_paths",
-                    (MapSpec::File(_), _) => "/map/file",
-                    (MapSpec::Builtin(_), _) => "/map",
-                    (MapSpec::Sigmarl(_), _) => "/map/sigmarl",
-                };
-                let span = ctx.span(pointer);
-                ctx.push(
-                    Problem::error(
-                        "cpmx::map::invalid",
-                        format!("the map cannot be used: {e}"),
-                        span,
-                        "this map",
-                    )
-                    .with_help("fix the map file, or name another one"),
-                );
-                return;
-            }
         };
-        crate::check_starts::check_starts(spec, resources, &map, ctx);
+        let own_maps: Vec<Option<Map>> = spec
+            .initial_configurations
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let own = c.own_map()?;
+                let file = resources
+                    .configuration_map_files
+                    .get(i)
+                    .and_then(Option::as_deref);
+                checked_map(own, file, &format!("/initial_configurations/{i}/map"), ctx)
+            })
+            .collect();
+        let maps: Vec<Option<&Map>> = spec
+            .initial_configurations
+            .iter()
+            .zip(&own_maps)
+            .map(|(c, own)| match c.own_map() {
+                Some(_) => own.as_ref(),
+                None => Some(&map),
+            })
+            .collect();
+        crate::check_starts::check_starts(spec, resources, &maps, ctx);
+    }
+}
+
+/// The map a `map:` value at `pointer` names, loaded; `None`, with the problem said at its
+/// key, when it does not load (or, for a file the data path did not find, was said missing).
+fn checked_map(map: &MapSpec, file: Option<&Path>, pointer: &str, ctx: &mut CheckContext<'_>) -> Option<Map> {
+    if matches!(map, MapSpec::File(_) | MapSpec::Sigmarl(_)) && file.is_none() {
+        // The data path did not find the file: the spec's checks said so.
+        return None;
+    }
+    match load_map_spec(map, file) {
+        Ok(map) => Some(map),
+        Err(e) => {
+            let at = match (map, &e) {
+                (MapSpec::File(_), PrepareError::Map(cpmx_world::MapError::UnknownRegion { .. })) => {
+                    "/region"
+                }
+                (MapSpec::File(_), PrepareError::RefPath { .. }) => "/ref_paths",
+                (MapSpec::File(_), _) => "/file",
+                (MapSpec::Builtin(_), _) => "",
+                (MapSpec::Sigmarl(_), _) => "/sigmarl",
+            };
+            let span = ctx.span(&format!("{pointer}{at}"));
+            ctx.push(
+                Problem::error(
+                    "cpmx::map::invalid",
+                    format!("the map cannot be used: {e}"),
+                    span,
+                    "this map",
+                )
+                .with_help("fix the map file, or name another one"),
+            );
+            None
+        }
     }
 }
 

@@ -120,14 +120,18 @@ impl std::fmt::Debug for Operator {
 }
 
 impl RunInputs<'_> {
+    /// The map the run drives on (its configuration's).
+    pub fn map(&self) -> &cpmx_world::Map {
+        self.experiment.map_of(&self.plan.initial_configuration)
+    }
+
     /// The reference path of every agent, in agent order, prepared for the policies.
     pub fn agent_paths(&self) -> Result<AgentPaths, RunError> {
         let paths = self
             .starts
             .iter()
             .map(|s| {
-                self.experiment
-                    .map
+                self.map()
                     .reference_path(s.ref_path)
                     .ok_or(RunError::UnknownRefPath(s.ref_path))
             })

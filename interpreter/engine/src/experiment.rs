@@ -67,7 +67,10 @@ pub enum PrepareError {
 pub struct Experiment {
     /// The spec with the run matrix's fidelities (one per point of a sweep).
     pub spec: Spec,
+    /// The spec's `map`: where configurations without their own map run, and training.
     pub map: Arc<Map>,
+    /// The maps of the configurations that name their own, by configuration name.
+    pub configuration_maps: BTreeMap<String, Arc<Map>>,
     /// The vehicle the runs simulate and the policies observe.
     pub vehicle: VehicleParams,
     /// The vehicle whose footprint the metrics score (`metrics.footprint`, else `vehicle`).
@@ -87,7 +90,10 @@ pub struct Experiment {
 #[derive(Debug, Clone)]
 pub struct Scoring {
     pub spec: Spec,
+    /// The spec's `map`.
     pub map: Arc<Map>,
+    /// The maps of the configurations that name their own, by configuration name.
+    pub configuration_maps: BTreeMap<String, Arc<Map>>,
     /// The vehicle the runs simulated.
     pub vehicle: VehicleParams,
     /// The vehicle whose footprint the metrics score (`metrics.footprint`, else `vehicle`).
@@ -116,6 +122,7 @@ impl Scoring {
         Ok(Scoring {
             spec: spec.clone(),
             map: Arc::new(load_map(spec, checked.resources.map_file.as_deref())?),
+            configuration_maps: load_configuration_maps(spec, &checked.configurations, &checked.resources)?,
             vehicle: vehicle_params(&spec.vehicle),
             footprint: footprint_params(spec),
             metrics: metrics_config(&spec.metrics, &spec.timing),
@@ -123,19 +130,60 @@ impl Scoring {
         })
     }
 
-    /// The metrics of one recording with the spec's metric parameters.
-    pub fn measure(&self, recording: &cpmx_recording::Recording) -> Result<cpmx_metrics::RunMetrics, String> {
-        crate::runner::measure_recording(&self.map, &self.footprint, &self.metrics, recording)
+    /// The map the runs of `configuration` drive on.
+    pub fn map_of(&self, configuration: &str) -> &Arc<Map> {
+        self.configuration_maps.get(configuration).unwrap_or(&self.map)
     }
 
-    /// The metrics of a run of the matrix fidelity `fidelity` (its point's metric parameters).
-    pub fn measure_in(
+    /// The distinct maps the runs drive on: the spec's first, then the configurations' own in
+    /// the order of their names.
+    pub fn maps(&self) -> Vec<&Arc<Map>> {
+        let mut maps = vec![&self.map];
+        for map in self.configuration_maps.values() {
+            if !maps.iter().any(|known| Arc::ptr_eq(known, map)) {
+                maps.push(map);
+            }
+        }
+        maps
+    }
+
+    /// The index in [`Scoring::maps`] of the map the runs of `configuration` drive on.
+    pub fn map_index(&self, configuration: &str) -> usize {
+        let map = self.map_of(configuration);
+        self.maps()
+            .iter()
+            .position(|known| Arc::ptr_eq(known, map))
+            .unwrap_or(0)
+    }
+
+    /// Whether some configurations drive on another map than the spec's.
+    pub fn has_several_maps(&self) -> bool {
+        !self.configuration_maps.is_empty()
+    }
+
+    /// The metrics of one recording of `configuration` with the spec's metric parameters.
+    pub fn measure(
         &self,
-        fidelity: &str,
+        configuration: &str,
         recording: &cpmx_recording::Recording,
     ) -> Result<cpmx_metrics::RunMetrics, String> {
-        let metrics = self.metrics_by_fidelity.get(fidelity).unwrap_or(&self.metrics);
-        crate::runner::measure_recording(&self.map, &self.footprint, metrics, recording)
+        let map = self.map_of(configuration);
+        crate::runner::measure_recording(map, &self.footprint, &self.metrics, recording)
+    }
+
+    /// The metrics of a planned run's recording (its matrix fidelity's metric parameters, its
+    /// configuration's map).
+    pub fn measure_in(
+        &self,
+        plan: &cpmx_spec::RunPlan,
+        recording: &cpmx_recording::Recording,
+    ) -> Result<cpmx_metrics::RunMetrics, String> {
+        let metrics = self
+            .metrics_by_fidelity
+            .get(&plan.fidelity)
+            .unwrap_or(&self.metrics);
+        let map = self.map_of(&plan.initial_configuration);
+        crate::runner::measure_recording(map, &self.footprint, metrics, recording)
     }
 }
 
@@ -145,6 +193,7 @@ impl Experiment {
         Scoring {
             spec: self.spec.clone(),
             map: self.map.clone(),
+            configuration_maps: self.configuration_maps.clone(),
             vehicle: self.vehicle,
             footprint: self.footprint,
             metrics: self.metrics,
@@ -170,10 +219,18 @@ impl Experiment {
             }
             policies.push((policy.name.clone(), prepared));
         }
-        let starts = initial_states(spec, &checked.configurations, &checked.resources, &map, &vehicle)?;
+        let configuration_maps = load_configuration_maps(spec, &checked.configurations, &checked.resources)?;
+        let starts = initial_states(
+            spec,
+            &checked.configurations,
+            &checked.resources,
+            (&map, &configuration_maps),
+            &vehicle,
+        )?;
         Ok(Experiment {
             spec: spec.clone(),
             map,
+            configuration_maps,
             vehicle,
             footprint: footprint_params(spec),
             metrics: metrics_config(&spec.metrics, &spec.timing),
@@ -248,6 +305,42 @@ impl Experiment {
     pub fn start(&self, plan: &cpmx_spec::RunPlan) -> Option<&[InitialState]> {
         start_of(&self.starts, plan)
     }
+
+    /// The map the runs of `configuration` drive on.
+    pub fn map_of(&self, configuration: &str) -> &Arc<Map> {
+        self.configuration_maps.get(configuration).unwrap_or(&self.map)
+    }
+}
+
+/// The maps of the configurations whose entry names its own `map`, by configuration name
+/// (each entry's map loaded once and shared by its configurations).
+pub fn load_configuration_maps(
+    spec: &Spec,
+    configurations: &[cpmx_spec::matrix::NamedConfiguration],
+    resources: &cpmx_spec::Resources,
+) -> Result<BTreeMap<String, Arc<Map>>, PrepareError> {
+    let mut by_entry: BTreeMap<usize, Arc<Map>> = BTreeMap::new();
+    let mut out = BTreeMap::new();
+    for configuration in configurations {
+        let entry = configuration.source.entry();
+        let Some(own) = spec.initial_configurations.get(entry).and_then(|c| c.own_map()) else {
+            continue;
+        };
+        let map = match by_entry.get(&entry) {
+            Some(map) => map.clone(),
+            None => {
+                let file = resources
+                    .configuration_map_files
+                    .get(entry)
+                    .and_then(Option::as_deref);
+                let map = Arc::new(load_map_spec(own, file)?);
+                by_entry.insert(entry, map.clone());
+                map
+            }
+        };
+        out.insert(configuration.name.clone(), map);
+    }
+    Ok(out)
 }
 
 /// The spec's map: built-in or from its file, restricted to a region, with the spec's own paths.

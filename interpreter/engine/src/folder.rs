@@ -26,6 +26,16 @@ pub fn resolved_spec(checked: &CheckedSpec) -> serde_json::Value {
     {
         map.insert("sha256".into(), sha256_hex(&bytes).into());
     }
+    for (i, path) in checked.resources.configuration_map_files.iter().enumerate() {
+        if let Some(path) = path
+            && let Some(map) = resolved
+                .pointer_mut(&format!("/initial_configurations/{i}/map"))
+                .and_then(|m| m.as_object_mut())
+            && let Ok(bytes) = std::fs::read(path)
+        {
+            map.insert("sha256".into(), sha256_hex(&bytes).into());
+        }
+    }
     for (i, weights) in checked.resources.weights.iter().enumerate() {
         for kind in ["mlp", "onnx"] {
             if let Some(path) = weights
@@ -297,15 +307,17 @@ pub fn write_summaries_from(
         let page = cpmx_report_html::Page {
             summary: &summary,
             description: scoring.spec.description.as_deref(),
-            map: &scoring.map,
+            maps: scoring.maps().into_iter().map(|map| map.as_ref()).collect(),
             vehicle: &scoring.footprint,
             runs: records
                 .iter()
                 .zip(&recordings)
                 .filter_map(|(record, recording)| {
-                    recording
-                        .as_ref()
-                        .map(|recording| cpmx_report_html::PageRun { record, recording })
+                    recording.as_ref().map(|recording| cpmx_report_html::PageRun {
+                        record,
+                        recording,
+                        map: scoring.map_index(&record.plan.initial_configuration),
+                    })
                 })
                 .collect(),
             learning_curves: learning_curves(out),
@@ -383,13 +395,18 @@ fn write_plots(
             plot.svg.into_bytes(),
         );
     }
-    // One drawing of the road per frame, shared by the runs' figures.
-    let drawing = cpmx_report::MapDrawing::new(&scoring.map);
+    // One drawing of each road per frame, shared by the runs' figures on it.
+    let drawings: Vec<cpmx_report::MapDrawing<'_>> = scoring
+        .maps()
+        .into_iter()
+        .map(|map| cpmx_report::MapDrawing::new(map))
+        .collect();
     records
         .par_iter()
         .zip(recordings)
         .for_each(|(record, recording)| {
             if let Some(recording) = recording {
+                let drawing = &drawings[scoring.map_index(&record.plan.initial_configuration)];
                 let svg = drawing.trajectory_svg(recording, &record.metrics, &scoring.footprint);
                 write(
                     plots.join(format!("{}.svg", record.plan.key.replace('/', "_"))),

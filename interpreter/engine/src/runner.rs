@@ -219,7 +219,7 @@ fn execute_one(
         }
     };
     let outcome = match run_engine(experiment, plan, fidelity.as_ref(), context).and_then(|recording| {
-        let metrics = measure(experiment, &plan.fidelity, &recording)?;
+        let metrics = measure(experiment, plan, &recording)?;
         Ok((recording, metrics))
     }) {
         Ok((recording, metrics)) => {
@@ -345,7 +345,7 @@ pub fn simulate(experiment: &Experiment, plan: &RunPlan) -> Result<(Recording, R
         timing: false,
     };
     let recording = run_engine(experiment, plan, fidelity.as_ref(), context).map_err(RunFailure::reason)?;
-    let metrics = measure(experiment, &plan.fidelity, &recording)?;
+    let metrics = measure(experiment, plan, &recording)?;
     Ok((recording, metrics))
 }
 
@@ -388,13 +388,15 @@ fn run_engine(
     })?)
 }
 
-/// The spec's metrics of a recording (the same function `cpmx evaluate` and `cpmx report` use).
-pub fn measure(experiment: &Experiment, fidelity: &str, recording: &Recording) -> Result<RunMetrics, String> {
+/// The spec's metrics of a planned run's recording, on its configuration's map (the same
+/// function `cpmx evaluate` and `cpmx report` use).
+pub fn measure(experiment: &Experiment, plan: &RunPlan, recording: &Recording) -> Result<RunMetrics, String> {
     let metrics = experiment
         .metrics_by_fidelity
-        .get(fidelity)
+        .get(&plan.fidelity)
         .unwrap_or(&experiment.metrics);
-    measure_recording(&experiment.map, &experiment.footprint, metrics, recording)
+    let map = experiment.map_of(&plan.initial_configuration);
+    measure_recording(map, &experiment.footprint, metrics, recording)
 }
 
 /// The metrics of a recording on `map` with the vehicle's footprint and the metric parameters.

@@ -7,25 +7,25 @@ use cpmx_recording::Recording;
 use cpmx_safety::layer::{self, LayerFilter};
 use cpmx_spec::model::SafetyLayer;
 
-use crate::engine::RunError;
-use crate::experiment::Experiment;
+use crate::engine::{RunError, RunInputs};
 
 /// The filter of a run whose fidelity has the safety `layer`, if any, for agents on
-/// `ref_paths` of `experiment`'s map (each path's left and right road boundaries).
-/// With `timing`, the filter times its steps (`cpmx run --timing`).
+/// `ref_paths` of the run's map (each path's left and right road boundaries). With the run's
+/// `timing`, the filter times its steps (`cpmx run --timing`).
 pub(crate) fn filter_of_run(
     layer: Option<&SafetyLayer>,
-    experiment: &Experiment,
+    inputs: &RunInputs<'_>,
     ref_paths: &[usize],
-    timing: bool,
 ) -> Result<Option<LayerFilter>, RunError> {
     let Some(layer) = layer else {
         return Ok(None);
     };
+    let experiment = inputs.experiment;
+    let timing = inputs.timing;
     let lanes = ref_paths
         .iter()
         .map(|&id| {
-            let path = experiment.map.reference_path(id)?;
+            let path = inputs.map().reference_path(id)?;
             Some((
                 layer::boundary(&path.left_boundary_shared)?,
                 layer::boundary(&path.right_boundary_shared)?,

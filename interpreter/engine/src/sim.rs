@@ -53,9 +53,8 @@ impl Engine for SimEngine {
         };
         let mut safety = crate::safety::filter_of_run(
             inputs.fidelity.and_then(|f| f.safety.as_ref()),
-            experiment,
+            inputs,
             &recording.ref_paths,
-            inputs.timing,
         )?;
         let mut knowledge = inputs.neighbour_knowledge();
         let mut agents = vec![AgentState::default(); states.len()];

@@ -9,7 +9,7 @@ use cpmx_recording::Recording;
 use cpmx_spec::Resources;
 use cpmx_spec::RunPlan;
 use cpmx_spec::matrix::{ConfigurationSource, NamedConfiguration, stream_key};
-use cpmx_spec::model::{AgentStart, FromPosesSpec, InitialConfiguration, SampleSpec, Spec};
+use cpmx_spec::model::{AgentStart, FromPosesSpec, InitialConfiguration, SampleDraw, SampleSpec, Spec};
 use cpmx_spec::poses::MeasuredPoses;
 use cpmx_vehicle::{VehicleParams, footprint_corners};
 use cpmx_world::Map;
@@ -77,17 +77,19 @@ pub fn start_of<'a>(
         .and_then(|(_, s)| s.of_run(&plan.policy, plan.repetition))
 }
 
-/// Initial states of every configuration, by name, in order.
+/// Initial states of every configuration, by name, in order: each on its own map where its
+/// entry names one (`configuration_maps`, by name), else on the spec's `map`.
 pub fn initial_states(
     spec: &Spec,
     configurations: &[NamedConfiguration],
     resources: &Resources,
-    map: &Map,
+    (map, configuration_maps): (&Map, &BTreeMap<String, std::sync::Arc<Map>>),
     vehicle: &VehicleParams,
 ) -> Result<Vec<(String, ConfigurationStarts)>, PrepareError> {
     configurations
         .iter()
         .map(|c| {
+            let map = configuration_maps.get(&c.name).map_or(map, |own| own.as_ref());
             let fail = |reason: String| PrepareError::Start {
                 name: c.name.clone(),
                 reason,
@@ -115,7 +117,27 @@ pub fn initial_states(
                 },
                 (ConfigurationSource::Sampled { entry, index }, entries) => match &entries[*entry] {
                     InitialConfiguration::Sampled(s) => {
-                        sample_starts(&s.sample, *index, spec.agents as usize, map, vehicle).map_err(fail)?
+                        let agents = entries[*entry].agents(spec.agents);
+                        if s.sample.draw == SampleDraw::PerRepetition {
+                            let mut runs = BTreeMap::new();
+                            for repetition in 1..=spec.repetitions {
+                                let draw = Draw {
+                                    index: *index,
+                                    repetition: Some(repetition),
+                                };
+                                let states =
+                                    sample_starts(&s.sample, draw, agents, map, vehicle).map_err(fail)?;
+                                for policy in &spec.policies {
+                                    runs.insert((policy.name.clone(), repetition), states.clone());
+                                }
+                            }
+                            return Ok((c.name.clone(), ConfigurationStarts::PerRun(runs)));
+                        }
+                        let draw = Draw {
+                            index: *index,
+                            repetition: None,
+                        };
+                        sample_starts(&s.sample, draw, agents, map, vehicle).map_err(fail)?
                     }
                     _ => return Err(fail("not a sampled configuration".into())),
                 },
@@ -197,18 +219,36 @@ pub fn explicit_start(start: &AgentStart, map: &Map) -> Result<InitialState, Str
     })
 }
 
-/// Draw `index` of a sample entry: each agent on a uniformly chosen path at a uniform arc
-/// length, on the road, at least `min_gap` from the others (rejection sampling). The stream is
-/// keyed by the entry's own seed, so configurations do not change with the spec's `seed`.
+/// Which draw of a sample entry: the entry's `index`-th configuration, and with `draw:
+/// per-repetition` the repetition.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Draw {
+    pub index: u32,
+    pub repetition: Option<u32>,
+}
+
+impl Draw {
+    /// The name of the draw's random stream under the entry's seed.
+    fn stream(self) -> String {
+        match self.repetition {
+            None => format!("starts/{}", self.index),
+            Some(repetition) => format!("starts/{}/rep{repetition}", self.index),
+        }
+    }
+}
+
+/// A draw of a sample entry: each agent on a uniformly chosen path at a uniform arc length,
+/// on the road, at least `min_gap` from the others (rejection sampling). The stream is keyed
+/// by the entry's own seed, so configurations do not change with the spec's `seed`.
 pub fn sample_starts(
     sample: &SampleSpec,
-    index: u32,
+    draw: Draw,
     agents: usize,
     map: &Map,
     vehicle: &VehicleParams,
 ) -> Result<Vec<InitialState>, String> {
     const TRIES_PER_AGENT: usize = 10_000;
-    let mut rng = ChaCha20Rng::from_seed(stream_key(sample.seed, &format!("starts/{index}")));
+    let mut rng = ChaCha20Rng::from_seed(stream_key(sample.seed, &draw.stream()));
     let ids = map.valid_path_ids();
     if ids.is_empty() {
         return Err("the map has no reference paths".into());

@@ -62,8 +62,7 @@ impl Engine for TwinEngine {
         let mut planner = planner(planner_spec, dt_s, experiment.vehicle);
         let mut policy = inputs.policy()?;
         let ref_paths: Vec<usize> = starts.iter().map(|s| s.ref_path).collect();
-        let mut safety =
-            crate::safety::filter_of_run(fidelity.safety.as_ref(), experiment, &ref_paths, inputs.timing)?;
+        let mut safety = crate::safety::filter_of_run(fidelity.safety.as_ref(), inputs, &ref_paths)?;
         let mut knowledge = inputs.neighbour_knowledge();
         let model = cpmx_vehicle::KinematicBicycle::new(experiment.vehicle);
 

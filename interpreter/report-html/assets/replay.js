@@ -24,12 +24,15 @@
   const COLLISION_INK = "#000000", VIOLATION_INK = "#404040";
   // Canvas layout in CSS pixels: a border, and room for the scale bar at the bottom.
   const MARGIN = 12, SCALE_BAR = 22;
-  // Map panels keep the map's aspect ratio (within reason), whatever width the page gives them.
-  const MAP_ASPECT = (() => {
-    const [x0, y0, x1, y1] = data.map.bounds, w = 440;
+  // Map panels keep their map's aspect ratio (within reason), whatever width the page gives them.
+  // A run drives on one of the page's maps (data.maps[run.map]): the spec's, or its
+  // configuration's own.
+  const mapOf = (run) => data.maps[run.map];
+  function mapAspect(map) {
+    const [x0, y0, x1, y1] = map.bounds, w = 440;
     const h = (w - 2 * MARGIN) * Math.max(y1 - y0, 1e-3) / Math.max(x1 - x0, 1e-3) + 2 * MARGIN + SCALE_BAR;
     return Math.min(3, Math.max(0.6, w / h));
-  })();
+  }
 
   // Canvases are drawn at the screen's resolution: the backing store is the CSS size times
   // devicePixelRatio, and every drawing works in CSS pixels. Each canvas keeps the function
@@ -73,8 +76,8 @@
   }
 
   // Map metres to CSS pixels: the whole map fits the panel, centred, y up.
-  function frameOf(w, h) {
-    const [x0, y0, x1, y1] = data.map.bounds;
+  function frameOf(w, h, map) {
+    const [x0, y0, x1, y1] = map.bounds;
     const mw = Math.max(x1 - x0, 1e-3), mh = Math.max(y1 - y0, 1e-3);
     const scale = Math.max(1e-9, Math.min((w - 2 * MARGIN) / mw, (h - 2 * MARGIN - SCALE_BAR) / mh));
     const left = MARGIN + Math.max(0, (w - 2 * MARGIN - mw * scale) / 2);
@@ -97,8 +100,8 @@
     for (const m of [5, 2, 1]) if (m * power <= atMost * (1 + 1e-9)) return m * power;
     return power;
   }
-  function drawScaleBar(ctx, f, h) {
-    const [x0, , x1] = data.map.bounds;
+  function drawScaleBar(ctx, f, h, map) {
+    const [x0, , x1] = map.bounds;
     const length = roundLength((x1 - x0) / 5);
     const px = length * f.scale, y = h - 10, x = f.x(x0);
     ctx.strokeStyle = "#000"; ctx.lineWidth = 2; ctx.setLineDash([]);
@@ -107,11 +110,11 @@
     const label = length >= 1000 ? length / 1000 + " km" : length >= 1 ? length + " m" : Math.round(length * 100) + " cm";
     ctx.fillText(label, x + px + 5, y + 4);
   }
-  function drawMap(ctx, f, w, h) {
+  function drawMap(ctx, f, w, h, map) {
     ctx.fillStyle = "#fff"; ctx.fillRect(0, 0, w, h);
     ctx.strokeStyle = "#c8c8c8"; ctx.lineWidth = 1; ctx.setLineDash([]);
-    for (const line of data.map.lanelets) polyline(ctx, f, line);
-    drawScaleBar(ctx, f, h);
+    for (const line of map.lanelets) polyline(ctx, f, line);
+    drawScaleBar(ctx, f, h, map);
   }
   function corners(x, y, yaw) {
     const l = data.vehicle.length_m / 2, w = data.vehicle.width_m / 2;
@@ -150,8 +153,9 @@
   // One run at sample k: violation bands, reference paths, trails, collision marks, violation
   // rings, footprints.
   function drawRun(canvas, run, k) {
-    const { ctx, w, h } = fit(canvas), f = frameOf(w, h);
-    drawMap(ctx, f, w, h);
+    const map = mapOf(run);
+    const { ctx, w, h } = fit(canvas), f = frameOf(w, h, map);
+    drawMap(ctx, f, w, h, map);
     ctx.lineCap = "round"; ctx.lineJoin = "round";
     for (const [agent, first, last] of episodes(run)) {
       const a = run.agents[agent];
@@ -171,7 +175,7 @@
     }
     ctx.lineCap = "butt"; ctx.lineJoin = "miter";
     run.ref_paths.forEach((id, agent) => {
-      const path = data.map.paths[String(id)];
+      const path = map.paths[String(id)];
       if (!path) return;
       ctx.strokeStyle = colour(agent); ctx.globalAlpha = 0.5; ctx.lineWidth = 1.5;
       ctx.setLineDash([6, 4]); polyline(ctx, f, path); ctx.globalAlpha = 1; ctx.setLineDash([]);
@@ -206,12 +210,12 @@
       if (defined(a, i)) footprint(ctx, f, a.x[i], a.y[i], a.yaw[i], colour(agent));
     });
   }
-  // A figure of the page: a canvas (its aspect ratio given) and a caption.
-  function panel(parent, caption, aspect) {
+  // A figure of the page: a canvas showing `run` on its map, and a caption.
+  function panel(parent, caption, run) {
     const figure = document.createElement("figure");
     figure.className = "panel";
     const canvas = document.createElement("canvas");
-    canvas.style.aspectRatio = String(aspect || MAP_ASPECT);
+    canvas.style.aspectRatio = String(mapAspect(mapOf(run)));
     figure.appendChild(canvas);
     const text = document.createElement("figcaption");
     text.textContent = caption;
@@ -265,7 +269,7 @@
         const run = data.runs[fig.setup];
         const p = panel(row, "Setup of " + fig.configuration + ": start poses and reference paths " + list(run.ref_paths) +
           " (the same for every fidelity and for " + (fig.policies.length > 1 ? "the policies " : "the policy ") +
-          list(fig.policies) + ")");
+          list(fig.policies) + ")", run);
         register(p.canvas, () => drawRun(p.canvas, run, 0));
       }
       for (const rep of fig.representatives) {
@@ -278,7 +282,7 @@
           caption += ". The row " + rep.group + " pools the policies " + list(rep.group_policies) +
             "; this run is the one closest to its mean";
         }
-        const p = panel(row, caption);
+        const p = panel(row, caption, run);
         register(p.canvas, () => drawRun(p.canvas, run, samples(run) - 1));
       }
     }
@@ -293,7 +297,7 @@
     const body = document.getElementById("replay-body");
     for (const p of panels) unregister(p.canvas);
     body.textContent = "";
-    panels = pair.runs.map((r) => ({ run: data.runs[r], ...panel(body, describe(data.runs[r])) }));
+    panels = pair.runs.map((r) => ({ run: data.runs[r], ...panel(body, describe(data.runs[r]), data.runs[r]) }));
     const length = Math.max(0, ...panels.map((p) => samples(p.run) - 1));
     const scrub = document.getElementById("scrub");
     scrub.max = String(length);

@@ -1,4 +1,5 @@
-//! The JSON the page draws from: the map (boundaries simplified for display), the vehicle's
+//! The JSON the page draws from: the maps (boundaries simplified for display; the spec's, then
+//! those of configurations with their own, each run naming its), the vehicle's
 //! footprint, every run on the metrics' time grid (so the metrics' sample indices of
 //! collision events and lane violations point at drawn states), the pairs of runs that
 //! replay together, Figure 3's choices, and the learning curves.
@@ -20,7 +21,7 @@ use crate::{Page, PageRun};
 #[derive(Serialize)]
 pub struct PageData<'a> {
     experiment: &'a str,
-    map: Value,
+    maps: Vec<Value>,
     vehicle: Value,
     runs: Vec<RunData<'a>>,
     pairs: Vec<Value>,
@@ -30,33 +31,15 @@ pub struct PageData<'a> {
 
 /// The data of the page.
 pub fn page_data<'a>(page: &Page<'a>) -> PageData<'a> {
-    let bounds = page.map.bounds();
-    let diagonal_m = (bounds.max_x_m - bounds.min_x_m).hypot(bounds.max_y_m - bounds.min_y_m);
-    // A tolerance invisible at any size the page draws the map (≤ 1/2000 of it, ≥ 1 mm).
-    let tolerance_m = (diagonal_m / 2000.0).max(0.001);
-    let lanelets: Vec<Value> = page
-        .map
-        .lanelets()
-        .flat_map(|l| [&l.left_boundary, &l.right_boundary])
-        .map(|line| flat(&simplify(&line.points, tolerance_m)))
+    let maps = page
+        .maps
+        .iter()
+        .enumerate()
+        .map(|(index, map)| map_data(map, page.runs.iter().filter(|run| run.map == index)))
         .collect();
-    let mut paths: BTreeMap<String, Value> = BTreeMap::new();
-    for run in &page.runs {
-        for id in &run.recording.ref_paths {
-            if let Some(path) = page.map.reference_path(*id) {
-                paths
-                    .entry(id.to_string())
-                    .or_insert_with(|| flat(&simplify(&path.center_line.points, tolerance_m)));
-            }
-        }
-    }
     PageData {
         experiment: &page.summary.experiment,
-        map: json!({
-            "bounds": [round(bounds.min_x_m), round(bounds.min_y_m), round(bounds.max_x_m), round(bounds.max_y_m)],
-            "lanelets": lanelets,
-            "paths": paths,
-        }),
+        maps,
         vehicle: json!({"length_m": page.vehicle.length_m, "width_m": page.vehicle.width_m}),
         runs: page.runs.iter().map(run_data).collect(),
         pairs: pairs(&page.runs),
@@ -75,6 +58,35 @@ pub fn page_data<'a>(page: &Page<'a>) -> PageData<'a> {
     }
 }
 
+/// One map as the page draws it: its bounds, its lanelets' boundaries and the centre lines of
+/// the reference paths `runs` follow, simplified by a tolerance invisible at any size the page
+/// draws it (at most 1/2000 of its diagonal, at least 1 mm).
+fn map_data<'a>(map: &cpmx_world::Map, runs: impl Iterator<Item = &'a PageRun<'a>>) -> Value {
+    let bounds = map.bounds();
+    let diagonal_m = (bounds.max_x_m - bounds.min_x_m).hypot(bounds.max_y_m - bounds.min_y_m);
+    let tolerance_m = (diagonal_m / 2000.0).max(0.001);
+    let lanelets: Vec<Value> = map
+        .lanelets()
+        .flat_map(|l| [&l.left_boundary, &l.right_boundary])
+        .map(|line| flat(&simplify(&line.points, tolerance_m)))
+        .collect();
+    let mut paths: BTreeMap<String, Value> = BTreeMap::new();
+    for run in runs {
+        for id in &run.recording.ref_paths {
+            if let Some(path) = map.reference_path(*id) {
+                paths
+                    .entry(id.to_string())
+                    .or_insert_with(|| flat(&simplify(&path.center_line.points, tolerance_m)));
+            }
+        }
+    }
+    json!({
+        "bounds": [round(bounds.min_x_m), round(bounds.min_y_m), round(bounds.max_x_m), round(bounds.max_y_m)],
+        "lanelets": lanelets,
+        "paths": paths,
+    })
+}
+
 /// One run: its place in the matrix, metrics, and each agent's states on the metrics' grid.
 /// Written field by field in this order (the page's script reads it by name).
 #[derive(Serialize)]
@@ -84,6 +96,8 @@ struct RunData<'a> {
     policy: &'a str,
     configuration: &'a str,
     repetition: u32,
+    /// The run's map: its index in the page's `maps`.
+    map: usize,
     pair: String,
     metrics: RunMetricsData,
     dt: f64,
@@ -139,6 +153,7 @@ fn run_data<'a>(run: &PageRun<'a>) -> RunData<'a> {
         policy: &plan.policy,
         configuration: &plan.initial_configuration,
         repetition: plan.repetition,
+        map: run.map,
         pair: plan.pair_key(),
         metrics: RunMetricsData {
             cra_a: rounded(metrics.cra_a, 4),

@@ -32,6 +32,8 @@ pub use data::{PageData, page_data};
 pub struct PageRun<'a> {
     pub record: &'a RunRecord,
     pub recording: &'a Recording,
+    /// The run's map: its index in [`Page::maps`].
+    pub map: usize,
 }
 
 /// A learning curve of a training in the folder: `episode_reward_mean` per iteration.
@@ -48,7 +50,9 @@ pub struct LearningCurve {
 pub struct Page<'a> {
     pub summary: &'a Summary,
     pub description: Option<&'a str>,
-    pub map: &'a Map,
+    /// The maps the runs drive on: the spec's first, then those of configurations with their
+    /// own.
+    pub maps: Vec<&'a Map>,
     pub vehicle: &'a VehicleParams,
     /// The runs, in matrix order.
     pub runs: Vec<PageRun<'a>>,

@@ -96,16 +96,18 @@ fn page_data_of_a_small_folder() {
     let page = Page {
         summary: &summary,
         description: Some("two fidelities"),
-        map: &map,
+        maps: vec![&map],
         vehicle: &vehicle,
         runs: vec![
             PageRun {
                 record: &records[0],
                 recording: &sim,
+                map: 0,
             },
             PageRun {
                 record: &records[1],
                 recording: &twin,
+                map: 0,
             },
         ],
         learning_curves: vec![],
@@ -115,8 +117,8 @@ fn page_data_of_a_small_folder() {
     assert_eq!(data["pairs"][0]["runs"], serde_json::json!([0, 1]));
     assert_eq!(data["figure3"][0]["representatives"].as_array().unwrap().len(), 2);
     insta::assert_json_snapshot!(data, {
-        ".map.lanelets" => "[lanelet boundaries]",
-        ".map.paths.*" => "[centre line]",
+        ".maps[].lanelets" => "[lanelet boundaries]",
+        ".maps[].paths.*" => "[centre line]",
     });
 
     // The page: self-contained (no address to fetch), the data embedded, the tables in HTML.

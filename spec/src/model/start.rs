@@ -4,6 +4,8 @@
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use super::MapSpec;
+
 /// One initial configuration entry. An entry of `sample` or `from_runs` expands into several
 /// named configurations.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -17,6 +19,26 @@ pub enum InitialConfiguration {
     FromRuns(FromRuns),
     /// Measured start poses per run from a CSV file.
     FromPoses(FromPoses),
+}
+
+impl InitialConfiguration {
+    /// The entry's own map, when it names one (else the runs drive on the spec's `map`).
+    pub fn own_map(&self) -> Option<&MapSpec> {
+        match self {
+            InitialConfiguration::Explicit(e) => e.map.as_ref(),
+            InitialConfiguration::Sampled(s) => s.map.as_ref(),
+            InitialConfiguration::FromRuns(_) | InitialConfiguration::FromPoses(_) => None,
+        }
+    }
+
+    /// How many agents the entry's configurations place, given the spec's `agents`.
+    pub fn agents(&self, spec_agents: u32) -> usize {
+        match self {
+            InitialConfiguration::Explicit(e) => e.agents.len(),
+            InitialConfiguration::Sampled(s) => s.sample.agents.unwrap_or(spec_agents) as usize,
+            InitialConfiguration::FromRuns(_) | InitialConfiguration::FromPoses(_) => spec_agents as usize,
+        }
+    }
 }
 
 /// The default of `off_road_tolerance_m`: how far a start's footprint may reach beyond the
@@ -38,7 +60,14 @@ pub struct ExplicitConfiguration {
     /// Name in run keys and tables. Lower-case letters, digits and `-`.
     #[schemars(regex(pattern = r"^[a-z0-9][a-z0-9-]*$"))]
     pub name: String,
-    /// One entry per agent; as many as `agents`.
+    /// The map this configuration's runs drive on, in any form of the spec's `map` (e.g.
+    /// `{sigmarl: roundabout_1}`), when it is not the spec's `map`: one experiment evaluates
+    /// on several maps (training stays on the spec's `map`). Its `ref_path` numbers are this
+    /// map's. A lab fidelity drives on the spec's `map` only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub map: Option<MapSpec>,
+    /// One entry per agent; as many as `agents`, unless the configuration has its own `map`
+    /// (then as many as it places).
     #[schemars(length(min = 1))]
     pub agents: Vec<AgentStart>,
     /// How far [m] a start's footprint may reach beyond its path's road and still be run,
@@ -99,6 +128,16 @@ impl Pose {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SampledStarts {
+    /// The configurations' name: `NAME` for `count: 1`, `NAME1`, `NAME2`, … for more. Default:
+    /// `sample1`, `sample2`, … numbered across the unnamed `sample` entries.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(regex(pattern = r"^[a-z0-9][a-z0-9-]*$"))]
+    pub name: Option<String>,
+    /// The map the draws are made on and the runs drive on, when it is not the spec's `map`
+    /// (any form of `map`, e.g. `{sigmarl: roundabout_1}`). A lab fidelity drives on the
+    /// spec's `map` only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub map: Option<MapSpec>,
     /// How to sample.
     pub sample: SampleSpec,
 }
@@ -117,6 +156,34 @@ pub struct SampleSpec {
     #[serde(default = "default_min_gap")]
     #[schemars(range(min = 0.0))]
     pub min_gap: f64,
+    /// How many agents a draw places. Default: the spec's `agents`. Another number needs the
+    /// entry's own `map` (the spec's `agents` is the count on the spec's map).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1, max = 64))]
+    pub agents: Option<u32>,
+    /// `per-configuration` (default): every run of a configuration starts from its one draw.
+    /// `per-repetition`: repetition r starts from its own draw, the same for every policy and
+    /// fidelity (paired), so that `repetitions` are independent starts of one named
+    /// configuration (SigmaRL's evaluation: each of its environments its own random start).
+    #[serde(default, skip_serializing_if = "SampleDraw::is_per_configuration")]
+    pub draw: SampleDraw,
+}
+
+/// What one draw of a `sample` entry starts: all runs of a configuration, or one repetition.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum SampleDraw {
+    /// One draw per configuration, shared by its runs.
+    #[default]
+    PerConfiguration,
+    /// One draw per repetition, shared by the policies and fidelities.
+    PerRepetition,
+}
+
+impl SampleDraw {
+    fn is_per_configuration(&self) -> bool {
+        *self == SampleDraw::PerConfiguration
+    }
 }
 
 fn default_min_gap() -> f64 {
