@@ -657,3 +657,36 @@ fn a_faults_file_is_checked_as_the_spec_s_faults_are() {
         .expect_err("not the lab's vehicle");
     assert!(stranger[0].problem.message.contains("vehicle 9"), "{stranger:?}");
 }
+
+#[test]
+fn sample_entries_are_named_by_their_name_or_numbered() {
+    let text = VALID.replace(
+        "repetitions: 1",
+        "  - {name: crowd, sample: {count: 2, seed: 1}}\n  - {sample: {count: 2, seed: 2}}\n  \
+         - {name: alone, sample: {count: 1, seed: 3}}\nrepetitions: 1",
+    );
+    let checked = check(&text).unwrap();
+    let names: Vec<&str> = checked.configurations.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["one", "crowd1", "crowd2", "sample1", "sample2", "alone"]);
+    // A name given twice is one problem, at the second entry's `name`.
+    let text = VALID.replace("repetitions: 1", "  - {name: one, sample: {count: 1, seed: 1}}\nrepetitions: 1");
+    let rendered = diagnose(&text, 13, 12);
+    assert!(rendered.contains("`one`"), "{rendered}");
+}
+
+#[test]
+fn draws_per_repetition_are_independent_repetitions() {
+    // Every configuration drawn per repetition: no warning of copies.
+    let text = VALID
+        .replace(
+            "  - name: one\n    agents:\n      - {ref_path: 1, arc_length: 0.2}\n      - {ref_path: 4, arc_length: 0.2}\n",
+            "  - {name: many, sample: {count: 1, seed: 1, draw: per-repetition}}\n",
+        )
+        .replace("repetitions: 1", "repetitions: 3");
+    let checked = check(&text).unwrap();
+    assert!(checked.warnings.is_empty(), "{:?}", checked.warnings);
+    // Another agent count than the spec's needs the entry's own map.
+    let text = text.replace("draw: per-repetition}", "draw: per-repetition, agents: 3}");
+    let rendered = diagnose(&text, 9, 76);
+    assert!(rendered.contains("places 3 agents, but the spec has `agents: 2`"), "{rendered}");
+}
