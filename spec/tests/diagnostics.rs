@@ -669,7 +669,10 @@ fn sample_entries_are_named_by_their_name_or_numbered() {
     let names: Vec<&str> = checked.configurations.iter().map(|c| c.name.as_str()).collect();
     assert_eq!(names, ["one", "crowd1", "crowd2", "sample1", "sample2", "alone"]);
     // A name given twice is one problem, at the second entry's `name`.
-    let text = VALID.replace("repetitions: 1", "  - {name: one, sample: {count: 1, seed: 1}}\nrepetitions: 1");
+    let text = VALID.replace(
+        "repetitions: 1",
+        "  - {name: one, sample: {count: 1, seed: 1}}\nrepetitions: 1",
+    );
     let rendered = diagnose(&text, 13, 12);
     assert!(rendered.contains("`one`"), "{rendered}");
 }
@@ -688,5 +691,8 @@ fn draws_per_repetition_are_independent_repetitions() {
     // Another agent count than the spec's needs the entry's own map.
     let text = text.replace("draw: per-repetition}", "draw: per-repetition, agents: 3}");
     let rendered = diagnose(&text, 9, 76);
-    assert!(rendered.contains("places 3 agents, but the spec has `agents: 2`"), "{rendered}");
+    assert!(
+        rendered.contains("places 3 agents, but the spec has `agents: 2`"),
+        "{rendered}"
+    );
 }

@@ -28,7 +28,9 @@ pub struct MetricsConfig {
     /// (its centre within [`END_REACHED_M`] of the last centre-line point, along the path)
     /// from CD, AS, CRA-L and the distance travelled (the spec's
     /// `timing.stop_at_path_end: end-agent`), so that agents that finish early and wait are
-    /// not slower for it. Collisions still count: the vehicle is still there.
+    /// not slower for it, and from CRA-A: a pair's collision counts while both agents are
+    /// measured (an agent that left the measurement is, in SigmaRL's evaluations, re-placed
+    /// elsewhere, not parked where others pile up on it).
     #[serde(default)]
     pub end_at_path_end: bool,
 }

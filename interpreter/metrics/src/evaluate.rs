@@ -159,13 +159,29 @@ pub fn evaluate(
         })
         .collect();
 
-    // Agent-agent events per pair, through the hysteresis.
+    // How many samples of each agent are measured: with `end_at_path_end`, those up to (and
+    // with) the one that reached the end of an open path; else all.
+    let counted: Vec<usize> = (0..agent_count)
+        .map(|agent| {
+            if !(config.end_at_path_end && open_paths[agent]) {
+                return states.len();
+            }
+            let line = centre_lines[agent].polyline();
+            states
+                .iter()
+                .position(|row| line.remaining_m([row[agent].x_m, row[agent].y_m]) <= END_REACHED_M)
+                .map_or(states.len(), |k| k + 1)
+        })
+        .collect();
+
+    // Agent-agent events per pair, through the hysteresis, while both agents are measured.
     let mut pair_events = Vec::new();
     let mut agent_events = vec![Vec::new(); agent_count];
     for i in 0..agent_count {
         for j in i + 1..agent_count {
             let distances_m: Vec<f64> = boxes
                 .iter()
+                .take(counted[i].min(counted[j]))
                 .map(|row| signed_distance_m(config.cra_a.geometry, &row[i], &row[j]))
                 .collect();
             for sample in event_samples(&distances_m, config.cra_a.hysteresis) {
@@ -189,16 +205,7 @@ pub fn evaluate(
         let mut lane_violation_m = 0.0;
         let mut violation_samples = Vec::new();
         let (mut cd_sum_m, mut speed_sum_mps) = (0.0, 0.0);
-        // With `end_at_path_end`, the samples up to (and with) the one that reached the end.
-        let counted = if config.end_at_path_end && open_paths[agent] {
-            let line = centre_lines[agent].polyline();
-            states
-                .iter()
-                .position(|row| line.remaining_m([row[agent].x_m, row[agent].y_m]) <= END_REACHED_M)
-                .map_or(states.len(), |k| k + 1)
-        } else {
-            states.len()
-        };
+        let counted = counted[agent];
         for (k, row) in states.iter().enumerate().take(counted) {
             let s = &row[agent];
             let step_m = if k == 0 {
@@ -261,7 +268,7 @@ pub fn evaluate(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::CollisionGeometry;
+    use crate::config::{CollisionGeometry, Hysteresis};
     use proptest::prelude::*;
 
     /// A straight 0.15 m wide lane along +x from 0 to 20 m.
@@ -463,5 +470,28 @@ mod tests {
             "{}",
             ended.distance_m
         );
+    }
+
+    #[test]
+    fn an_agent_that_left_the_measurement_collides_with_nobody() {
+        // Agent 0 reaches the end at sample 10 and waits there; agent 1, 1 m behind on the same
+        // path, drives into it at 1 m/s from sample 10 on: the two boxes overlap from about
+        // sample 17 until both are measured no longer.
+        let rows: Vec<Vec<AgentSample>> = (0..=30)
+            .map(|k| {
+                let first = if k <= 10 { 18.9 + k as f64 * 0.1 } else { 19.9 };
+                let second = (17.9 + k as f64 * 0.1).min(19.8);
+                vec![sample(first, 0.0, 0.0), sample(second, 0.0, 0.0)]
+            })
+            .collect();
+        let lane = Straight::new();
+        let recording = recording(rows);
+        let mut config = MetricsConfig::default();
+        config.cra_a.hysteresis = Hysteresis { enter: 1, exit: 1 };
+        let waiting = evaluate(&recording, &lane.geometry(), &VehicleParams::MU_CAR, &config).unwrap();
+        assert_eq!(waiting.pair_events.len(), 1, "waiting at the end, it is hit");
+        config.end_at_path_end = true;
+        let ended = evaluate(&recording, &lane.geometry(), &VehicleParams::MU_CAR, &config).unwrap();
+        assert!(ended.pair_events.is_empty(), "{:?}", ended.pair_events);
     }
 }

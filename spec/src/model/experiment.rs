@@ -243,7 +243,9 @@ pub struct Timing {
     /// (default): it stays there, and the metrics count the time it waits (AS drops).
     /// `end-agent`: its samples after it reached the end (its centre within 0.2 m of the last
     /// centre-line point) are left out of CD, AS, CRA-L and the distance, so that speeds of
-    /// policies that finish early stay comparable; its collisions still count.
+    /// policies that finish early stay comparable, and out of CRA-A: a collision counts while
+    /// both agents are measured (the car has left the measurement; in the simulation it
+    /// still drives on, where others may hit it uncounted).
     #[serde(default, skip_serializing_if = "StopAtPathEnd::is_default")]
     pub stop_at_path_end: StopAtPathEnd,
 }
