@@ -115,22 +115,58 @@ fn priority_is_refused_where_it_cannot_rank() {
     }
 }
 
-/// The models act every 0.05 s, which the lab's vehicle stack (0.02 s periods) cannot
-/// schedule: a twin fidelity beside them is refused before any run, at `timing.dt`.
+/// The models act every 0.05 s, which is no whole number of the lab's vehicle periods
+/// (0.02 s): a simulated planning fidelity decides at the first period at or after each step
+/// (0.06 s and 0.04 s in turn; validate warns), while the lab, and a training through such a
+/// fidelity, are refused before any run, at `timing.dt`.
 #[test]
-fn a_planning_fidelity_at_the_models_step_is_refused_at_validate() {
+fn a_planning_fidelity_at_the_models_step_decides_on_the_vehicles_periods() {
     let dir = scratch("xp-marl-twin");
-    let spec = variant(&dir, 10, 1, None);
-    let text = std::fs::read_to_string(&spec).unwrap().replace(
+    let spec = variant(&dir, 6, 1, None);
+    let planning = std::fs::read_to_string(&spec).unwrap().replace(
         "  sim: {control: direct, dynamics: kinematic-vmas}\n",
         "  sim: {control: direct, dynamics: kinematic-vmas}\n  twin: {control: trajectory, dynamics: stdlib:mu-car-greybox}\n\
          planner: {control_horizon: 4, prediction_horizon: 12, after_control_horizon: {speed: hold, steering: linear-to-zero}}\n",
     );
-    std::fs::write(&spec, text).unwrap();
+    std::fs::write(&spec, &planning).unwrap();
+    let (code, _, stderr) = cpmx_spec(&dir, "validate", &spec, &[]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("`timing.dt: 0.05` is no multiple of the vehicles' 0.02 s control period: in fidelity `twin` the policy decides at the first period at or after each step"),
+        "{stderr}"
+    );
+    let (code, _, stderr) = cpmx_spec(
+        &dir,
+        "run",
+        &spec,
+        &["--out", "out", "--only", "policy=m2-baseline"],
+    );
+    assert_eq!(code, Some(0), "{stderr}");
+    let trajectory =
+        std::fs::read_to_string(dir.join("out/runs/twin/m2-baseline/sample1/rep1/trajectory.csv")).unwrap();
+    let mut times: Vec<&str> = trajectory
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    times.dedup();
+    let times: Vec<f64> = times.iter().map(|t| t.parse().unwrap()).collect();
+    assert_eq!(
+        times,
+        [0.0, 0.06, 0.1, 0.16, 0.2, 0.26],
+        "decisions on the vehicles' periods"
+    );
+    // The lab acts on whole periods only.
+    let lab = planning.replace(
+        "  twin: {control: trajectory, dynamics: stdlib:mu-car-greybox}\n",
+        "  twin: {control: trajectory, dynamics: stdlib:mu-car-greybox}\n  \
+         lab: {driver: cpm-dds, domain: 21, vehicle_ids: [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15], interface: 127.0.0.1}\n",
+    );
+    std::fs::write(&spec, lab).unwrap();
     let (code, _, stderr) = cpmx_spec(&dir, "validate", &spec, &[]);
     assert_eq!(code, Some(1), "{stderr}");
     assert!(
-        stderr.contains("`timing.dt: 0.05` is no multiple of the vehicles' 0.02 s control period, which fidelity `twin` runs on"),
+        stderr.contains("`timing.dt: 0.05` is no multiple of the vehicles' 0.02 s control period, which fidelity `lab` runs on"),
         "{stderr}"
     );
 }

@@ -100,42 +100,84 @@ pub(crate) fn unsupported_reason(fidelity: &Fidelity) -> Option<String> {
     }
 }
 
-/// A fidelity that runs the lab's vehicle stack (planned trajectories, or the lab itself)
-/// steps its vehicles every 0.02 s: the policy's step must be a whole number of those periods.
+/// A fidelity that runs the lab's vehicle stack (planned trajectories, or the lab itself) steps
+/// its vehicles every 0.02 s. The lab, and trainings through such a fidelity, need a policy
+/// step of whole periods; a simulated stack decides at the first period at or after each step
+/// (`cpmx_stack::DecisionSchedule`), which a warning says, and needs a step of one period at
+/// least.
 fn check_control_period(spec: &Spec, ctx: &mut CheckContext<'_>) {
-    if cpmx_stack::control_periods(spec.timing.dt).is_some() {
+    let dt_s = spec.timing.dt;
+    if cpmx_stack::control_periods(dt_s).is_some() {
         return;
     }
-    let stacked: Vec<&str> = spec
-        .fidelities
-        .iter()
-        .filter(|(_, f)| match f {
-            Fidelity::Lab(_) => true,
-            Fidelity::Simulated(s) => s.control == cpmx_spec::model::Control::Trajectory,
-        })
-        .map(|(name, _)| name.as_str())
-        .collect();
-    if stacked.is_empty() {
-        return;
+    let trained: Vec<&str> = spec
+        .training
+        .as_ref()
+        .map(|t| t.fidelity.names().iter().map(String::as_str).collect())
+        .unwrap_or_default();
+    let schedulable = cpmx_stack::DecisionSchedule::new(dt_s).is_some();
+    let (mut refused, mut scheduled) = (Vec::new(), Vec::new());
+    for (name, fidelity) in &spec.fidelities {
+        match fidelity {
+            Fidelity::Lab(_) => refused.push(name.as_str()),
+            Fidelity::Simulated(s) if s.control == cpmx_spec::model::Control::Trajectory => {
+                if schedulable && !trained.contains(&name.as_str()) {
+                    scheduled.push(name.as_str());
+                } else {
+                    refused.push(name.as_str());
+                }
+            }
+            Fidelity::Simulated(_) => {}
+        }
     }
-    let span = ctx.span("/timing/dt");
-    ctx.push(
-        Problem::error(
-            "cpmx::check::control-period",
-            format!(
-                "`timing.dt: {}` is no multiple of the vehicles' {} s control period, which fidelit{} `{}` \
-                 run{} on",
-                spec.timing.dt,
-                cpmx_stack::CONTROL_PERIOD_S,
-                if stacked.len() == 1 { "y" } else { "ies" },
-                stacked.join("`, `"),
-                if stacked.len() == 1 { "s" } else { "" },
-            ),
-            span,
-            "not a whole number of periods",
+    let names = |names: &[&str]| {
+        format!(
+            "fidelit{} `{}`",
+            if names.len() == 1 { "y" } else { "ies" },
+            names.join("`, `")
         )
-        .with_help("choose a step of 0.02 s periods (e.g. 0.04 or 0.06), or drive those fidelities with `control: direct`"),
-    );
+    };
+    let period_s = cpmx_stack::CONTROL_PERIOD_S;
+    if !refused.is_empty() {
+        let span = ctx.span("/timing/dt");
+        ctx.push(
+            Problem::error(
+                "cpmx::check::control-period",
+                format!(
+                    "`timing.dt: {dt_s}` is no multiple of the vehicles' {period_s} s control period, which {} \
+                     run{} on{}",
+                    names(&refused),
+                    if refused.len() == 1 { "s" } else { "" },
+                    if trained.iter().any(|t| refused.contains(t)) {
+                        " and train through"
+                    } else {
+                        ""
+                    },
+                ),
+                span,
+                "not a whole number of periods",
+            )
+            .with_help("choose a step of 0.02 s periods (e.g. 0.04 or 0.06), or drive those fidelities with `control: direct`"),
+        );
+    }
+    if !scheduled.is_empty() {
+        let span = ctx.span("/timing/dt");
+        ctx.push(
+            Problem::warning(
+                "cpmx::check::control-period",
+                format!(
+                    "`timing.dt: {dt_s}` is no multiple of the vehicles' {period_s} s control period: in {} \
+                     the policy decides at the first period at or after each step (the steps between \
+                     decisions alternate, e.g. 0.04 and 0.06 s for 0.05 s), as a lab acting on its \
+                     vehicles' periods would",
+                    names(&scheduled)
+                ),
+                span,
+                "decisions on the vehicles' periods",
+            )
+            .with_help("a step of whole 0.02 s periods decides exactly every step"),
+        );
+    }
 }
 
 /// Every network loads, its layers chain, its first layer takes the observation's values and

@@ -23,8 +23,8 @@ use cpmx_vehicle::{BicycleState, VehicleParams};
 
 use crate::engine::{Engine, RunError, RunInputs};
 use cpmx_stack::{
-    CONTROL_PERIOD_NS, CONTROL_PERIOD_S, RUN_START_NS, StampedState, VehicleStack, anchor_ns,
-    control_periods, max_state_age_ns, trajectory_points,
+    CONTROL_PERIOD_NS, CONTROL_PERIOD_S, DecisionSchedule, RUN_START_NS, StampedState, VehicleStack,
+    anchor_ns, max_state_age_ns, trajectory_points,
 };
 
 /// The lab's control stack around simulated vehicles.
@@ -40,9 +40,9 @@ impl Engine for TwinEngine {
             return Err(unsupported("not a simulated stack".into()));
         };
         let dt_s = spec.timing.dt;
-        let substeps = control_periods(dt_s).ok_or_else(|| {
+        let schedule = DecisionSchedule::new(dt_s).ok_or_else(|| {
             unsupported(format!(
-                "`timing.dt` must be a multiple of the vehicles' {CONTROL_PERIOD_S} s period"
+                "`timing.dt` must be at least the vehicles' {CONTROL_PERIOD_S} s period"
             ))
         })?;
         let planner_spec = spec
@@ -74,11 +74,19 @@ impl Engine for TwinEngine {
             ref_paths,
             samples: Vec::with_capacity(spec.timing.steps as usize),
         };
-        let dt_ns = substeps as u64 * CONTROL_PERIOD_NS;
-        let max_age_ns = max_state_age_ns(planner_spec.prediction_horizon, dt_ns);
+        let dt_ns = schedule.step_ns();
+        // A plan must reach the next decision, which comes up to a period late on a step that
+        // is no whole number of periods.
+        let max_age_ns = max_state_age_ns(planner_spec.prediction_horizon, dt_ns)
+            .saturating_sub(schedule.longest_gap_ns() - dt_ns);
         for tick in 0..spec.timing.steps {
-            let t_s = (f64::from(tick) * dt_s * 1e9).round() / 1e9;
-            let tick_ns = RUN_START_NS + u64::from(tick) * dt_ns;
+            let offset_ns = schedule.offset_ns(u64::from(tick));
+            let t_s = if schedule.is_exact() {
+                (f64::from(tick) * dt_s * 1e9).round() / 1e9
+            } else {
+                offset_ns as f64 / 1e9
+            };
+            let tick_ns = RUN_START_NS + offset_ns;
 
             // Record the true states.
             recording.times_s.push(t_s);
@@ -108,7 +116,7 @@ impl Engine for TwinEngine {
             }
 
             // The vehicles' 50 Hz loops until the next policy period.
-            for sub in 0..substeps as u64 {
+            for sub in 0..schedule.periods_after(u64::from(tick)) {
                 let now_ns = tick_ns + sub * CONTROL_PERIOD_NS;
                 for vehicle in &mut vehicles {
                     vehicle.step(now_ns);

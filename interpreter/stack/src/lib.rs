@@ -22,8 +22,8 @@ pub use stack::{
     StampedState, VehicleStack,
 };
 pub use timing::{
-    RUN_START_NS, VEHICLE_LEAD_NS, VEHICLE_LEAD_S, anchor_ns, anchored_time_ns, control_periods, duration_ns,
-    max_state_age_ns, trajectory_points,
+    DecisionSchedule, RUN_START_NS, VEHICLE_LEAD_NS, VEHICLE_LEAD_S, anchor_ns, anchored_time_ns,
+    control_periods, duration_ns, max_state_age_ns, trajectory_points,
 };
 
 /// Where one agent starts.

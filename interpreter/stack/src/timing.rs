@@ -14,7 +14,7 @@
 use cpmx_follower::TrajectoryPoint;
 use cpmx_planner::PlannedTrajectory;
 
-use crate::CONTROL_PERIOD_S;
+use crate::{CONTROL_PERIOD_NS, CONTROL_PERIOD_S};
 
 /// The end of the reference window the vehicles' MPC samples, after the vehicle's clock
 /// (cpm-lab-interface.md §3.3/§3.4: points must cover up to `t_now + 360 ms`) [s].
@@ -57,6 +57,49 @@ pub fn max_state_age_ns(prediction_horizon: u32, dt_ns: u64) -> u64 {
 /// expression for the twin, the lab driver and the emulator, so that their times agree) [ns].
 pub fn anchored_time_ns(anchor_ns: u64, k: usize, step_ns: u64) -> u64 {
     anchor_ns.saturating_add((k as u64).saturating_mul(step_ns))
+}
+
+/// When the policy decides in a run whose vehicles step every control period: decision `k` at
+/// the first period at or after `k·dt`. A step of whole periods decides exactly every `dt`;
+/// another at least one period long (SigmaRL's published 0.05 s against the lab's 0.02 s)
+/// decides after 2 or 3 periods in turn (0.04 s, 0.06 s), as a lab that acts only on its
+/// vehicles' periods would, and its plans keep their points `dt` apart.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DecisionSchedule {
+    dt_ns: u64,
+}
+
+impl DecisionSchedule {
+    /// The schedule of a policy step of `dt_s`, if it is at least one control period.
+    pub fn new(dt_s: f64) -> Option<DecisionSchedule> {
+        let dt_ns = duration_ns(dt_s);
+        (dt_ns >= CONTROL_PERIOD_NS).then_some(DecisionSchedule { dt_ns })
+    }
+
+    /// The policy's step [ns]: the spacing of a plan's points.
+    pub fn step_ns(self) -> u64 {
+        self.dt_ns
+    }
+
+    /// Whether every decision is exactly `dt` after the one before (a whole number of periods).
+    pub fn is_exact(self) -> bool {
+        self.dt_ns % CONTROL_PERIOD_NS == 0
+    }
+
+    /// The time of decision `k` after the run's start: the first period at or after `k·dt` [ns].
+    pub fn offset_ns(self, k: u64) -> u64 {
+        k.saturating_mul(self.dt_ns).div_ceil(CONTROL_PERIOD_NS) * CONTROL_PERIOD_NS
+    }
+
+    /// The control periods from decision `k` to the next.
+    pub fn periods_after(self, k: u64) -> u64 {
+        (self.offset_ns(k + 1) - self.offset_ns(k)) / CONTROL_PERIOD_NS
+    }
+
+    /// The longest time from a decision to the next [ns].
+    pub fn longest_gap_ns(self) -> u64 {
+        self.dt_ns.div_ceil(CONTROL_PERIOD_NS) * CONTROL_PERIOD_NS
+    }
 }
 
 /// Control periods per policy period, if `dt_s` is a whole multiple of the control period.
@@ -123,5 +166,30 @@ mod tests {
         assert_eq!(duration_ns(0.3), 300 * MS);
         assert_eq!(duration_ns(f64::NAN), 0);
         assert_eq!(duration_ns(-1.0), 0);
+    }
+
+    #[test]
+    fn a_step_of_whole_periods_decides_every_step_another_on_the_next_period() {
+        let exact = DecisionSchedule::new(0.1).unwrap();
+        assert!(exact.is_exact());
+        assert_eq!(
+            (0..4).map(|k| exact.offset_ns(k)).collect::<Vec<_>>(),
+            [0, 100 * MS, 200 * MS, 300 * MS]
+        );
+        assert_eq!(exact.periods_after(7), 5);
+        // SigmaRL's 0.05 s on the lab's 0.02 s periods: 0, 0.06, 0.10, 0.16, 0.20 s.
+        let sigmarl = DecisionSchedule::new(0.05).unwrap();
+        assert!(!sigmarl.is_exact());
+        let offsets: Vec<u64> = (0..5).map(|k| sigmarl.offset_ns(k)).collect();
+        assert_eq!(offsets, [0, 60 * MS, 100 * MS, 160 * MS, 200 * MS]);
+        assert_eq!(
+            (0..4).map(|k| sigmarl.periods_after(k)).collect::<Vec<_>>(),
+            [3, 2, 3, 2]
+        );
+        assert_eq!(sigmarl.longest_gap_ns(), 60 * MS);
+        // Over a long run the decisions keep to the step's grid: never more than a period late.
+        let k = 1_000_003;
+        assert!(sigmarl.offset_ns(k) - k * 50 * MS < 20 * MS);
+        assert!(DecisionSchedule::new(0.01).is_none(), "shorter than a period");
     }
 }
