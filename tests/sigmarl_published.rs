@@ -169,6 +169,16 @@ fn a_planning_fidelity_at_the_models_step_decides_on_the_vehicles_periods() {
         stderr.contains("`timing.dt: 0.05` is no multiple of the vehicles' 0.02 s control period, which fidelity `lab` runs on"),
         "{stderr}"
     );
+    // A training steps its environments on whole periods: training through the twin is refused.
+    let shipped = std::fs::read_to_string(root().join("experiments/transfer-twin.yaml")).unwrap();
+    let training = dir.join("transfer-twin.yaml");
+    std::fs::write(&training, shipped.replace("timing: {dt: 0.1,", "timing: {dt: 0.05,")).unwrap();
+    let (code, _, stderr) = cpmx_spec(&dir, "validate", &training, &[]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("which fidelity `twin-random` runs on (and the training steps through)"),
+        "{stderr}"
+    );
 }
 
 /// ITSC 2024's models on an unseen scenario (docs/maps.md's spec): those whose observation

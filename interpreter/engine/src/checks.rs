@@ -149,7 +149,7 @@ fn check_control_period(spec: &Spec, ctx: &mut CheckContext<'_>) {
                     names(&refused),
                     if refused.len() == 1 { "s" } else { "" },
                     if trained.iter().any(|t| refused.contains(t)) {
-                        " and train through"
+                        " (and the training steps through)"
                     } else {
                         ""
                     },
