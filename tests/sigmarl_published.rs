@@ -176,7 +176,7 @@ fn a_planning_fidelity_at_the_models_step_decides_on_the_vehicles_periods() {
     let (code, _, stderr) = cpmx_spec(&dir, "validate", &training, &[]);
     assert_eq!(code, Some(1), "{stderr}");
     assert!(
-        stderr.contains("which fidelity `twin-random` runs on (and the training steps through)"),
+        stderr.contains("runs on (and the training steps through)"),
         "{stderr}"
     );
 }
