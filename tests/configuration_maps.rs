@@ -132,6 +132,23 @@ fn configurations_run_and_are_measured_on_their_own_maps() {
         report.contains(summary.lines().nth(2).unwrap()),
         "{report}\n{summary}"
     );
+    // The policies compared with each other, paired over the starts they share.
+    let (code, report, stderr) = cpmx(
+        &dir,
+        &["report", out.to_str().unwrap(), &d, &data, "--compare", "m0"],
+    );
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        report.contains("## Paired comparison with policy `m0`"),
+        "{report}"
+    );
+    assert!(report.contains("| m3 | CRA-A ↓ [events/100 m] | 6 |"), "{report}");
+    let (code, _, stderr) = cpmx(
+        &dir,
+        &["report", out.to_str().unwrap(), &d, &data, "--compare", "m9"],
+    );
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("name one of sim, m0, m3"), "{stderr}");
     // A figure per run, each on its own map: the roundabout's 3.5 m x 2.0 m is drawn wider
     // than tall, the CPM map's 4.5 m x 4.0 m nearly square.
     let plot = |key: &str| std::fs::read_to_string(out.join("plots").join(format!("{key}.svg"))).unwrap();

@@ -172,7 +172,11 @@ fn a_planning_fidelity_at_the_models_step_decides_on_the_vehicles_periods() {
     // A training steps its environments on whole periods: training through the twin is refused.
     let shipped = std::fs::read_to_string(root().join("experiments/transfer-twin.yaml")).unwrap();
     let training = dir.join("transfer-twin.yaml");
-    std::fs::write(&training, shipped.replace("timing: {dt: 0.1,", "timing: {dt: 0.05,")).unwrap();
+    std::fs::write(
+        &training,
+        shipped.replace("timing: {dt: 0.1,", "timing: {dt: 0.05,"),
+    )
+    .unwrap();
     let (code, _, stderr) = cpmx_spec(&dir, "validate", &training, &[]);
     assert_eq!(code, Some(1), "{stderr}");
     assert!(

@@ -624,27 +624,46 @@ fn check_metrics(spec: &Spec, ctx: &mut CheckContext<'_>) {
 fn check_report(spec: &Spec, ctx: &mut CheckContext<'_>) {
     // A point of a swept fidelity (`sim@latency_ms=0`) is checked once the points exist
     // (`check_compare`).
-    if let Some(compare) = &spec.report.compare
-        && !spec
+    // The reference names a fidelity (compared with every other fidelity) or a policy (with
+    // every other policy); a name that is both is ambiguous.
+    if let Some(compare) = &spec.report.compare {
+        let reference = compare.reference.as_str();
+        let is_fidelity = spec
             .fidelities
-            .contains_key(crate::sweep::base_fidelity(&compare.reference))
-    {
-        let names: Vec<String> = spec.fidelities.keys().cloned().collect();
+            .contains_key(crate::sweep::base_fidelity(reference));
+        let is_policy = spec.policies.iter().any(|p| p.name == reference);
         let span = ctx.span("/report/compare/reference");
-        let mut p = Problem::error(
-            "cpmx::check::reference",
-            format!(
-                "`compare.reference` names fidelity `{}`, which the spec does not define",
-                compare.reference
-            ),
-            span,
-            "unknown fidelity",
-        );
-        p = match crate::schema::did_you_mean(&compare.reference, &names) {
-            Some(best) => p.with_suggestion(best),
-            None => p.with_help(format!("fidelities: {}", names.join(", "))),
-        };
-        ctx.push(p);
+        if is_fidelity && is_policy {
+            ctx.push(
+                Problem::error(
+                    "cpmx::check::reference",
+                    format!("`compare.reference` names `{reference}`, which is both a fidelity and a policy"),
+                    span,
+                    "ambiguous",
+                )
+                .with_help("rename the fidelity or the policy"),
+            );
+        } else if !is_fidelity && !is_policy {
+            let names: Vec<String> = spec
+                .fidelities
+                .keys()
+                .cloned()
+                .chain(spec.policies.iter().map(|p| p.name.clone()))
+                .collect();
+            let mut p = Problem::error(
+                "cpmx::check::reference",
+                format!(
+                    "`compare.reference` names `{reference}`, which is neither a fidelity nor a policy of the spec"
+                ),
+                span,
+                "unknown fidelity or policy",
+            );
+            p = match crate::schema::did_you_mean(reference, &names) {
+                Some(best) => p.with_suggestion(best),
+                None => p.with_help(format!("fidelities and policies: {}", names.join(", "))),
+            };
+            ctx.push(p);
+        }
     }
     let mut seen = HashSet::new();
     for (i, key) in spec.report.group_by.iter().enumerate() {

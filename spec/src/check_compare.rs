@@ -25,6 +25,10 @@ pub(crate) fn check_reference(
         return Vec::new();
     };
     let reference = compare.reference.as_str();
+    if spec.policies.iter().any(|p| p.name == reference) {
+        // Policies are compared within each fidelity or point, whatever is swept.
+        return Vec::new();
+    }
     let is_name = |name: &str| points.contains_key(name);
     let reference_points: Vec<&str> = points
         .keys()

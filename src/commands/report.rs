@@ -35,6 +35,11 @@ pub struct ReportArgs {
     /// pools a fidelity's policies into one row and their pairs into one comparison.
     #[arg(long, value_name = "KEY,...", value_delimiter = ',', value_parser = parse_group_key)]
     pub group_by: Option<Vec<GroupKey>>,
+    /// Compare every other fidelity with this one, or every other policy with this one (paired
+    /// over runs that share the rest of their key), instead of the spec's
+    /// `report.compare.reference`.
+    #[arg(long, value_name = "FIDELITY|POLICY")]
+    pub compare: Option<String>,
     #[command(flatten)]
     pub data: DataArgs,
 }
@@ -64,6 +69,9 @@ fn changes(args: &ReportArgs) -> Vec<String> {
     if let Some(keys) = &args.group_by {
         let names: Vec<&str> = keys.iter().map(|k| cpmx_report::axis_name(*k)).collect();
         out.push(format!("grouped by {}", names.join(", ")));
+    }
+    if let Some(reference) = &args.compare {
+        out.push(format!("compared with {reference}"));
     }
     out
 }
@@ -247,6 +255,22 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
     }
     if let Some(keys) = &args.group_by {
         checked.spec.report.group_by = keys.clone();
+    }
+    if let Some(reference) = &args.compare {
+        let fidelities = checked.fidelity_points.keys().map(String::as_str);
+        let policies = checked.spec.policies.iter().map(|p| p.name.as_str());
+        let names: Vec<&str> = fidelities.chain(policies).collect();
+        if !names.contains(&reference.as_str()) {
+            eprintln!(
+                "error: --compare `{reference}` is no fidelity or policy of the folder's runs\nhelp: name one of {}",
+                names.join(", ")
+            );
+            return Err(Failure::Usage);
+        }
+        checked.spec.report.compare = Some(cpmx_spec::model::Compare {
+            reference: reference.clone(),
+            test: cpmx_spec::model::PairedTest::Paired,
+        });
     }
     let scoring =
         Scoring::prepare(&checked).map_err(|e| fail(format!("{}: {e}", resolved_path.display())))?;

@@ -10,10 +10,11 @@ use cpmx_spec::RunPlan;
 use cpmx_spec::model::{Bootstrap, GroupKey, ReportSpec, Statistic};
 
 use crate::RunRecord;
-use crate::compare::{Comparison, compare};
+use crate::compare::{Comparison, compare, compare_policies};
 use crate::metric::{Metric, Units};
 use crate::transfer::{Origin, Transfer, transfer};
 use crate::units::distinct_units;
+use cpmx_spec::sweep::is_reference;
 use std::collections::BTreeMap;
 
 /// Confidence of every interval of the report.
@@ -199,12 +200,23 @@ pub fn summarize(experiment: &str, runs: &[RunRecord], report: &ReportSpec, orig
         groups,
         pooled: pooled_axes(runs, &report.group_by),
         comparison: report.compare.as_ref().map(|c| {
-            compare(
-                runs,
-                &c.reference,
-                &report.bootstrap,
-                report.group_by.contains(&GroupKey::Policy),
-            )
+            // A reference that names a policy and no fidelity compares the policies.
+            let fidelity = runs.iter().any(|r| is_reference(&r.plan.fidelity, &c.reference));
+            if !fidelity && runs.iter().any(|r| r.plan.policy == c.reference) {
+                compare_policies(
+                    runs,
+                    &c.reference,
+                    &report.bootstrap,
+                    report.group_by.contains(&GroupKey::Fidelity),
+                )
+            } else {
+                compare(
+                    runs,
+                    &c.reference,
+                    &report.bootstrap,
+                    report.group_by.contains(&GroupKey::Policy),
+                )
+            }
         }),
         transfer: transfer(
             runs,

@@ -1,5 +1,7 @@
 //! The paired comparison of every fidelity with a reference fidelity, over runs that share
-//! their policy, initial configuration and repetition (`RunPlan::pair_key`).
+//! their policy, initial configuration and repetition (`RunPlan::pair_key`), or of every policy
+//! with a reference policy, over runs that share their fidelity, initial configuration and
+//! repetition.
 //!
 //! A pair whose two recordings are bit-identical to those of an earlier pair of the same
 //! policy and initial configuration is a copy (both fidelities deterministic) and is used
@@ -18,24 +20,55 @@ use crate::RunRecord;
 use crate::aggregate::CONFIDENCE;
 use crate::metric::Metric;
 
-/// Every other fidelity compared with the reference.
+/// Which axis of the run matrix a comparison runs along: every other fidelity with a
+/// reference fidelity (the sim-to-real question), or every other policy with a reference policy
+/// (which model is better, in each fidelity). The pairs share every other axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ComparedAxis {
+    Fidelity,
+    Policy,
+}
+
+impl ComparedAxis {
+    /// The axis's name, as a table's column says it.
+    pub fn name(self) -> &'static str {
+        match self {
+            ComparedAxis::Fidelity => "fidelity",
+            ComparedAxis::Policy => "policy",
+        }
+    }
+
+    /// The other axis of the two, within whose values the pairs are compared.
+    pub fn other(self) -> ComparedAxis {
+        match self {
+            ComparedAxis::Fidelity => ComparedAxis::Policy,
+            ComparedAxis::Policy => ComparedAxis::Fidelity,
+        }
+    }
+}
+
+/// Every other fidelity (or policy) compared with the reference.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Comparison {
-    /// The reference fidelity (`report.compare.reference`).
+    /// Along which axis.
+    pub axis: ComparedAxis,
+    /// The reference fidelity or policy (`report.compare.reference`).
     pub reference: String,
-    /// Runs of the reference fidelity found (0 when it is missing from the runs).
+    /// Runs of the reference found (0 when it is missing from the runs).
     pub reference_runs: usize,
-    /// One entry per other fidelity, in order of first appearance.
+    /// One entry per other fidelity (policy), in order of first appearance.
     pub fidelities: Vec<FidelityComparison>,
 }
 
-/// One fidelity against the reference (one policy's runs, or every policy's when pooled).
+/// One fidelity (policy) against the reference, within one policy's (fidelity's) runs, or
+/// every one's when pooled.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FidelityComparison {
-    /// The compared ("test") fidelity.
+    /// The compared ("test") fidelity, or policy along [`ComparedAxis::Policy`].
     pub fidelity: String,
-    /// The policy whose runs are paired, or `None` when the pairs pool the policies (a
-    /// `group_by` without `policy`, as at25 pools its training seeds).
+    /// The policy whose runs are paired (the fidelity along [`ComparedAxis::Policy`]), or
+    /// `None` when the pairs pool them (a `group_by` without that axis, as at25 pools its
+    /// training seeds).
     pub policy: Option<String>,
     /// One entry per metric, in [`Metric::ALL`] order.
     pub metrics: Vec<PairedMetric>,
@@ -121,12 +154,37 @@ pub fn compare(runs: &[RunRecord], reference: &str, bootstrap: &Bootstrap, by_po
         }
     }
     Comparison {
+        axis: ComparedAxis::Fidelity,
         reference: reference.to_owned(),
         reference_runs: runs
             .iter()
             .filter(|r| is_reference(&r.plan.fidelity, reference))
             .count(),
         fidelities: compared,
+    }
+}
+
+/// Compares every policy of `runs` other than `reference` with it, over runs that share their
+/// fidelity, initial configuration and repetition (starts drawn alike for every policy make
+/// them paired): per fidelity when `by_fidelity`, else pooling the fidelities' pairs. The same
+/// rules as [`compare`], with the two axes' roles exchanged.
+pub fn compare_policies(
+    runs: &[RunRecord],
+    reference: &str,
+    bootstrap: &Bootstrap,
+    by_fidelity: bool,
+) -> Comparison {
+    let exchanged: Vec<RunRecord> = runs
+        .iter()
+        .map(|run| {
+            let mut run = run.clone();
+            std::mem::swap(&mut run.plan.fidelity, &mut run.plan.policy);
+            run
+        })
+        .collect();
+    Comparison {
+        axis: ComparedAxis::Policy,
+        ..compare(&exchanged, reference, bootstrap, by_fidelity)
     }
 }
 
@@ -335,5 +393,40 @@ mod tests {
             ]
         );
         assert_eq!(by_policy.reference_runs, 4);
+    }
+
+    #[test]
+    fn policies_compare_within_each_fidelity() {
+        let runs = vec![
+            record("sim", "base", "i", 1, [2.0, 40.0, 0.05, 0.70]),
+            record("sim", "base", "i", 2, [3.0, 41.0, 0.05, 0.71]),
+            record("sim", "new", "i", 1, [1.0, 40.0, 0.05, 0.72]),
+            record("sim", "new", "i", 2, [1.5, 41.0, 0.05, 0.73]),
+            record("twin", "base", "i", 1, [2.0, 40.0, 0.05, 0.70]),
+            record("twin", "new", "i", 1, [4.0, 40.0, 0.05, 0.70]),
+        ];
+        let c = compare_policies(&runs, "base", &settings(), true);
+        assert_eq!(c.axis, ComparedAxis::Policy);
+        assert_eq!(c.reference_runs, 3);
+        let rows: Vec<(&str, Option<&str>, usize, f64)> = c
+            .fidelities
+            .iter()
+            .map(|f| {
+                (
+                    f.fidelity.as_str(),
+                    f.policy.as_deref(),
+                    f.metrics[0].pairs,
+                    f.metrics[0].mean_difference,
+                )
+            })
+            .collect();
+        // `new` − `base` in sim over repetitions 1 and 2, in the twin over repetition 1.
+        assert_eq!(
+            rows,
+            [("new", Some("sim"), 2, -1.25), ("new", Some("twin"), 1, 2.0)]
+        );
+        let pooled = compare_policies(&runs, "base", &settings(), false);
+        assert_eq!(pooled.fidelities.len(), 1);
+        assert_eq!(pooled.fidelities[0].metrics[0].pairs, 3);
     }
 }

@@ -26,7 +26,7 @@ pub use aggregate::{
     BootstrapIntervals, CONFIDENCE, Group, MetricSummary, Origins, Summary, VehicleNote, axis_name,
     axis_value, sort_by_matrix, summarize,
 };
-pub use compare::{Comparison, FidelityComparison, PairedMetric, Signs};
+pub use compare::{ComparedAxis, Comparison, FidelityComparison, PairedMetric, Signs};
 pub use metric::{Metric, Units};
 pub use svg::{
     AGENT_COLOURS, COLLISION_INK, MapDrawing, SensitivityPlot, VIOLATION_INK, distribution_svg,

@@ -83,7 +83,7 @@ impl DecisionSchedule {
 
     /// Whether every decision is exactly `dt` after the one before (a whole number of periods).
     pub fn is_exact(self) -> bool {
-        self.dt_ns % CONTROL_PERIOD_NS == 0
+        self.dt_ns.is_multiple_of(CONTROL_PERIOD_NS)
     }
 
     /// The time of decision `k` after the run's start: the first period at or after `k·dt` [ns].

@@ -209,7 +209,9 @@ impl Default for Bootstrap {
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Compare {
-    /// The fidelity every other fidelity is compared with. A fidelity swept on its own
+    /// The fidelity every other fidelity is compared with, or the policy every other policy is
+    /// compared with (over runs of the same fidelity, initial configuration and repetition;
+    /// per fidelity when `group_by` holds `fidelity`). A fidelity swept on its own
     /// layers has no runs under its bare name: name one of its points (`sim@latency_ms=0`),
     /// whom every other point and fidelity is then compared with, or sweep the others alike
     /// (each point is then compared with the reference at the same point).

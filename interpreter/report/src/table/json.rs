@@ -108,16 +108,21 @@ fn comparison(c: &Comparison) -> Value {
                 .iter()
                 .map(|m| (m.metric.id().to_owned(), paired(m)))
                 .collect();
-            match &f.policy {
-                Some(policy) => json!({"fidelity": f.fidelity, "policy": policy, "metrics": metrics}),
-                None => json!({"fidelity": f.fidelity, "metrics": metrics}),
+            let (axis, within) = (c.axis.name(), c.axis.other().name());
+            let mut entry = Map::new();
+            entry.insert(axis.into(), json!(f.fidelity));
+            if let Some(value) = &f.policy {
+                entry.insert(within.into(), json!(value));
             }
+            entry.insert("metrics".into(), Value::Object(metrics));
+            Value::Object(entry)
         })
         .collect();
     json!({
+        "axis": c.axis.name(),
         "reference": c.reference,
         "reference_runs": c.reference_runs,
-        "difference": "fidelity - reference",
+        "difference": format!("{} - reference", c.axis.name()),
         "fidelities": fidelities,
         "notes": super::comparison_notes(c),
     })

@@ -10,7 +10,7 @@ use cpmx_spec::model::Statistic;
 use super::{CellParts, best_groups, exclusions, fixed, p_value, pairs_text};
 use crate::Transfer;
 use crate::aggregate::axis_name;
-use crate::compare::Comparison;
+use crate::compare::{ComparedAxis, Comparison};
 use crate::metric::Metric;
 use crate::{Group, Summary};
 
@@ -271,35 +271,56 @@ fn interval_table(out: &mut String, summary: &Summary) {
     }
 }
 
-/// One row per compared fidelity and metric.
+/// One row per compared fidelity (or policy) and metric.
 fn comparison_table(out: &mut String, summary: &Summary, comparison: &Comparison) {
-    let _ = writeln!(out, "\n## Paired comparison with `{}`\n", comparison.reference);
+    let (axis, within) = (comparison.axis.name(), comparison.axis.other().name());
+    let axis_plural = match comparison.axis {
+        ComparedAxis::Fidelity => "fidelities",
+        ComparedAxis::Policy => "policies",
+    };
+    let grouped = comparison.fidelities.iter().any(|f| f.policy.is_some());
+    match comparison.axis {
+        ComparedAxis::Fidelity => {
+            let _ = writeln!(out, "\n## Paired comparison with `{}`\n", comparison.reference);
+        }
+        ComparedAxis::Policy => {
+            let _ = writeln!(
+                out,
+                "\n## Paired comparison with policy `{}`\n",
+                comparison.reference
+            );
+        }
+    }
     let _ = writeln!(
         out,
-        "Differences fidelity − {} over runs with the same policy, initial configuration and repetition{}; \
-         a pair whose two recordings repeat an earlier pair's (both fidelities deterministic) counts once. \
+        "Differences {axis} − {} over runs with the same {}, initial configuration and repetition{}; \
+         a pair whose two recordings repeat an earlier pair's (both {axis_plural} deterministic) counts once. \
          CI: paired percentile bootstrap, {} resamples, seed {}. p: two-sided Wilcoxon signed-rank test. \
          +/−/0: differences above, below and at zero. \
-         P(better): probability that a run of the fidelity is better than one of the reference \
+         P(better): probability that a run of the {axis} is better than one of the reference \
          (by the metric's arrow; 0.5: no difference).\n",
         comparison.reference,
-        if comparison.fidelities.iter().any(|f| f.policy.is_some()) {
-            ", per policy"
+        match comparison.axis {
+            ComparedAxis::Fidelity => "policy",
+            ComparedAxis::Policy => "fidelity",
+        },
+        if grouped {
+            format!(", per {within}")
         } else {
-            ""
+            String::new()
         },
         summary.bootstrap.resamples,
         summary.bootstrap.seed
     );
     if comparison.reference_runs == 0 {
-        let _ = writeln!(out, "The reference fidelity has no runs.\n");
+        let _ = writeln!(out, "The reference {axis} has no runs.\n");
     }
-    // A policy column when the pairs are compared per policy (as the summary groups them).
-    let by_policy = comparison.fidelities.iter().any(|f| f.policy.is_some());
-    let mut header = vec!["fidelity"];
+    // A column of the other axis when the pairs are compared per value of it (as the summary
+    // groups them).
+    let mut header = vec![axis];
     let mut align = vec![":--"];
-    if by_policy {
-        header.push("policy");
+    if grouped {
+        header.push(within);
         align.push(":--");
     }
     header.extend(PAIRED_HEADER);
@@ -311,7 +332,7 @@ fn comparison_table(out: &mut String, summary: &Summary, comparison: &Comparison
     for fidelity in &comparison.fidelities {
         for m in &fidelity.metrics {
             let mut cells = vec![escape(&fidelity.fidelity)];
-            if by_policy {
+            if grouped {
                 cells.push(escape(fidelity.policy.as_deref().unwrap_or("")));
             }
             cells.extend(paired_cells(summary, m));
