@@ -239,8 +239,10 @@ pub struct Timing {
     /// Number of policy steps per run (the paper: 180, i.e. 18 s).
     #[schemars(range(min = 1, max = 1000000))]
     pub steps: u32,
-    /// What becomes of an agent that reaches the end of an open reference path. `stop`
-    /// (default): it stays there, and the metrics count the time it waits (AS drops).
+    /// How the metrics treat an agent that reaches the end of an open reference path (the
+    /// simulation drives it on as its policy decides: a policy that stops there waits, one
+    /// that does not drives past the end). `stop` (default): the metrics measure it to the
+    /// run's end, the time it waits too (AS drops).
     /// `end-agent`: its samples after it reached the end (its centre within 0.2 m of the last
     /// centre-line point) are left out of CD, AS, CRA-L and the distance, so that speeds of
     /// policies that finish early stay comparable, and out of CRA-A: a collision counts while
@@ -254,7 +256,7 @@ pub struct Timing {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "kebab-case")]
 pub enum StopAtPathEnd {
-    /// The agent stays at the end; its waiting time counts.
+    /// The agent is measured to the run's end; time it waits at the end counts.
     #[default]
     Stop,
     /// The agent's run ends there: later samples are not measured.
