@@ -2,7 +2,8 @@
 //! installs it when missing) loads the page of a small run folder from `file://` with the
 //! network unused, draws the map and the vehicles, reports no script error, and the replay
 //! advances when played; at a 1,400 px and a 600 px window the figures use the page's width
-//! (as the page measures them) and the canvases match the screen's resolution. Without
+//! (as the page measures them) and the canvases match the screen's resolution; a folder whose
+//! configurations drive on two maps has each run drawn on its own. Without
 //! Chromium the tests say so and pass, unless `CPMX_REQUIRE_CHROMIUM` is set (as
 //! `scripts/test` does).
 
@@ -408,4 +409,85 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
         let png = std::fs::read(&screenshot).expect("chromium wrote the screenshot");
         assert_eq!(png_size(&png), (width_px, height_px), "{}", screenshot.display());
     }
+}
+
+/// A folder whose configurations drive on two maps (the CPM map and SigmaRL's `roundabout_1`,
+/// from SigmaRL's reference data): the page draws each run on its own map, so the panels of
+/// the roundabout's runs keep its 3.5 m × 2.0 m shape and the CPM map's stay nearly square,
+/// and no script fails.
+#[test]
+fn the_report_page_draws_each_run_on_its_map() {
+    let Some(browser) = browser() else {
+        return;
+    };
+    let reference = cpmx_testdata::reference();
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("html-report-maps");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let spec = dir.join("two-maps.yaml");
+    std::fs::write(
+        &spec,
+        "cpmx: 1
+name: two-maps
+map: {file: maps/cpm.xml, tag: 1.2.0}
+vehicle: {length: 0.16, width: 0.08, wheelbase: 0.16, rear_axle: 0.08, max_steering_deg: 35, max_steering_rate_deg_s: 900, accel: [-20, 20], max_speed: 1.0}
+timing: {dt: 0.05, steps: 40}
+agents: 4
+policies:
+  - {name: m0, mlp: {sigmarl: sigmarl-published/checkpoints/itsc24/M0, tag: 1.2.0}}
+initial_configurations:
+  - {name: cpm, sample: {count: 1, seed: 3, min_gap: 0.22}}
+  - {name: roundabout, map: {sigmarl: roundabout_1}, sample: {count: 1, seed: 3, min_gap: 0.22}}
+repetitions: 1
+seed: 3
+fidelities:
+  sim: {control: direct, dynamics: kinematic-vmas}
+",
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let run = Command::new(env!("CARGO_BIN_EXE_cpmx"))
+        .args([
+            "run",
+            spec.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--data",
+        ])
+        .arg(&reference)
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let url = format!("file://{}", out.join("report.html").display());
+    let dom = headless(
+        &browser,
+        &dir.join("profile"),
+        &["--virtual-time-budget=4000", "--dump-dom", &url],
+    );
+    let dom = String::from_utf8_lossy(&dom.stdout).into_owned();
+    assert_eq!(
+        body_attribute(&dom, "data-ready").as_deref(),
+        Some("1"),
+        "the script ran to its end"
+    );
+    assert_eq!(
+        body_attribute(&dom, "data-errors"),
+        None,
+        "script errors: {dom:.2000}"
+    );
+    let aspects: Vec<f64> = dom
+        .split("aspect-ratio: ")
+        .skip(1)
+        .map(|rest| {
+            // `aspect-ratio: 1.5585 / 1;`
+            let value = &rest[..rest.find([' ', ';', '"']).unwrap()];
+            value.parse().unwrap()
+        })
+        .collect();
+    assert!(
+        aspects.iter().any(|&a| a > 1.4),
+        "a roundabout panel: {aspects:?}"
+    );
+    assert!(aspects.iter().any(|&a| a < 1.2), "a CPM map panel: {aspects:?}");
 }
