@@ -89,6 +89,28 @@ fn headless(browser: &Path, profile: &Path, args: &[&str]) -> std::process::Outp
         .expect("chromium starts")
 }
 
+/// The page at `url` after its script ran (4 s of virtual time), as Chromium's DOM, asserting
+/// that the script ran to its end without an error.
+fn loaded_dom(browser: &Path, profile: &Path, url: &str) -> String {
+    let dom = headless(
+        browser,
+        profile,
+        &["--virtual-time-budget=4000", "--dump-dom", url],
+    );
+    let dom = String::from_utf8_lossy(&dom.stdout).into_owned();
+    assert_eq!(
+        body_attribute(&dom, "data-ready").as_deref(),
+        Some("1"),
+        "the script ran to its end"
+    );
+    assert_eq!(
+        body_attribute(&dom, "data-errors"),
+        None,
+        "script errors: {dom:.2000}"
+    );
+    dom
+}
+
 /// The value of `name="..."` on the page's `<body>`.
 fn body_attribute(dom: &str, name: &str) -> Option<String> {
     let body = &dom[dom.find("<body")?..];
@@ -115,22 +137,7 @@ fn the_report_page_renders_and_replays_in_chromium() {
 
     // Load it, let the replay play, and read back what the page drew.
     let url = format!("file://{}#autoplay", page.display());
-    let dom = headless(
-        &browser,
-        &dir.join("profile-dom"),
-        &["--virtual-time-budget=4000", "--dump-dom", &url],
-    );
-    let dom = String::from_utf8_lossy(&dom.stdout).into_owned();
-    assert_eq!(
-        body_attribute(&dom, "data-ready").as_deref(),
-        Some("1"),
-        "the script ran to its end"
-    );
-    assert_eq!(
-        body_attribute(&dom, "data-errors"),
-        None,
-        "script errors: {dom:.2000}"
-    );
+    let dom = loaded_dom(&browser, &dir.join("profile-dom"), &url);
     let pixels: usize = body_attribute(&dom, "data-vehicle-pixels")
         .unwrap()
         .parse()
@@ -460,22 +467,7 @@ fidelities:
         .unwrap();
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
     let url = format!("file://{}", out.join("report.html").display());
-    let dom = headless(
-        &browser,
-        &dir.join("profile"),
-        &["--virtual-time-budget=4000", "--dump-dom", &url],
-    );
-    let dom = String::from_utf8_lossy(&dom.stdout).into_owned();
-    assert_eq!(
-        body_attribute(&dom, "data-ready").as_deref(),
-        Some("1"),
-        "the script ran to its end"
-    );
-    assert_eq!(
-        body_attribute(&dom, "data-errors"),
-        None,
-        "script errors: {dom:.2000}"
-    );
+    let dom = loaded_dom(&browser, &dir.join("profile"), &url);
     let aspects: Vec<f64> = dom
         .split("aspect-ratio: ")
         .skip(1)

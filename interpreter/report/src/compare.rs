@@ -373,8 +373,20 @@ mod tests {
         assert_eq!(pooled.fidelities[0].metrics[0].mean_difference, 2.0);
 
         let by_policy = compare(&runs, "sim", &settings(), true);
-        let rows: Vec<(&str, Option<&str>, usize, f64)> = by_policy
-            .fidelities
+        let rows = first_metric_rows(&by_policy);
+        assert_eq!(
+            rows,
+            [
+                ("twin", Some("careful"), 2, 0.0),
+                ("twin", Some("careless"), 2, 4.0)
+            ]
+        );
+        assert_eq!(by_policy.reference_runs, 4);
+    }
+
+    /// Each compared entry's names, and its first metric's pairs and mean difference.
+    fn first_metric_rows(c: &Comparison) -> Vec<(&str, Option<&str>, usize, f64)> {
+        c.fidelities
             .iter()
             .map(|f| {
                 (
@@ -384,15 +396,7 @@ mod tests {
                     f.metrics[0].mean_difference,
                 )
             })
-            .collect();
-        assert_eq!(
-            rows,
-            [
-                ("twin", Some("careful"), 2, 0.0),
-                ("twin", Some("careless"), 2, 4.0)
-            ]
-        );
-        assert_eq!(by_policy.reference_runs, 4);
+            .collect()
     }
 
     #[test]
@@ -408,18 +412,7 @@ mod tests {
         let c = compare_policies(&runs, "base", &settings(), true);
         assert_eq!(c.axis, ComparedAxis::Policy);
         assert_eq!(c.reference_runs, 3);
-        let rows: Vec<(&str, Option<&str>, usize, f64)> = c
-            .fidelities
-            .iter()
-            .map(|f| {
-                (
-                    f.fidelity.as_str(),
-                    f.policy.as_deref(),
-                    f.metrics[0].pairs,
-                    f.metrics[0].mean_difference,
-                )
-            })
-            .collect();
+        let rows = first_metric_rows(&c);
         // `new` − `base` in sim over repetitions 1 and 2, in the twin over repetition 1.
         assert_eq!(
             rows,
