@@ -102,11 +102,11 @@ pub(crate) fn check_meaning(
     check_version(spec, ctx);
     check_names(spec, ctx);
     check_policies(spec, ctx);
-    check_configurations(spec, ctx);
+    crate::check_configurations::check_configurations(spec, ctx);
     check_vehicle(spec, ctx);
     check_fidelities(spec, ctx);
     check_metrics(spec, ctx);
-    check_report(spec, ctx);
+    crate::check_compare::check_report(spec, ctx);
     check_repetitions(spec, ctx);
     check_target_speeds(spec, ctx);
     crate::check_training::check_training(spec, ctx);
@@ -478,95 +478,6 @@ fn check_policies(spec: &Spec, ctx: &mut CheckContext<'_>) {
     }
 }
 
-/// A sample entry places another number of agents than the spec's `agents` only on its own map.
-fn check_sample_agents(
-    spec: &Spec,
-    entry: usize,
-    s: &crate::model::SampledStarts,
-    ctx: &mut CheckContext<'_>,
-) {
-    let Some(agents) = s.sample.agents else {
-        return;
-    };
-    if s.map.is_some() || agents == spec.agents {
-        return;
-    }
-    let span = ctx.span(&format!("/initial_configurations/{entry}/sample/agents"));
-    ctx.push(
-        Problem::error(
-            "cpmx::check::agent-count",
-            format!(
-                "this sample places {agents} agent{}, but the spec has `agents: {}` on its map",
-                if agents == 1 { "" } else { "s" },
-                spec.agents
-            ),
-            span,
-            format!("{agents} agents"),
-        )
-        .with_help("give the entry its own `map`, or change `agents`"),
-    );
-}
-
-fn check_configurations(spec: &Spec, ctx: &mut CheckContext<'_>) {
-    for (i, c) in spec.initial_configurations.iter().enumerate() {
-        if let InitialConfiguration::Sampled(s) = c {
-            check_sample_agents(spec, i, s, ctx);
-        }
-        let InitialConfiguration::Explicit(e) = c else {
-            continue;
-        };
-        let base = format!("/initial_configurations/{i}");
-        if e.map.is_none() && e.agents.len() != spec.agents as usize {
-            let span = ctx.span(&format!("{base}/agents"));
-            ctx.push(
-                Problem::error(
-                    "cpmx::check::agent-count",
-                    format!(
-                        "initial configuration `{}` places {} agent{}, but the spec has `agents: {}`",
-                        e.name,
-                        e.agents.len(),
-                        if e.agents.len() == 1 { "" } else { "s" },
-                        spec.agents
-                    ),
-                    span,
-                    format!("{} entries", e.agents.len()),
-                )
-                .with_help("give one entry per agent, or change `agents`"),
-            );
-        }
-        for (j, a) in e.agents.iter().enumerate() {
-            let agent = format!("{base}/agents/{j}");
-            if a.arc_length.is_some() && a.pose.is_some() {
-                let spans = ctx.spans(&format!("{agent}/pose"));
-                ctx.push(
-                    Problem::error(
-                        "cpmx::check::start",
-                        "a start is given twice: by `arc_length` and by `pose`",
-                        spans.key.unwrap_or(spans.value),
-                        "second start",
-                    )
-                    .with_help("keep one of them"),
-                );
-            }
-            if let Some(pose) = &a.pose
-                && pose.yaw.is_some()
-                && pose.yaw_deg.is_some()
-            {
-                let spans = ctx.spans(&format!("{agent}/pose/yaw"));
-                ctx.push(
-                    Problem::error(
-                        "cpmx::check::start",
-                        "the heading is given twice: as `yaw` and as `yaw_deg`",
-                        spans.key.unwrap_or(spans.value),
-                        "second heading",
-                    )
-                    .with_help("keep one of them"),
-                );
-            }
-        }
-    }
-}
-
 fn check_vehicle(spec: &Spec, ctx: &mut CheckContext<'_>) {
     let v = &spec.vehicle;
     if v.rear_axle > v.wheelbase {
@@ -618,63 +529,5 @@ fn check_metrics(spec: &Spec, ctx: &mut CheckContext<'_>) {
             )
             .with_help("the slack shrinks the footprint by slack × width on each side; the paper uses 0.10"),
         );
-    }
-}
-
-fn check_report(spec: &Spec, ctx: &mut CheckContext<'_>) {
-    // A point of a swept fidelity (`sim@latency_ms=0`) is checked once the points exist
-    // (`check_compare`).
-    // The reference names a fidelity (compared with every other fidelity) or a policy (with
-    // every other policy); a name that is both is ambiguous.
-    if let Some(compare) = &spec.report.compare {
-        let reference = compare.reference.as_str();
-        let is_fidelity = spec
-            .fidelities
-            .contains_key(crate::sweep::base_fidelity(reference));
-        let is_policy = spec.policies.iter().any(|p| p.name == reference);
-        let span = ctx.span("/report/compare/reference");
-        if is_fidelity && is_policy {
-            ctx.push(
-                Problem::error(
-                    "cpmx::check::reference",
-                    format!("`compare.reference` names `{reference}`, which is both a fidelity and a policy"),
-                    span,
-                    "ambiguous",
-                )
-                .with_help("rename the fidelity or the policy"),
-            );
-        } else if !is_fidelity && !is_policy {
-            let names: Vec<String> = spec
-                .fidelities
-                .keys()
-                .cloned()
-                .chain(spec.policies.iter().map(|p| p.name.clone()))
-                .collect();
-            let mut p = Problem::error(
-                "cpmx::check::reference",
-                format!(
-                    "`compare.reference` names `{reference}`, which is neither a fidelity nor a policy of the spec"
-                ),
-                span,
-                "unknown fidelity or policy",
-            );
-            p = match crate::schema::did_you_mean(reference, &names) {
-                Some(best) => p.with_suggestion(best),
-                None => p.with_help(format!("fidelities and policies: {}", names.join(", "))),
-            };
-            ctx.push(p);
-        }
-    }
-    let mut seen = HashSet::new();
-    for (i, key) in spec.report.group_by.iter().enumerate() {
-        if !seen.insert(key) {
-            let span = ctx.span(&format!("/report/group_by/{i}"));
-            ctx.push(Problem::error(
-                "cpmx::check::duplicate-name",
-                "grouped twice by the same axis",
-                span,
-                "repeated",
-            ));
-        }
     }
 }

@@ -12,6 +12,7 @@
 mod check;
 mod check_checkpoint;
 mod check_compare;
+mod check_configurations;
 mod check_fidelities;
 mod check_files;
 mod check_lab;
