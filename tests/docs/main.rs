@@ -176,6 +176,8 @@ fn every_spec_fragment_in_the_docs_fits_a_spec() {
 fn every_command_in_the_docs_runs_or_parses() {
     let mut failures = Vec::new();
     let (mut ran, mut parsed, mut cargo, mut not_run) = (0, 0, 0, 0);
+    // What each run command cost, for the summary's slowest (CI's budget is spent here).
+    let mut costs: Vec<(std::time::Duration, String)> = Vec::new();
     for page in Page::all(&root()) {
         let scratch = Scratch::new(&page, "commands");
         for block in page.blocks() {
@@ -229,7 +231,9 @@ fn every_command_in_the_docs_runs_or_parses() {
                     continue;
                 }
                 ran += 1;
+                let started = std::time::Instant::now();
                 let run = scratch.bash(&command.text, false);
+                costs.push((started.elapsed(), format!("{at}: {}", command.text)));
                 let want = expected.unwrap_or(0);
                 if run.code != Some(want) {
                     failures.push(format!(
@@ -255,6 +259,15 @@ fn every_command_in_the_docs_runs_or_parses() {
         "docs: {ran} commands run, {parsed} cpmx commands parsed only, {cargo} cargo commands \
          checked, {not_run} other commands marked `not run`"
     );
+    costs.sort_by(|a, b| b.0.cmp(&a.0));
+    let total: std::time::Duration = costs.iter().map(|(d, _)| *d).sum();
+    eprintln!(
+        "docs: the commands run took {:.0} s; the slowest:",
+        total.as_secs_f64()
+    );
+    for (took, command) in costs.iter().take(10) {
+        eprintln!("  {:6.1} s  {command}", took.as_secs_f64());
+    }
     report(&failures, true);
     assert!(
         ran >= 10 && parsed >= 5,
