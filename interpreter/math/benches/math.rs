@@ -70,6 +70,55 @@ fn bench(c: &mut Criterion) {
         b.iter(|| cpmx_math::exp_slice(black_box(&headings), &mut out))
     });
     group.finish();
+    // Velocities of a reference trajectory: (vx, vy) on a circle of speeds up to 1.5 m/s.
+    let vx: Vec<f64> = headings
+        .iter()
+        .zip(&throttles)
+        .map(|(h, t)| 1.5 * t * h.cos())
+        .collect();
+    let vy: Vec<f64> = headings
+        .iter()
+        .zip(&throttles)
+        .map(|(h, t)| 1.5 * t * h.sin())
+        .collect();
+    let mut group = c.benchmark_group("atan2 x1024");
+    group.bench_function("libm, scalar", |b| {
+        b.iter(|| {
+            for (i, (y, x)) in black_box(&vy).iter().zip(&vx).enumerate() {
+                out[i] = y.atan2(*x);
+            }
+        })
+    });
+    group.bench_function("cpmx-math, scalar", |b| {
+        b.iter(|| {
+            for (i, (y, x)) in black_box(&vy).iter().zip(&vx).enumerate() {
+                out[i] = cpmx_math::atan2(*y, *x);
+            }
+        })
+    });
+    group.bench_function("cpmx-math, lanes", |b| {
+        b.iter(|| cpmx_math::atan2_slice(black_box(&vy), &vx, &mut out))
+    });
+    group.finish();
+    let mut group = c.benchmark_group("hypot x1024");
+    group.bench_function("libm, scalar", |b| {
+        b.iter(|| {
+            for (i, (x, y)) in black_box(&vx).iter().zip(&vy).enumerate() {
+                out[i] = x.hypot(*y);
+            }
+        })
+    });
+    group.bench_function("cpmx-math, scalar", |b| {
+        b.iter(|| {
+            for (i, (x, y)) in black_box(&vx).iter().zip(&vy).enumerate() {
+                out[i] = cpmx_math::hypot(*x, *y);
+            }
+        })
+    });
+    group.bench_function("cpmx-math, lanes", |b| {
+        b.iter(|| cpmx_math::hypot_slice(black_box(&vx), &vy, &mut out))
+    });
+    group.finish();
 }
 
 criterion_group!(benches, bench);

@@ -1,7 +1,9 @@
 //! The functions' accuracy against a 128-bit reference (astro-float), on 1.2·10^6 arguments per case (10.8·10^6 in all)
 //! by default (docs/performance.md quotes the table it prints):
 //!
-//!     cargo run --release -p cpmx-math --example accuracy [-- ARGUMENTS_PER_CASE]
+//!     cargo run --release -p cpmx-math --example accuracy [-- ARGUMENTS_PER_CASE [FUNCTION]]
+//!
+//! FUNCTION (`sin_cos`, `exp`, `pow`, `atan2`, `hypot`) measures that function's cases alone.
 //!
 //! Each case's arguments are one seeded stream, split over rayon's threads in fixed chunks, so
 //! the table is the same on any thread count.
@@ -23,9 +25,24 @@ fn main() {
             std::process::exit(2);
         }
     };
+    let only = std::env::args().nth(2);
+    if let Some(name) = &only
+        && !CASES
+            .iter()
+            .any(|case| case.name().starts_with(&format!("{name},")))
+    {
+        eprintln!("accuracy: no case measures `{name}` (sin_cos, exp, pow, atan2, hypot)");
+        std::process::exit(2);
+    }
     println!("| case | arguments | max error [ulp] | at x | share above 0.5 ulp |");
     println!("| :-- | --: | --: | --: | --: |");
     for (index, case) in CASES.iter().enumerate() {
+        if only
+            .as_ref()
+            .is_some_and(|name| !case.name().starts_with(&format!("{name},")))
+        {
+            continue;
+        }
         let chunks = per_case.div_ceil(CHUNK);
         let (worst, at, above, count) = (0..chunks)
             .into_par_iter()

@@ -3,7 +3,7 @@
 //! time), then the lanes outside the kernel's domain recomputed by the scalar slow path. The
 //! bits are the scalar functions' bits whatever the path (see the crate's invariants).
 
-use crate::{exp_log, trig};
+use crate::{atan, exp_log, hypot, trig};
 
 /// Lanes per block of the slice functions: one AVX-512 register, two AVX2 ones.
 const BLOCK: usize = 8;
@@ -67,6 +67,38 @@ fn pow_block<const N: usize>(x: &[f64; N], y: &[f64; N]) -> [f64; N] {
     out
 }
 
+#[inline(always)]
+fn atan2_block<const N: usize>(y: &[f64; N], x: &[f64; N]) -> [f64; N] {
+    let mut out = [0.0; N];
+    let mut inside = [false; N];
+    for i in 0..N {
+        inside[i] = atan::in_kernel(y[i], x[i]);
+        out[i] = atan::kernel(y[i], x[i]);
+    }
+    for i in 0..N {
+        if !inside[i] {
+            out[i] = atan::slow(y[i], x[i]);
+        }
+    }
+    out
+}
+
+#[inline(always)]
+fn hypot_block<const N: usize>(x: &[f64; N], y: &[f64; N]) -> [f64; N] {
+    let mut out = [0.0; N];
+    let mut inside = [false; N];
+    for i in 0..N {
+        inside[i] = hypot::in_kernel(x[i], y[i]);
+        out[i] = hypot::kernel(x[i], y[i]);
+    }
+    for i in 0..N {
+        if !inside[i] {
+            out[i] = hypot::slow(x[i], y[i]);
+        }
+    }
+    out
+}
+
 /// Runs `$body` compiled for the best vector extension this CPU has (the same bits on each).
 macro_rules! dispatch {
     (fn($($arg:ident: $ty:ty),*) -> $out:ty, $body:expr) => {{
@@ -93,6 +125,31 @@ macro_rules! dispatch {
     }};
 }
 
+/// The pairs of a two-argument function in blocks of 8 lanes, the rest one by one.
+macro_rules! pairs {
+    ($name:literal, $a:ident, $b:ident, $out:ident, $block:ident, $scalar:path) => {{
+        assert!(
+            $a.len() == $b.len() && $a.len() == $out.len(),
+            concat!($name, ": slices of different lengths")
+        );
+        dispatch!(fn($a: &[f64], $b: &[f64], $out: &mut [f64]) -> (), {
+            let mut blocks = $a.chunks_exact(BLOCK).zip($b.chunks_exact(BLOCK));
+            let mut offset = 0;
+            for (ba, bb) in &mut blocks {
+                let value = $block::<BLOCK>(
+                    ba.try_into().expect("a block of 8"),
+                    bb.try_into().expect("a block of 8"),
+                );
+                $out[offset..offset + BLOCK].copy_from_slice(&value);
+                offset += BLOCK;
+            }
+            for i in offset..$a.len() {
+                $out[i] = $scalar($a[i], $b[i]);
+            }
+        })
+    }};
+}
+
 /// sin and cos of each lane.
 pub fn sin_cos_lanes<const N: usize>(x: [f64; N]) -> ([f64; N], [f64; N]) {
     let (mut sin, mut cos) = sin_cos_block(&x);
@@ -108,6 +165,16 @@ pub fn exp_lanes<const N: usize>(x: [f64; N]) -> [f64; N] {
 /// x^y of each pair of lanes.
 pub fn pow_lanes<const N: usize>(x: [f64; N], y: [f64; N]) -> [f64; N] {
     pow_block(&x, &y)
+}
+
+/// atan2(y, x) of each pair of lanes.
+pub fn atan2_lanes<const N: usize>(y: [f64; N], x: [f64; N]) -> [f64; N] {
+    atan2_block(&y, &x)
+}
+
+/// hypot(x, y) of each pair of lanes.
+pub fn hypot_lanes<const N: usize>(x: [f64; N], y: [f64; N]) -> [f64; N] {
+    hypot_block(&x, &y)
 }
 
 /// `sin[i], cos[i] = sin_cos(x[i])` for every i, in blocks of 8 lanes with the CPU's widest
@@ -161,23 +228,21 @@ pub fn exp_slice(x: &[f64], out: &mut [f64]) {
 /// # Panics
 /// If the slices differ in length.
 pub fn pow_slice(x: &[f64], y: &[f64], out: &mut [f64]) {
-    assert!(
-        x.len() == y.len() && x.len() == out.len(),
-        "pow_slice: slices of different lengths"
-    );
-    dispatch!(fn(x: &[f64], y: &[f64], out: &mut [f64]) -> (), {
-        let mut blocks = x.chunks_exact(BLOCK).zip(y.chunks_exact(BLOCK));
-        let mut offset = 0;
-        for (bx, by) in &mut blocks {
-            let value = pow_block::<BLOCK>(
-                bx.try_into().expect("a block of 8"),
-                by.try_into().expect("a block of 8"),
-            );
-            out[offset..offset + BLOCK].copy_from_slice(&value);
-            offset += BLOCK;
-        }
-        for i in offset..x.len() {
-            out[i] = crate::pow(x[i], y[i]);
-        }
-    })
+    pairs!("pow_slice", x, y, out, pow_block, crate::pow)
+}
+
+/// `out[i] = atan2(y[i], x[i])` for every i, in blocks of 8 lanes.
+///
+/// # Panics
+/// If the slices differ in length.
+pub fn atan2_slice(y: &[f64], x: &[f64], out: &mut [f64]) {
+    pairs!("atan2_slice", y, x, out, atan2_block, crate::atan2)
+}
+
+/// `out[i] = hypot(x[i], y[i])` for every i, in blocks of 8 lanes.
+///
+/// # Panics
+/// If the slices differ in length.
+pub fn hypot_slice(x: &[f64], y: &[f64], out: &mut [f64]) {
+    pairs!("hypot_slice", x, y, out, hypot_block, crate::hypot)
 }

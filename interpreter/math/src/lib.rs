@@ -1,4 +1,5 @@
-//! cpmx's own transcendental functions: `sin`, `cos`, `sin_cos`, `exp` and `pow`, each within
+//! cpmx's own transcendental functions: `sin`, `cos`, `sin_cos`, `exp`, `pow`, `atan2` and
+//! `hypot`, each within
 //! one unit in the last place of the exact value, with the same bits on every CPU, for any
 //! thread count, and in scalar code and SIMD lanes alike.
 //!
@@ -8,23 +9,28 @@
 //! algorithm written as straight-line IEEE arithmetic.
 //!
 //! Invariants:
-//! - **No fused multiply-add.** Every operation is a separately rounded `+`, `−`, `×` or `÷`
+//! - **No fused multiply-add.** Every operation is a separately rounded `+`, `−`, `×`, `÷` or `√`
 //!   (Rust never contracts them), so an x86 lane, an ARM lane and a scalar register compute
 //!   the same bits. Exact products use Dekker's splitting, not FMA.
 //! - **One kernel per function**, `#[inline(always)]`, branch-free over its common domain; the
-//!   lanes ([`sin_cos_lanes`], [`pow_lanes`], …) run it on every lane and send the lanes
+//!   lanes ([`sin_cos_lanes`], [`pow_lanes`], [`atan2_lanes`], …) run it on every lane and send the lanes
 //!   outside that domain (NaN, infinities, huge arguments, zeros, overflow) through the same
 //!   scalar `slow` path the scalar functions use.
 //! - **Accuracy**: within 1 ulp of the correctly rounded result (measured against a
 //!   multiprecision reference: `cargo run --release -p cpmx-math --example accuracy`, and
 //!   tested on a sample in `tests/accuracy.rs`); docs/performance.md has the figures.
 
+mod atan;
 mod dd;
 mod exp_log;
+mod hypot;
 mod lanes;
 mod trig;
 
-pub use lanes::{exp_lanes, exp_slice, pow_lanes, pow_slice, sin_cos_lanes, sin_cos_slice};
+pub use lanes::{
+    atan2_lanes, atan2_slice, exp_lanes, exp_slice, hypot_lanes, hypot_slice, pow_lanes, pow_slice,
+    sin_cos_lanes, sin_cos_slice,
+};
 
 /// sin x and cos x together (one argument reduction).
 #[inline]
@@ -66,5 +72,26 @@ pub fn pow(x: f64, y: f64) -> f64 {
         exp_log::pow_kernel(y, ln)
     } else {
         exp_log::pow_slow(x, y)
+    }
+}
+
+/// The angle of the point (x, y) from the positive x axis, in [−π, π], with C99 Annex F's
+/// special cases (the signs of zeros count).
+#[inline]
+pub fn atan2(y: f64, x: f64) -> f64 {
+    if atan::in_kernel(y, x) {
+        atan::kernel(y, x)
+    } else {
+        atan::slow(y, x)
+    }
+}
+
+/// √(x² + y²) without overflow or underflow on the way (an infinity wins over NaN, as C99 says).
+#[inline]
+pub fn hypot(x: f64, y: f64) -> f64 {
+    if hypot::in_kernel(x, y) {
+        hypot::kernel(x, y)
+    } else {
+        hypot::slow(x, y)
     }
 }

@@ -2,7 +2,8 @@
 //! on the portable path, including the arguments their kernels send to the slow path.
 
 use cpmx_math::{
-    exp, exp_lanes, exp_slice, pow, pow_lanes, pow_slice, sin_cos, sin_cos_lanes, sin_cos_slice,
+    atan2, atan2_lanes, atan2_slice, exp, exp_lanes, exp_slice, hypot, hypot_lanes, hypot_slice, pow,
+    pow_lanes, pow_slice, sin_cos, sin_cos_lanes, sin_cos_slice,
 };
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -117,6 +118,58 @@ fn pow_lanes_and_slices_give_the_scalar_bits() {
     }
 }
 
+/// A two-argument function's lanes and slices against its scalar bits, over every pairing of
+/// the arguments above (the special values against each other and against ordinary ones).
+fn pairs_give_the_scalar_bits(
+    name: &str,
+    scalar: fn(f64, f64) -> f64,
+    slice: fn(&[f64], &[f64], &mut [f64]),
+    lanes: fn([f64; 4], [f64; 4]) -> [f64; 4],
+    seed: u64,
+) {
+    let first = arguments(4_003, seed);
+    let second: Vec<f64> = arguments(4_003, seed + 1).into_iter().rev().collect();
+    let special = &first[..20];
+    let (mut a, mut b) = (first.clone(), second);
+    for &u in special {
+        for &v in special {
+            a.push(u);
+            b.push(v);
+        }
+    }
+    let mut out = vec![0.0; a.len()];
+    slice(&a, &b, &mut out);
+    for i in 0..a.len() {
+        assert!(
+            same_bits(scalar(a[i], b[i]), out[i]),
+            "{name}({:e}, {:e}): slice differs",
+            a[i],
+            b[i]
+        );
+    }
+    for (ba, bb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        let got = lanes(ba.try_into().unwrap(), bb.try_into().unwrap());
+        for i in 0..4 {
+            assert!(
+                same_bits(scalar(ba[i], bb[i]), got[i]),
+                "{name}({:e}, {:e}): lanes differ",
+                ba[i],
+                bb[i]
+            );
+        }
+    }
+}
+
+#[test]
+fn atan2_lanes_and_slices_give_the_scalar_bits() {
+    pairs_give_the_scalar_bits("atan2", atan2, atan2_slice, atan2_lanes::<4>, 5);
+}
+
+#[test]
+fn hypot_lanes_and_slices_give_the_scalar_bits() {
+    pairs_give_the_scalar_bits("hypot", hypot, hypot_slice, hypot_lanes::<4>, 7);
+}
+
 #[test]
 fn special_values_follow_c99() {
     let nan = f64::NAN;
@@ -150,4 +203,35 @@ fn special_values_follow_c99() {
     assert_eq!(pow(5e-324, 0.5), 2.2227587494850775e-162);
     assert_eq!(pow(4.0, 0.5), 2.0);
     assert_eq!(pow(10.0, 2.0), 100.0);
+    // atan2: the signs of zeros count; infinities give the octants.
+    let pi = std::f64::consts::PI;
+    let pio2 = std::f64::consts::FRAC_PI_2;
+    assert!(same_bits(atan2(0.0, 0.0), 0.0));
+    assert!(same_bits(atan2(-0.0, 0.0), -0.0));
+    assert_eq!(atan2(0.0, -0.0), pi);
+    assert_eq!(atan2(-0.0, -0.0), -pi);
+    assert_eq!(atan2(0.0, -1.0), pi);
+    assert_eq!(atan2(-0.0, -1.0), -pi);
+    assert_eq!(atan2(1.0, 0.0), pio2);
+    assert_eq!(atan2(-1.0, -0.0), -pio2);
+    assert_eq!(atan2(inf, inf), std::f64::consts::FRAC_PI_4);
+    assert_eq!(atan2(-inf, -inf), -3.0 * std::f64::consts::FRAC_PI_4);
+    assert_eq!(atan2(1.0, -inf), pi);
+    assert!(same_bits(atan2(-1.0, inf), -0.0));
+    assert_eq!(atan2(inf, 1.0), pio2);
+    assert!(atan2(nan, 1.0).is_nan() && atan2(1.0, nan).is_nan());
+    assert_eq!(atan2(1.0, 1.0), std::f64::consts::FRAC_PI_4);
+    assert_eq!(atan2(5e-324, 1.0), 5e-324);
+    assert_eq!(atan2(1e-300, -1.0), pi);
+    assert_eq!(atan2(1e300, 1e-300), pio2);
+    // hypot: an infinity wins over NaN; no overflow or underflow on the way.
+    assert_eq!(hypot(inf, nan), inf);
+    assert_eq!(hypot(nan, -inf), inf);
+    assert!(hypot(nan, 1.0).is_nan());
+    assert_eq!(hypot(0.0, -0.0), 0.0);
+    assert_eq!(hypot(3.0, -4.0), 5.0);
+    assert_eq!(hypot(3e300, 4e300), 5e300);
+    assert_eq!(hypot(3e-320, 4e-320), 5e-320);
+    assert_eq!(hypot(-5e-324, 0.0), 5e-324);
+    assert_eq!(hypot(f64::MAX, 1.0), f64::MAX);
 }

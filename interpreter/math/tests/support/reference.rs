@@ -22,6 +22,14 @@ pub enum Case {
     Pow { lo: f64, hi: f64, y_lo: f64, y_hi: f64 },
     /// pow(x, y) for x uniform in (0, 1] and a fixed y (the grey-box motor term and its inverse).
     PowFixed { y: f64 },
+    /// atan2(y, x) of (x, y) uniform in the square [−limit, limit]² (velocities, headings).
+    Atan2 { limit: f64 },
+    /// atan2(y, x) of x = ±2^a, y = ±2^b, a and b uniform in [lo, hi] (every ratio, every octant).
+    Atan2Log { lo: f64, hi: f64 },
+    /// hypot(x, y) of (x, y) uniform in the square [−limit, limit]².
+    Hypot { limit: f64 },
+    /// hypot(x, y) of x = ±2^a, y = ±2^b, a and b uniform in [lo, hi].
+    HypotLog { lo: f64, hi: f64 },
 }
 
 impl Case {
@@ -34,6 +42,10 @@ impl Case {
                 format!("pow, x = 2^e, e in [{lo}, {hi}], y in [{y_lo}, {y_hi}]")
             }
             Case::PowFixed { y } => format!("pow, x in (0, 1], y = {y}"),
+            Case::Atan2 { limit } => format!("atan2, (x, y) in [-{limit}, {limit}]²"),
+            Case::Atan2Log { lo, hi } => format!("atan2, x, y = ±2^e, e in [{lo}, {hi}]"),
+            Case::Hypot { limit } => format!("hypot, (x, y) in [-{limit}, {limit}]²"),
+            Case::HypotLog { lo, hi } => format!("hypot, x, y = ±2^e, e in [{lo}, {hi}]"),
         }
     }
 
@@ -51,12 +63,26 @@ impl Case {
                 rng.random_range(y_lo..=y_hi),
             ),
             Case::PowFixed { y } => (1.0 - rng.random::<f64>(), y),
+            Case::Atan2 { limit } | Case::Hypot { limit } => {
+                (rng.random_range(-limit..=limit), rng.random_range(-limit..=limit))
+            }
+            Case::Atan2Log { lo, hi } | Case::HypotLog { lo, hi } => {
+                let mut signed = || {
+                    let magnitude = 2f64.powf(rng.random_range(lo..=hi));
+                    if rng.random::<bool>() {
+                        magnitude
+                    } else {
+                        -magnitude
+                    }
+                };
+                (signed(), signed())
+            }
         }
     }
 }
 
 /// The cases the accuracy is measured on.
-pub const CASES: [Case; 9] = [
+pub const CASES: [Case; 13] = [
     Case::SinCos {
         limit: std::f64::consts::FRAC_PI_4,
     },
@@ -76,6 +102,10 @@ pub const CASES: [Case; 9] = [
     },
     Case::PowFixed { y: 1.321199 },
     Case::PowFixed { y: 1.0 / 1.321199 },
+    Case::Atan2 { limit: 2.0 },
+    Case::Atan2Log { lo: -60.0, hi: 60.0 },
+    Case::Hypot { limit: 2.0 },
+    Case::HypotLog { lo: -60.0, hi: 60.0 },
 ];
 
 /// The reference's state (its cache of constants).
@@ -91,7 +121,8 @@ impl Reference {
     }
 
     /// The errors, in units in the last place of the exact value, of the crate's answers for
-    /// the case's arguments (two errors for sin_cos, one for the others).
+    /// the case's arguments (two errors for sin_cos, one for the others; atan2's arguments are
+    /// (x, y) here, the function's order is (y, x)).
     pub fn errors(&mut self, case: &Case, x: f64, y: f64) -> Vec<f64> {
         let cc = &mut self.consts;
         match case {
@@ -110,6 +141,26 @@ impl Reference {
                     .mul(&big(y), PRECISION, RM)
                     .exp(PRECISION, RM, cc);
                 vec![ulp_error(cpmx_math::pow(x, y), &exact)]
+            }
+            Case::Atan2 { .. } | Case::Atan2Log { .. } => {
+                // atan(y/x), then ±π for x < 0 (the draws are never zero).
+                let principal = big(y).div(&big(x), PRECISION, RM).atan(PRECISION, RM, cc);
+                let exact = if x > 0.0 {
+                    principal
+                } else if y >= 0.0 {
+                    principal.add(&cc.pi(PRECISION, RM), PRECISION, RM)
+                } else {
+                    principal.sub(&cc.pi(PRECISION, RM), PRECISION, RM)
+                };
+                vec![ulp_error(cpmx_math::atan2(y, x), &exact)]
+            }
+            Case::Hypot { .. } | Case::HypotLog { .. } => {
+                let (bx, by) = (big(x), big(y));
+                let exact = bx
+                    .mul(&bx, PRECISION, RM)
+                    .add(&by.mul(&by, PRECISION, RM), PRECISION, RM)
+                    .sqrt(PRECISION, RM);
+                vec![ulp_error(cpmx_math::hypot(x, y), &exact)]
             }
         }
     }
