@@ -117,7 +117,12 @@ pub(crate) fn kernel(y: f64, x: f64) -> f64 {
         p = *coefficient + z * p;
     }
     let atan_r = fast_two_sum(r, r_tail + r * (z * p));
-    let theta = add(ATAN_EIGHTHS[eighths as usize], atan_r);
+    // atan(k/8) by blends, not an index: a lane-wise load the vectoriser keeps in registers.
+    let mut atan_c = (0.0, 0.0);
+    for (k, &value) in ATAN_EIGHTHS.iter().enumerate().skip(1) {
+        atan_c = select_pair(eighths == k as f64, value, atan_c);
+    }
+    let theta = add(atan_c, atan_r);
     let theta = select_pair(swap, sub(PIO2, theta), theta);
     let theta = select_pair(x.is_sign_negative(), sub(PI, theta), theta);
     theta.0.copysign(y)
