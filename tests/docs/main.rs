@@ -28,6 +28,8 @@
 //!   `../shared/reference/...`): a figure that no longer matches its command fails (`quotes.rs`).
 //! - ```python blocks compile (`python/tests/test_docs.py` runs those not marked `not run`).
 //! - Relative links name files that exist and headings that they have.
+//!
+//! `CPMX_DOCS_PAGES=docs/xp-marl.md,README.md cargo test --test docs` checks those pages alone.
 
 #[path = "../support/mod.rs"]
 mod support;
@@ -102,7 +104,10 @@ fn every_whole_spec_in_the_docs_validates() {
     }
     eprintln!("docs: {validated} whole specs validated");
     report(&failures, true);
-    assert!(validated >= 1, "no whole spec in the docs");
+    assert!(
+        Page::only().is_some() || validated >= 1,
+        "no whole spec in the docs"
+    );
 }
 
 #[test]
@@ -270,7 +275,7 @@ fn every_command_in_the_docs_runs_or_parses() {
     }
     report(&failures, true);
     assert!(
-        ran >= 10 && parsed >= 5,
+        Page::only().is_some() || (ran >= 10 && parsed >= 5),
         "{ran} commands run, {parsed} parsed: fewer than the docs have"
     );
 }
@@ -326,7 +331,10 @@ fn every_cpmx_command_named_in_the_text_parses() {
     }
     eprintln!("docs: {parsed} inline cpmx commands parsed, {synopses} synopses checked against --help");
     report(&failures, false);
-    assert!(synopses >= 5, "the README's command table has gone");
+    assert!(
+        Page::only().is_some() || synopses >= 5,
+        "the README's command table has gone"
+    );
 }
 
 #[test]

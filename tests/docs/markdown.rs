@@ -37,7 +37,17 @@ impl Page {
             .collect();
         names.sort();
         names.insert(0, "README.md".to_owned());
+        if let Some(only) = Page::only() {
+            names.retain(|n| only.iter().any(|o| n == o || n.strip_prefix("docs/") == Some(o)));
+        }
         names.iter().map(|n| Page::read(root, n)).collect()
+    }
+
+    /// The pages `CPMX_DOCS_PAGES` names (comma-separated, `README.md`, `docs/x.md` or `x.md`),
+    /// for a quick check of the pages being edited; unset, every page.
+    pub fn only() -> Option<Vec<String>> {
+        let value = std::env::var("CPMX_DOCS_PAGES").ok()?;
+        Some(value.split(',').map(|n| n.trim().to_owned()).collect())
     }
 
     /// A short name for scratch files: `README`, `docs-benchmark`.
