@@ -1,4 +1,5 @@
-//! Statistics of a metric over runs: descriptive summaries (mean, std, IQM, normal CI),
+//! Statistics of a metric over runs: descriptive summaries (mean, std, IQM, median, the mean
+//! without the extremes, Student-t CI),
 //! seeded stratified bootstrap CIs, and paired comparisons between two conditions.
 //!
 //! Pure functions over f64 slices. NaN values (undefined per-run rates) are excluded and
@@ -80,12 +81,16 @@ pub struct Summary {
     pub std: f64,
     /// Interquartile mean.
     pub iqm: f64,
+    /// The median.
+    pub median: f64,
+    /// The mean without the largest and the smallest value ([`trimmed_mean`]).
+    pub trimmed_mean: f64,
     /// Student-t 95 % CI of the mean within the metric's range, see [`ci95_t`].
     pub ci95: Interval,
 }
 
-/// Mean, std, IQM and the Student-t 95 % CI of `values` within `range` (NaNs excluded and
-/// counted).
+/// Mean, std, IQM, median, the trimmed mean and the Student-t 95 % CI of `values` within
+/// `range` (NaNs excluded and counted).
 pub fn summarize(values: &[f64], range: Range) -> Summary {
     let clean = finite(values);
     let v = &clean.values;
@@ -95,6 +100,8 @@ pub fn summarize(values: &[f64], range: Range) -> Summary {
         mean: mean(v),
         std: std(v),
         iqm: iqm(v),
+        median: median(v),
+        trimmed_mean: trimmed_mean(v),
         ci95: ci95_t(v, range),
     }
 }
@@ -127,6 +134,26 @@ pub fn iqm(values: &[f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     let cut = v.len() / 4;
     mean(&v[cut..v.len() - cut])
+}
+
+/// The median of the non-NaN values (the mean of the middle two for an even count; NaN if
+/// there are none).
+pub fn median(values: &[f64]) -> f64 {
+    let mut v = finite(values).values;
+    v.sort_by(f64::total_cmp);
+    quantile_sorted(&v, 0.5)
+}
+
+/// The mean of the non-NaN values without the largest and the smallest one: SigmaRL's
+/// evaluation drops its best and its worst environment before it averages (NaN for fewer than
+/// three values, where nothing would be left to average or the trim would be all but one).
+pub fn trimmed_mean(values: &[f64]) -> f64 {
+    let mut v = finite(values).values;
+    if v.len() < 3 {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    mean(&v[1..v.len() - 1])
 }
 
 /// Student-t 95 % CI of the mean, `mean ± t(0.975; n − 1) · std / √n`, intersected with
@@ -191,6 +218,20 @@ mod tests {
         // n = 5 drops 1 per end → mean(2, 3, 100) = 35; n = 3 drops nothing.
         assert_eq!(iqm(&[1.0, 2.0, 3.0, 100.0, 1000.0]), 35.0);
         assert_eq!(iqm(&[1.0, 2.0, 6.0]), 3.0);
+    }
+
+    #[test]
+    fn median_and_trimmed_mean_by_hand() {
+        // Sorted 1, 2, 3, 100: the median is (2 + 3)/2; the trimmed mean drops 1 and 100.
+        let data = [3.0, 100.0, 1.0, f64::NAN, 2.0];
+        assert_eq!(median(&data), 2.5);
+        assert_eq!(trimmed_mean(&data), 2.5);
+        // Odd count: the middle value; the trim drops one value at each end only.
+        assert_eq!(median(&[5.0, 1.0, 9.0]), 5.0);
+        assert_eq!(trimmed_mean(&[5.0, 1.0, 9.0, 9.0, 1.0]), 5.0);
+        assert!(trimmed_mean(&[1.0, 2.0]).is_nan() && median(&[f64::NAN]).is_nan());
+        let s = summarize(&data, Range::UNBOUNDED);
+        assert_eq!((s.median, s.trimmed_mean), (2.5, 2.5));
     }
 
     #[test]

@@ -4,7 +4,7 @@
 mod common;
 
 use cpmx_report::{Format, Origins, per_run_csv, render, summarize};
-use cpmx_spec::model::{GroupKey, ReportSpec};
+use cpmx_spec::model::{GroupKey, ReportSpec, Statistic};
 
 fn fixture() -> cpmx_report::Summary {
     summarize(
@@ -50,6 +50,22 @@ fn markdown_grouped_by_fidelity_and_policy_with_default_statistics() {
         &summarize("synthetic", &common::runs(), &report, &Origins::default()),
         Format::Markdown
     ));
+}
+
+/// SigmaRL's evaluation statistics: the mean beside the median and the mean without the best and
+/// the worst run, in the table's cells and its caption.
+#[test]
+fn markdown_with_the_median_and_the_trimmed_mean() {
+    let report = ReportSpec {
+        group_by: vec![GroupKey::Fidelity],
+        statistics: vec![Statistic::Mean, Statistic::Median, Statistic::TrimmedMean],
+        ..ReportSpec::default()
+    };
+    let markdown = render(
+        &summarize("synthetic", &common::runs(), &report, &Origins::default()),
+        Format::Markdown,
+    );
+    insta::assert_snapshot!(&markdown[..markdown.find("## Paired").unwrap_or(markdown.len())]);
 }
 
 /// Grouped by policy (the default), the paired comparison has a row per fidelity, policy and

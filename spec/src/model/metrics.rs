@@ -179,6 +179,11 @@ pub enum Statistic {
     Std,
     /// Interquartile mean: drop floor(n/4) at each end.
     Iqm,
+    /// The median (the mean of the middle two for an even count).
+    Median,
+    /// The mean without the largest and the smallest value, as SigmaRL's evaluation drops its
+    /// best and its worst environment (undefined for fewer than three runs).
+    TrimmedMean,
     /// Normal 95 % confidence interval of the mean.
     Ci95,
     /// Stratified bootstrap 95 % confidence interval of the mean and the IQM.

@@ -68,7 +68,7 @@ pub fn per_run_csv(runs: &[RunRecord]) -> String {
 }
 
 /// The statistic columns of `summary.csv`, after one column per `group_by` axis.
-const SUMMARY_COLUMNS: [&str; 19] = [
+const SUMMARY_COLUMNS: [&str; 21] = [
     "metric",
     "unit",
     "better",
@@ -79,6 +79,8 @@ const SUMMARY_COLUMNS: [&str; 19] = [
     "mean",
     "std",
     "iqm",
+    "median",
+    "trimmed_mean",
     "ci95_low",
     "ci95_high",
     "bootstrap_mean_low",
@@ -115,6 +117,8 @@ pub fn summary_csv(summary: &Summary) -> String {
                 format_float(s.mean),
                 format_float(s.std),
                 format_float(s.iqm),
+                format_float(s.median),
+                format_float(s.trimmed_mean),
             ]);
             fields.extend(interval(s.ci95));
             match m.bootstrap {

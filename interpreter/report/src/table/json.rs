@@ -93,6 +93,8 @@ fn metric(m: &MetricSummary) -> Value {
         "mean": number(s.mean),
         "std": number(s.std),
         "iqm": number(s.iqm),
+        "median": number(s.median),
+        "trimmed_mean": number(s.trimmed_mean),
         "ci95": interval(s.ci95),
         "bootstrap": m.bootstrap.map(|b| json!({"mean": interval(b.mean), "iqm": interval(b.iqm)})),
     })

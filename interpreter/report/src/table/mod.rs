@@ -89,26 +89,41 @@ fn p_value(p: f64) -> String {
     if p < 0.001 { "< 0.001".into() } else { fixed(p, 3) }
 }
 
-/// The three parts of a Table 2 cell that the spec asked for.
+/// The parts of a Table 2 cell that the spec asked for.
 #[derive(Debug, Clone, Copy)]
 struct CellParts {
     mean: bool,
     std: bool,
     iqm: bool,
+    median: bool,
+    trimmed_mean: bool,
 }
 
 impl CellParts {
     fn of(summary: &Summary) -> CellParts {
         use cpmx_spec::model::Statistic;
         let (std, iqm) = (summary.shows(Statistic::Std), summary.shows(Statistic::Iqm));
+        let (median, trimmed_mean) = (
+            summary.shows(Statistic::Median),
+            summary.shows(Statistic::TrimmedMean),
+        );
         // The mean is the cell's anchor: shown when asked for or when nothing else is.
-        let mean = summary.shows(Statistic::Mean) || !(std || iqm);
-        CellParts { mean, std, iqm }
+        let mean = summary.shows(Statistic::Mean) || !(std || iqm || median || trimmed_mean);
+        CellParts {
+            mean,
+            std,
+            iqm,
+            median,
+            trimmed_mean,
+        }
     }
 
-    /// How the caption names the cell, e.g. `mean ± std (IQM)`.
+    /// How the caption names the cell, e.g. `mean ± std (IQM)`, `mean (IQM), median`.
     fn caption(self) -> String {
-        self.join("mean".into(), "std".into(), "IQM".into(), " ± ")
+        self.join(
+            ["mean", "std", "IQM", "median", "trimmed mean"].map(String::from),
+            " ± ",
+        )
     }
 
     /// A cell; `emphasise` wraps the mean (bold in Markdown and LaTeX).
@@ -121,30 +136,40 @@ impl CellParts {
     ) -> String {
         let d = metric.decimals();
         self.join(
-            emphasise(fixed(stats.mean, d)),
-            fixed(stats.std, d),
-            fixed(stats.iqm, d),
+            [
+                emphasise(fixed(stats.mean, d)),
+                fixed(stats.std, d),
+                fixed(stats.iqm, d),
+                fixed(stats.median, d),
+                fixed(stats.trimmed_mean, d),
+            ],
             pm,
         )
     }
 
-    fn join(self, mean: String, std: String, iqm: String, pm: &str) -> String {
-        let mut parts = Vec::new();
+    /// `mean ± std (iqm)`, then the median and the trimmed mean, each after a comma: the parts
+    /// asked for, in that order.
+    fn join(self, [mean, std, iqm, median, trimmed_mean]: [String; 5], pm: &str) -> String {
+        let mut text = String::new();
         if self.mean {
-            parts.push(mean);
+            text.push_str(&mean);
         }
         if self.std {
-            parts.push(if self.mean { format!("{pm}{std}") } else { std });
+            text.push_str(&if self.mean { format!("{pm}{std}") } else { std });
         }
         if self.iqm {
-            parts.push(format!("({iqm})"));
-        }
-        let mut text = String::new();
-        for part in parts {
-            if !text.is_empty() && !part.starts_with(pm) {
+            if !text.is_empty() {
                 text.push(' ');
             }
-            text.push_str(&part);
+            text.push_str(&format!("({iqm})"));
+        }
+        for (shown, part) in [(self.median, median), (self.trimmed_mean, trimmed_mean)] {
+            if shown {
+                if !text.is_empty() {
+                    text.push_str(", ");
+                }
+                text.push_str(&part);
+            }
         }
         text
     }
@@ -378,16 +403,33 @@ mod tests {
             mean: true,
             std: true,
             iqm: true,
+            median: false,
+            trimmed_mean: false,
         };
         assert_eq!(all.caption(), "mean ± std (IQM)");
         let iqm_only = CellParts {
             mean: false,
             std: false,
             iqm: true,
+            ..all
         };
         assert_eq!(iqm_only.caption(), "(IQM)");
         let no_std = CellParts { std: false, ..all };
         assert_eq!(no_std.caption(), "mean (IQM)");
+        let sigmarl = CellParts {
+            std: false,
+            iqm: false,
+            median: true,
+            trimmed_mean: true,
+            ..all
+        };
+        assert_eq!(sigmarl.caption(), "mean, median, trimmed mean");
+        let median_only = CellParts {
+            mean: false,
+            trimmed_mean: false,
+            ..sigmarl
+        };
+        assert_eq!(median_only.caption(), "median");
     }
 
     #[test]
