@@ -70,6 +70,43 @@ fn bench(c: &mut Criterion) {
         b.iter(|| cpmx_math::exp_slice(black_box(&headings), &mut out))
     });
     group.finish();
+    // Steering angles of the bicycle model (tan δ, then atan of its scaled tangent).
+    let steering: Vec<f64> = throttles.iter().map(|t| 0.7 * (2.0 * t - 1.0)).collect();
+    let mut group = c.benchmark_group("tan x1024");
+    group.bench_function("libm, scalar", |b| {
+        b.iter(|| {
+            for (i, x) in black_box(&steering).iter().enumerate() {
+                out[i] = x.tan();
+            }
+        })
+    });
+    group.bench_function("cpmx-math, scalar", |b| {
+        b.iter(|| {
+            for (i, x) in black_box(&steering).iter().enumerate() {
+                out[i] = cpmx_math::tan(*x);
+            }
+        })
+    });
+    group.bench_function("cpmx-math, lanes", |b| {
+        b.iter(|| cpmx_math::tan_slice(black_box(&steering), &mut out))
+    });
+    group.finish();
+    let mut group = c.benchmark_group("atan x1024");
+    group.bench_function("libm, scalar", |b| {
+        b.iter(|| {
+            for (i, x) in black_box(&steering).iter().enumerate() {
+                out[i] = x.atan();
+            }
+        })
+    });
+    group.bench_function("cpmx-math, scalar", |b| {
+        b.iter(|| {
+            for (i, x) in black_box(&steering).iter().enumerate() {
+                out[i] = cpmx_math::atan(*x);
+            }
+        })
+    });
+    group.finish();
     // Velocities of a reference trajectory: (vx, vy) on a circle of speeds up to 1.5 m/s.
     let vx: Vec<f64> = headings
         .iter()

@@ -37,6 +37,20 @@ fn sin_cos_fix(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
 }
 
 #[inline(always)]
+fn tan_block<const N: usize>(x: &[f64; N]) -> [f64; N] {
+    let mut out = [0.0; N];
+    for i in 0..N {
+        out[i] = trig::tan_kernel(x[i]);
+    }
+    for i in 0..N {
+        if !trig::in_kernel(x[i]) {
+            out[i] = trig::tan_slow(x[i]);
+        }
+    }
+    out
+}
+
+#[inline(always)]
 fn exp_block<const N: usize>(x: &[f64; N]) -> [f64; N] {
     let mut out = [0.0; N];
     for i in 0..N {
@@ -125,6 +139,29 @@ macro_rules! dispatch {
     }};
 }
 
+/// A one-argument function over a slice in blocks of 8 lanes, the rest one by one.
+macro_rules! singles {
+    ($name:literal, $x:ident, $out:ident, $block:ident, $scalar:path) => {{
+        assert_eq!(
+            $x.len(),
+            $out.len(),
+            concat!($name, ": slices of different lengths")
+        );
+        dispatch!(fn($x: &[f64], $out: &mut [f64]) -> (), {
+            let mut blocks = $x.chunks_exact(BLOCK);
+            let mut offset = 0;
+            for block in &mut blocks {
+                $out[offset..offset + BLOCK]
+                    .copy_from_slice(&$block::<BLOCK>(block.try_into().expect("a block of 8")));
+                offset += BLOCK;
+            }
+            for (i, value) in blocks.remainder().iter().enumerate() {
+                $out[offset + i] = $scalar(*value);
+            }
+        })
+    }};
+}
+
 /// The pairs of a two-argument function in blocks of 8 lanes, the rest one by one.
 macro_rules! pairs {
     ($name:literal, $a:ident, $b:ident, $out:ident, $block:ident, $scalar:path) => {{
@@ -155,6 +192,11 @@ pub fn sin_cos_lanes<const N: usize>(x: [f64; N]) -> ([f64; N], [f64; N]) {
     let (mut sin, mut cos) = sin_cos_block(&x);
     sin_cos_fix(&x, &mut sin, &mut cos);
     (sin, cos)
+}
+
+/// tan x of each lane.
+pub fn tan_lanes<const N: usize>(x: [f64; N]) -> [f64; N] {
+    tan_block(&x)
 }
 
 /// e^x of each lane.
@@ -203,24 +245,20 @@ pub fn sin_cos_slice(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
     })
 }
 
+/// `out[i] = tan(x[i])` for every i, in blocks of 8 lanes.
+///
+/// # Panics
+/// If the slices differ in length.
+pub fn tan_slice(x: &[f64], out: &mut [f64]) {
+    singles!("tan_slice", x, out, tan_block, crate::tan)
+}
+
 /// `out[i] = exp(x[i])` for every i, in blocks of 8 lanes.
 ///
 /// # Panics
 /// If the slices differ in length.
 pub fn exp_slice(x: &[f64], out: &mut [f64]) {
-    assert_eq!(x.len(), out.len(), "exp_slice: slices of different lengths");
-    dispatch!(fn(x: &[f64], out: &mut [f64]) -> (), {
-        let mut blocks = x.chunks_exact(BLOCK);
-        let mut offset = 0;
-        for block in &mut blocks {
-            out[offset..offset + BLOCK]
-                .copy_from_slice(&exp_block::<BLOCK>(block.try_into().expect("a block of 8")));
-            offset += BLOCK;
-        }
-        for (i, value) in blocks.remainder().iter().enumerate() {
-            out[offset + i] = crate::exp(*value);
-        }
-    })
+    singles!("exp_slice", x, out, exp_block, crate::exp)
 }
 
 /// `out[i] = pow(x[i], y[i])` for every i, in blocks of 8 lanes.

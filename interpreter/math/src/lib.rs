@@ -1,5 +1,5 @@
-//! cpmx's own transcendental functions: `sin`, `cos`, `sin_cos`, `exp`, `pow`, `atan2` and
-//! `hypot`, each within
+//! cpmx's own transcendental functions: `sin`, `cos`, `sin_cos`, `tan`, `exp`, `pow`, `atan`,
+//! `atan2` and `hypot`, each within
 //! one unit in the last place of the exact value, with the same bits on every CPU, for any
 //! thread count, and in scalar code and SIMD lanes alike.
 //!
@@ -29,7 +29,7 @@ mod trig;
 
 pub use lanes::{
     atan2_lanes, atan2_slice, exp_lanes, exp_slice, hypot_lanes, hypot_slice, pow_lanes, pow_slice,
-    sin_cos_lanes, sin_cos_slice,
+    sin_cos_lanes, sin_cos_slice, tan_lanes, tan_slice,
 };
 
 /// sin x and cos x together (one argument reduction).
@@ -52,6 +52,16 @@ pub fn sin(x: f64) -> f64 {
 #[inline]
 pub fn cos(x: f64) -> f64 {
     sin_cos(x).1
+}
+
+/// tan x.
+#[inline]
+pub fn tan(x: f64) -> f64 {
+    if trig::in_kernel(x) {
+        trig::tan_kernel(x)
+    } else {
+        trig::tan_slow(x)
+    }
 }
 
 /// e^x.
@@ -84,6 +94,12 @@ pub fn atan2(y: f64, x: f64) -> f64 {
     } else {
         atan::slow(y, x)
     }
+}
+
+/// atan x, in [−π/2, π/2]: `atan2(x, 1)`, which is exactly that (the ratio x/1 is exact).
+#[inline]
+pub fn atan(x: f64) -> f64 {
+    atan2(x, 1.0)
 }
 
 /// √(x² + y²) without overflow or underflow on the way (an infinity wins over NaN, as C99 says).

@@ -1,4 +1,4 @@
-//! `sin`, `cos` and `sin_cos`: the argument reduced to `r = x − k·π/2` in two doubles, then a
+//! `sin`, `cos`, `sin_cos` and `tan`: the argument reduced to `r = x − k·π/2` in two doubles, then a
 //! polynomial on |r| ≤ π/4 and the quadrant `k mod 4`.
 //!
 //! [`kernel`] is branch-free for |x| < 2^20·π/2 (Cody–Waite reduction with π/2 in four parts);
@@ -117,6 +117,40 @@ pub(crate) fn kernel(x: f64) -> (f64, f64) {
     finish(x, quadrant, rh, rl)
 }
 
+/// tan of `k·π/2 + (x + y)` (|x| ≤ π/4 + ε): sin and cos of the reduced argument in two doubles
+/// each (the same polynomials as [`sin_cos_reduced`], their tails kept), divided in two doubles
+/// (−cos/sin in odd quadrants), rounded once.
+#[inline(always)]
+fn tan_reduced(odd: bool, x: f64, y: f64) -> f64 {
+    let z = x * x;
+    let v = z * x;
+    let mut p = SIN[8];
+    for c in SIN[1..8].iter().rev() {
+        p = *c + z * p;
+    }
+    let sin = fast_two_sum(x, -((z * (0.5 * y - v * p) - y) - v * SIN[0]));
+    let mut q = COS[8];
+    for c in COS[..8].iter().rev() {
+        q = *c + z * q;
+    }
+    let (zh, zl) = two_prod(x, x);
+    let half = 0.5 * zh;
+    let w = 1.0 - half;
+    let cos = fast_two_sum(w, (((1.0 - w) - half) - 0.5 * zl) + (z * (z * q) - x * y));
+    let numerator = (select(odd, -cos.0, sin.0), select(odd, -cos.1, sin.1));
+    let denominator = (select(odd, sin.0, cos.0), select(odd, sin.1, cos.1));
+    let t = numerator.0 / denominator.0;
+    let (product, product_tail) = two_prod(t, denominator.0);
+    t + (((numerator.0 - product) - product_tail) + numerator.1 - t * denominator.1) / denominator.0
+}
+
+/// tan for |x| < [`FAST_LIMIT`]; tiny x exactly x.
+#[inline(always)]
+pub(crate) fn tan_kernel(x: f64) -> f64 {
+    let (quadrant, rh, rl) = reduce(x);
+    select(x.abs() < TINY, x, tan_reduced(quadrant & 1 == 1, rh, rl))
+}
+
 /// Whether [`kernel`] gives the answer for `x` (finite and |x| < [`FAST_LIMIT`]).
 #[inline(always)]
 pub(crate) fn in_kernel(x: f64) -> bool {
@@ -168,9 +202,33 @@ pub(crate) fn slow(x: f64) -> (f64, f64) {
     if in_kernel(x) {
         return kernel(x);
     }
+    let (quadrant, rh, rl) = reduce_large(x.abs());
+    let (sin, cos) = place(quadrant, rh, rl);
+    if x < 0.0 { (-sin, cos) } else { (sin, cos) }
+}
+
+/// tan of any double: NaN for infinities and NaN, Payne–Hanek reduction for
+/// |x| ≥ [`FAST_LIMIT`].
+#[cold]
+#[inline(never)]
+pub(crate) fn tan_slow(x: f64) -> f64 {
+    if !x.is_finite() {
+        return f64::NAN;
+    }
+    if in_kernel(x) {
+        return tan_kernel(x);
+    }
+    let (quadrant, rh, rl) = reduce_large(x.abs());
+    let tan = tan_reduced(quadrant & 1 == 1, rh, rl);
+    if x < 0.0 { -tan } else { tan }
+}
+
+/// The quadrant's bits and r = |x| − k·π/2 in two doubles for a finite |x| ≥ [`FAST_LIMIT`]
+/// (Payne–Hanek: the bits of 2/π that matter for |x|'s exponent).
+fn reduce_large(x: f64) -> (u64, f64, f64) {
     // |x| = m·2^s with m a 53-bit integer, s ≥ −32. The bits of 2/π before position s − 2
     // add multiples of 4 to x·2/π: they change nothing.
-    let bits = x.abs().to_bits();
+    let bits = x.to_bits();
     let m = (bits & ((1 << 52) - 1)) | (1 << 52);
     let s = ((bits >> 52) as i64) - 1075;
     let first = (s - 2).max(0) as usize;
@@ -218,6 +276,5 @@ pub(crate) fn slow(x: f64) -> (f64, f64) {
     let (f_hi, f_lo) = fast_two_sum(head * scale, tail * scale);
     let (p, e) = two_prod(f_hi, PIO2_HI);
     let (rh, rl) = fast_two_sum(p, e + (f_hi * PIO2_LO + f_lo * PIO2_HI));
-    let (sin, cos) = place(quadrant, rh, rl);
-    if x < 0.0 { (-sin, cos) } else { (sin, cos) }
+    (quadrant, rh, rl)
 }

@@ -2,8 +2,8 @@
 //! on the portable path, including the arguments their kernels send to the slow path.
 
 use cpmx_math::{
-    atan2, atan2_lanes, atan2_slice, exp, exp_lanes, exp_slice, hypot, hypot_lanes, hypot_slice, pow,
-    pow_lanes, pow_slice, sin_cos, sin_cos_lanes, sin_cos_slice,
+    atan, atan2, atan2_lanes, atan2_slice, exp, exp_lanes, exp_slice, hypot, hypot_lanes, hypot_slice, pow,
+    pow_lanes, pow_slice, sin_cos, sin_cos_lanes, sin_cos_slice, tan, tan_lanes, tan_slice,
 };
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -87,6 +87,22 @@ fn exp_lanes_and_slices_give_the_scalar_bits() {
         let lanes = exp_lanes::<8>(block.try_into().unwrap());
         for (i, &v) in block.iter().enumerate() {
             assert!(same_bits(exp(v), lanes[i]), "exp({v:e}): lanes differ");
+        }
+    }
+}
+
+#[test]
+fn tan_lanes_and_slices_give_the_scalar_bits() {
+    let x = arguments(4_003, 9);
+    let mut out = vec![0.0; x.len()];
+    tan_slice(&x, &mut out);
+    for (i, &v) in x.iter().enumerate() {
+        assert!(same_bits(tan(v), out[i]), "tan({v:e}): slice differs");
+    }
+    for block in x.chunks_exact(4) {
+        let lanes = tan_lanes::<4>(block.try_into().unwrap());
+        for (i, &v) in block.iter().enumerate() {
+            assert!(same_bits(tan(v), lanes[i]), "tan({v:e}): lanes differ");
         }
     }
 }
@@ -234,4 +250,14 @@ fn special_values_follow_c99() {
     assert_eq!(hypot(3e-320, 4e-320), 5e-320);
     assert_eq!(hypot(-5e-324, 0.0), 5e-324);
     assert_eq!(hypot(f64::MAX, 1.0), f64::MAX);
+    // tan and atan: odd, exact at zero, NaN where C99 says.
+    assert!(same_bits(tan(-0.0), -0.0) && tan(0.0) == 0.0);
+    assert!(tan(inf).is_nan() && tan(nan).is_nan());
+    assert_eq!(tan(std::f64::consts::FRAC_PI_4), 0.9999999999999999);
+    assert_eq!(tan(1e-300), 1e-300);
+    assert!(same_bits(atan(-0.0), -0.0));
+    assert_eq!(atan(inf), pio2);
+    assert_eq!(atan(-inf), -pio2);
+    assert_eq!(atan(1.0), std::f64::consts::FRAC_PI_4);
+    assert!(atan(nan).is_nan());
 }

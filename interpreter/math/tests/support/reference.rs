@@ -18,6 +18,10 @@ pub enum Case {
     SinCosLog { lo: f64, hi: f64 },
     /// exp of x uniform in [lo, hi].
     Exp { lo: f64, hi: f64 },
+    /// tan of x uniform in [−limit, limit].
+    Tan { limit: f64 },
+    /// atan of x = ±2^e, e uniform in [lo, hi].
+    AtanLog { lo: f64, hi: f64 },
     /// pow(x, y), x = 2^e with e uniform in [lo, hi], y uniform in [y_lo, y_hi].
     Pow { lo: f64, hi: f64, y_lo: f64, y_hi: f64 },
     /// pow(x, y) for x uniform in (0, 1] and a fixed y (the grey-box motor term and its inverse).
@@ -38,6 +42,8 @@ impl Case {
             Case::SinCos { limit } => format!("sin_cos, x in [-{limit}, {limit}]"),
             Case::SinCosLog { lo, hi } => format!("sin_cos, x = ±2^e, e in [{lo}, {hi}]"),
             Case::Exp { lo, hi } => format!("exp, x in [{lo}, {hi}]"),
+            Case::Tan { limit } => format!("tan, x in [-{limit}, {limit}]"),
+            Case::AtanLog { lo, hi } => format!("atan, x = ±2^e, e in [{lo}, {hi}]"),
             Case::Pow { lo, hi, y_lo, y_hi } => {
                 format!("pow, x = 2^e, e in [{lo}, {hi}], y in [{y_lo}, {y_hi}]")
             }
@@ -58,6 +64,11 @@ impl Case {
                 (sign * 2f64.powf(rng.random_range(lo..=hi)), 0.0)
             }
             Case::Exp { lo, hi } => (rng.random_range(lo..=hi), 0.0),
+            Case::Tan { limit } => (rng.random_range(-limit..=limit), 0.0),
+            Case::AtanLog { lo, hi } => {
+                let sign = if rng.random::<bool>() { 1.0 } else { -1.0 };
+                (sign * 2f64.powf(rng.random_range(lo..=hi)), 0.0)
+            }
             Case::Pow { lo, hi, y_lo, y_hi } => (
                 2f64.powf(rng.random_range(lo..=hi)),
                 rng.random_range(y_lo..=y_hi),
@@ -82,7 +93,7 @@ impl Case {
 }
 
 /// The cases the accuracy is measured on.
-pub const CASES: [Case; 13] = [
+pub const CASES: [Case; 16] = [
     Case::SinCos {
         limit: std::f64::consts::FRAC_PI_4,
     },
@@ -106,6 +117,10 @@ pub const CASES: [Case; 13] = [
     Case::Atan2Log { lo: -60.0, hi: 60.0 },
     Case::Hypot { limit: 2.0 },
     Case::HypotLog { lo: -60.0, hi: 60.0 },
+    // The steering angles of the bicycle model's Jacobians, then wider.
+    Case::Tan { limit: 0.7 },
+    Case::Tan { limit: 2_000.0 },
+    Case::AtanLog { lo: -30.0, hi: 30.0 },
 ];
 
 /// The reference's state (its cache of constants).
@@ -135,6 +150,10 @@ impl Reference {
                 ]
             }
             Case::Exp { .. } => vec![ulp_error(cpmx_math::exp(x), &big(x).exp(PRECISION, RM, cc))],
+            Case::Tan { .. } => vec![ulp_error(cpmx_math::tan(x), &big(x).tan(PRECISION, RM, cc))],
+            Case::AtanLog { .. } => {
+                vec![ulp_error(cpmx_math::atan(x), &big(x).atan(PRECISION, RM, cc))]
+            }
             Case::Pow { .. } | Case::PowFixed { .. } => {
                 let exact = big(x)
                     .ln(PRECISION, RM, cc)
