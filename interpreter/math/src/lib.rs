@@ -16,6 +16,9 @@
 //!   lanes ([`sin_cos_lanes`], [`pow_lanes`], [`atan2_lanes`], …) run it on every lane and send the lanes
 //!   outside that domain (NaN, infinities, huge arguments, zeros, overflow) through the same
 //!   scalar `slow` path the scalar functions use.
+//! - **Written once**: code generic over [`Real`] runs on `f64` or on [`Lanes`] (several
+//!   independent problems side by side) with the same operations in the same order, so the
+//!   lanes give the scalar bits (`real.rs`).
 //! - **Accuracy**: within 1 ulp of the correctly rounded result (measured against a
 //!   multiprecision reference: `cargo run --release -p cpmx-math --example accuracy`, and
 //!   tested on a sample in `tests/accuracy.rs`); docs/performance.md has the figures.
@@ -25,7 +28,10 @@ mod dd;
 mod exp_log;
 mod hypot;
 mod lanes;
+mod real;
 mod trig;
+
+pub use real::{Lanes, Real};
 
 pub use lanes::{
     atan2_lanes, atan2_slice, exp_lanes, exp_slice, hypot_lanes, hypot_slice, pow_lanes, pow_slice,
