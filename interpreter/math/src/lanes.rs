@@ -81,36 +81,38 @@ fn pow_block<const N: usize>(x: &[f64; N], y: &[f64; N]) -> [f64; N] {
     out
 }
 
+/// A two-argument function's kernel on every lane, then its slow path on the lanes outside the
+/// kernel's domain.
 #[inline(always)]
-fn atan2_block<const N: usize>(y: &[f64; N], x: &[f64; N]) -> [f64; N] {
+fn pair_block<const N: usize>(
+    a: &[f64; N],
+    b: &[f64; N],
+    in_kernel: impl Fn(f64, f64) -> bool,
+    kernel: impl Fn(f64, f64) -> f64,
+    slow: impl Fn(f64, f64) -> f64,
+) -> [f64; N] {
     let mut out = [0.0; N];
     let mut inside = [false; N];
     for i in 0..N {
-        inside[i] = atan::in_kernel(y[i], x[i]);
-        out[i] = atan::kernel(y[i], x[i]);
+        inside[i] = in_kernel(a[i], b[i]);
+        out[i] = kernel(a[i], b[i]);
     }
     for i in 0..N {
         if !inside[i] {
-            out[i] = atan::slow(y[i], x[i]);
+            out[i] = slow(a[i], b[i]);
         }
     }
     out
 }
 
 #[inline(always)]
+fn atan2_block<const N: usize>(y: &[f64; N], x: &[f64; N]) -> [f64; N] {
+    pair_block(y, x, atan::in_kernel, atan::kernel, atan::slow)
+}
+
+#[inline(always)]
 fn hypot_block<const N: usize>(x: &[f64; N], y: &[f64; N]) -> [f64; N] {
-    let mut out = [0.0; N];
-    let mut inside = [false; N];
-    for i in 0..N {
-        inside[i] = hypot::in_kernel(x[i], y[i]);
-        out[i] = hypot::kernel(x[i], y[i]);
-    }
-    for i in 0..N {
-        if !inside[i] {
-            out[i] = hypot::slow(x[i], y[i]);
-        }
-    }
-    out
+    pair_block(x, y, hypot::in_kernel, hypot::kernel, hypot::slow)
 }
 
 /// Runs `$body` compiled for the best vector extension this CPU has (the same bits on each).

@@ -50,10 +50,11 @@ const COS: [f64; 9] = [
     1.0 / 2_432_902_008_176_640_000.0,
 ];
 
-/// sin and cos of `x + y` (|x| ≤ π/4 + ε, |y| ≤ 2^-52·|x|), each within one rounding of the
-/// value: the polynomial's tail is added to the head last.
+/// sin and cos of `x + y` (|x| ≤ π/4 + ε, |y| ≤ 2^-52·|x|), each as a head and a tail whose
+/// sum is within one rounding of the value: sin = x + (the polynomial's part), cos =
+/// (1 − x²/2) + (the rest).
 #[inline(always)]
-fn sin_cos_reduced(x: f64, y: f64) -> (f64, f64) {
+fn sin_cos_parts(x: f64, y: f64) -> ((f64, f64), (f64, f64)) {
     let z = x * x;
     let v = z * x;
     // sin(x + y) ≈ x + S1·x³ + x⁵·P(x²) + y·(1 − x²/2).
@@ -61,7 +62,7 @@ fn sin_cos_reduced(x: f64, y: f64) -> (f64, f64) {
     for c in SIN[1..8].iter().rev() {
         p = *c + z * p;
     }
-    let sin = x - ((z * (0.5 * y - v * p) - y) - v * SIN[0]);
+    let sin_tail = -((z * (0.5 * y - v * p) - y) - v * SIN[0]);
     // cos(x + y) ≈ (1 − x²/2) + x⁴·Q(x²) − x·y, with x² exact and 1 − x²/2 compensated.
     let mut q = COS[8];
     for c in COS[..8].iter().rev() {
@@ -70,8 +71,16 @@ fn sin_cos_reduced(x: f64, y: f64) -> (f64, f64) {
     let (zh, zl) = two_prod(x, x);
     let half = 0.5 * zh;
     let w = 1.0 - half;
-    let cos = w + ((((1.0 - w) - half) - 0.5 * zl) + (z * (z * q) - x * y));
-    (sin, cos)
+    let cos_tail = (((1.0 - w) - half) - 0.5 * zl) + (z * (z * q) - x * y);
+    ((x, sin_tail), (w, cos_tail))
+}
+
+/// sin and cos of `x + y` (|x| ≤ π/4 + ε, |y| ≤ 2^-52·|x|), each within one rounding of the
+/// value: the polynomial's tail is added to the head last.
+#[inline(always)]
+fn sin_cos_reduced(x: f64, y: f64) -> (f64, f64) {
+    let ((sin, sin_tail), (cos, cos_tail)) = sin_cos_parts(x, y);
+    (sin + sin_tail, cos + cos_tail)
 }
 
 /// sin and cos of `k·π/2 + (x + y)` from the quadrant's low two bits.
@@ -118,25 +127,11 @@ pub(crate) fn kernel(x: f64) -> (f64, f64) {
 }
 
 /// tan of `k·π/2 + (x + y)` (|x| ≤ π/4 + ε): sin and cos of the reduced argument in two doubles
-/// each (the same polynomials as [`sin_cos_reduced`], their tails kept), divided in two doubles
-/// (−cos/sin in odd quadrants), rounded once.
+/// each ([`sin_cos_parts`]), divided in two doubles (−cos/sin in odd quadrants), rounded once.
 #[inline(always)]
 fn tan_reduced(odd: bool, x: f64, y: f64) -> f64 {
-    let z = x * x;
-    let v = z * x;
-    let mut p = SIN[8];
-    for c in SIN[1..8].iter().rev() {
-        p = *c + z * p;
-    }
-    let sin = fast_two_sum(x, -((z * (0.5 * y - v * p) - y) - v * SIN[0]));
-    let mut q = COS[8];
-    for c in COS[..8].iter().rev() {
-        q = *c + z * q;
-    }
-    let (zh, zl) = two_prod(x, x);
-    let half = 0.5 * zh;
-    let w = 1.0 - half;
-    let cos = fast_two_sum(w, (((1.0 - w) - half) - 0.5 * zl) + (z * (z * q) - x * y));
+    let (sin, cos) = sin_cos_parts(x, y);
+    let (sin, cos) = (fast_two_sum(sin.0, sin.1), fast_two_sum(cos.0, cos.1));
     let numerator = (select(odd, -cos.0, sin.0), select(odd, -cos.1, sin.1));
     let denominator = (select(odd, sin.0, cos.0), select(odd, sin.1, cos.1));
     let t = numerator.0 / denominator.0;
