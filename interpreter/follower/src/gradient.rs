@@ -13,6 +13,12 @@
 //! The gradient is exact (reverse mode through the rollout, with the model's step Jacobians),
 //! as CasADi's symbolic gradient is. This module owns the iteration and the gradient; the
 //! reference window, the rejection rules and the history are `mpc.rs`'s.
+//!
+//! The solver is written once over [`Real`]: on `f64` for one vehicle, through a [`Prediction`]
+//! of its model ([`ScalarPrediction`] for any [`Model`]), and the same operations in the same
+//! order for several problems side by side in [`cpmx_math::Lanes`].
+
+use cpmx_math::Real;
 
 use crate::model::Model;
 use crate::mpc::{CONTROL_MOVES, MOVE_OF_STEP, MpcConfig, PREDICTION_STEPS};
@@ -29,66 +35,109 @@ pub const RESET_VALUE: f64 = 1e-12;
 
 /// The solver's memory between control periods: the next iterate and the momentum.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct WarmStart<const NU: usize> {
+pub struct WarmStart<const NU: usize, T = f64> {
     /// The iterate the next period starts from (not yet clipped).
-    pub u_next: [[f64; NU]; CONTROL_MOVES],
+    pub u_next: [[T; NU]; CONTROL_MOVES],
     /// The momentum.
-    pub momentum: [[f64; NU]; CONTROL_MOVES],
+    pub momentum: [[T; NU]; CONTROL_MOVES],
 }
 
-impl<const NU: usize> WarmStart<NU> {
+impl<const NU: usize, T: Real> WarmStart<NU, T> {
     /// The state after the lab's `reset_optimizer`.
     pub fn reset() -> Self {
         Self {
-            u_next: [[RESET_VALUE; NU]; CONTROL_MOVES],
-            momentum: [[RESET_VALUE; NU]; CONTROL_MOVES],
+            u_next: [[T::splat(RESET_VALUE); NU]; CONTROL_MOVES],
+            momentum: [[T::splat(RESET_VALUE); NU]; CONTROL_MOVES],
         }
     }
 }
 
 /// The result of one control period's iterations.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GradientResult<const NU: usize> {
+pub struct GradientResult<const NU: usize, T = f64> {
     /// The moves of the last iterate `u_next`, clipped.
-    pub moves: [[f64; NU]; CONTROL_MOVES],
+    pub moves: [[T; NU]; CONTROL_MOVES],
     /// The objective at the last step's `u` (what the lab checks).
-    pub objective: f64,
+    pub objective: T,
     /// Predicted positions at the last step's `u`.
-    pub predicted_m: [[f64; 2]; PREDICTION_STEPS],
+    pub predicted_m: [[T; 2]; PREDICTION_STEPS],
+}
+
+/// A step's state and input Jacobians, rows first: `a[r][c] = ∂x⁺_r/∂x_c`, `b[r][c] =
+/// ∂x⁺_r/∂u_c`.
+pub type StepJacobians<T, const NX: usize, const NU: usize> = ([T; NX], [[T; NX]; NX], [[T; NU]; NX]);
+
+/// What the solver needs of a model, in numbers `T`.
+pub trait Prediction<T: Real, const NX: usize, const NU: usize> {
+    /// The state after holding `input` for `h_s` from `state`, with its Jacobians.
+    fn step_jacobians(&self, state: &[T; NX], input: &[T; NU], h_s: f64) -> StepJacobians<T, NX, NU>;
+    /// The tracked point of `state` [m].
+    fn position_m(&self, state: &[T; NX]) -> [T; 2];
+    /// `∂position/∂x`, rows first.
+    fn position_jacobian(&self, state: &[T; NX]) -> [[T; NX]; 2];
+    /// The inputs' lower and upper bounds.
+    fn input_bounds(&self) -> ([T; NU], [T; NU]);
+}
+
+/// A [`Model`] as the solver sees one vehicle: its own Jacobians, copied out of their matrices.
+pub struct ScalarPrediction<'a, M>(pub &'a M);
+
+impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Prediction<f64, NX, NU> for ScalarPrediction<'_, M> {
+    #[inline]
+    fn step_jacobians(&self, state: &[f64; NX], input: &[f64; NU], h_s: f64) -> StepJacobians<f64, NX, NU> {
+        let (next, a, b) = self.0.step_jacobians(state, input, h_s);
+        (
+            next,
+            std::array::from_fn(|r| std::array::from_fn(|c| a[(r, c)])),
+            std::array::from_fn(|r| std::array::from_fn(|c| b[(r, c)])),
+        )
+    }
+
+    #[inline]
+    fn position_m(&self, state: &[f64; NX]) -> [f64; 2] {
+        self.0.position_m(state)
+    }
+
+    #[inline]
+    fn position_jacobian(&self, state: &[f64; NX]) -> [[f64; NX]; 2] {
+        let c = self.0.position_jacobian(state);
+        std::array::from_fn(|r| std::array::from_fn(|k| c[(r, k)]))
+    }
+
+    #[inline]
+    fn input_bounds(&self) -> ([f64; NU], [f64; NU]) {
+        let limits = self.0.input_limits();
+        (limits.lower, limits.upper)
+    }
 }
 
 /// Runs the lab's iterations from `warm` (updated in place) for the delay-compensated state
 /// `x0` and the reference positions `reference_m`.
-pub fn solve<M: Model<NX, NU>, const NX: usize, const NU: usize>(
-    model: &M,
+pub fn solve<T: Real, P: Prediction<T, NX, NU>, const NX: usize, const NU: usize>(
+    prediction: &P,
     config: &MpcConfig<NU>,
-    x0: &[f64; NX],
-    reference_m: &[[f64; 2]; PREDICTION_STEPS],
-    previous_input: &[f64; NU],
-    warm: &mut WarmStart<NU>,
-) -> GradientResult<NU> {
-    let limits = model.input_limits();
-    let clip = |moves: &[[f64; NU]; CONTROL_MOVES]| {
-        moves.map(|m| {
-            let mut c = m;
-            for i in 0..NU {
-                c[i] = m[i].clamp(limits.lower[i], limits.upper[i]);
-            }
-            c
-        })
+    x0: &[T; NX],
+    reference_m: &[[T; 2]; PREDICTION_STEPS],
+    previous_input: &[T; NU],
+    warm: &mut WarmStart<NU, T>,
+) -> GradientResult<NU, T> {
+    let (lower, upper) = prediction.input_bounds();
+    let clip = |moves: &[[T; NU]; CONTROL_MOVES]| {
+        moves.map(|m| std::array::from_fn(|i| m[i].clamp(lower[i], upper[i])))
     };
-    let mut objective = f64::INFINITY;
-    let mut predicted_m = [[0.0; 2]; PREDICTION_STEPS];
+    let (momentum_rate, learning_rate) = (T::splat(MOMENTUM_RATE), T::splat(LEARNING_RATE));
+    let mut objective = T::splat(f64::INFINITY);
+    let mut predicted_m = [[T::splat(0.0); 2]; PREDICTION_STEPS];
     for _ in 0..config.gradient_iterations {
         let u = clip(&warm.u_next);
         let (j, gradient, predicted) =
-            objective_and_gradient(model, config, x0, reference_m, previous_input, &u);
+            objective_and_gradient(prediction, config, x0, reference_m, previous_input, &u);
         objective = j;
         predicted_m = predicted;
         for m in 0..CONTROL_MOVES {
             for i in 0..NU {
-                warm.momentum[m][i] = MOMENTUM_RATE * warm.momentum[m][i] - gradient[m][i];
-                warm.u_next[m][i] = u[m][i] + LEARNING_RATE * warm.momentum[m][i];
+                warm.momentum[m][i] = momentum_rate * warm.momentum[m][i] - gradient[m][i];
+                warm.u_next[m][i] = u[m][i] + learning_rate * warm.momentum[m][i];
             }
         }
     }
@@ -99,48 +148,52 @@ pub fn solve<M: Model<NX, NU>, const NX: usize, const NU: usize>(
     }
 }
 
+/// The objective's value, its gradient with respect to the moves, and the predicted positions.
+pub type ObjectiveAndGradient<T, const NU: usize> = (T, [[T; NU]; CONTROL_MOVES], [[T; 2]; PREDICTION_STEPS]);
+
 /// The lab's objective `Σ wₖ²·|p(xₖ) − rₖ|² + Σᵢ Rᵢ·Σⱼ (uⱼ,ᵢ − uⱼ₋₁,ᵢ)²` (u₋₁ = the previous
 /// input), its gradient with respect to the moves, and the predicted positions.
-pub fn objective_and_gradient<M: Model<NX, NU>, const NX: usize, const NU: usize>(
-    model: &M,
+pub fn objective_and_gradient<T: Real, P: Prediction<T, NX, NU>, const NX: usize, const NU: usize>(
+    prediction: &P,
     config: &MpcConfig<NU>,
-    x0: &[f64; NX],
-    reference_m: &[[f64; 2]; PREDICTION_STEPS],
-    previous_input: &[f64; NU],
-    moves: &[[f64; NU]; CONTROL_MOVES],
-) -> (f64, [[f64; NU]; CONTROL_MOVES], [[f64; 2]; PREDICTION_STEPS]) {
-    // Forward: states, Jacobians, position errors. (`A` and `B` in arrays of their own: a
-    // step's pair is 192 bytes, which the compiler moved with a `memcpy` call per step.)
+    x0: &[T; NX],
+    reference_m: &[[T; 2]; PREDICTION_STEPS],
+    previous_input: &[T; NU],
+    moves: &[[T; NU]; CONTROL_MOVES],
+) -> ObjectiveAndGradient<T, NU> {
+    let zero = T::splat(0.0);
+    let two = T::splat(2.0);
+    // Forward: states, Jacobians, position errors.
     let mut x = *x0;
-    let mut state_jacobians = [nalgebra::SMatrix::<f64, NX, NX>::zeros(); PREDICTION_STEPS];
-    let mut input_jacobians = [nalgebra::SMatrix::<f64, NX, NU>::zeros(); PREDICTION_STEPS];
-    let mut position_grad = [[0.0; NX]; PREDICTION_STEPS];
-    let mut predicted_m = [[0.0; 2]; PREDICTION_STEPS];
-    let mut objective = 0.0;
+    let mut state_jacobians = [[[zero; NX]; NX]; PREDICTION_STEPS];
+    let mut input_jacobians = [[[zero; NU]; NX]; PREDICTION_STEPS];
+    let mut position_grad = [[zero; NX]; PREDICTION_STEPS];
+    let mut predicted_m = [[zero; 2]; PREDICTION_STEPS];
+    let mut objective = zero;
     for k in 0..PREDICTION_STEPS {
-        let (next, a, b) = model.step_jacobians(&x, &moves[MOVE_OF_STEP[k]], config.mpc_step_s);
+        let (next, a, b) = prediction.step_jacobians(&x, &moves[MOVE_OF_STEP[k]], config.mpc_step_s);
         state_jacobians[k] = a;
         input_jacobians[k] = b;
         x = next;
-        let p = model.position_m(&x);
-        let w2 = config.position_weights[k] * config.position_weights[k];
+        let p = prediction.position_m(&x);
+        let w2 = T::splat(config.position_weights[k] * config.position_weights[k]);
         let e = [p[0] - reference_m[k][0], p[1] - reference_m[k][1]];
-        objective += w2 * (e[0] * e[0] + e[1] * e[1]);
-        let c = model.position_jacobian(&x);
-        position_grad[k] = transposed_times(&c, &[2.0 * w2 * e[0], 2.0 * w2 * e[1]]);
+        objective = objective + w2 * (e[0] * e[0] + e[1] * e[1]);
+        let c = prediction.position_jacobian(&x);
+        position_grad[k] = transposed_times(&c, &[two * w2 * e[0], two * w2 * e[1]]);
         predicted_m[k] = p;
     }
 
     // Backward: λₖ = ∂J/∂xₖ₊₁ through the later steps.
-    let mut gradient = [[0.0; NU]; CONTROL_MOVES];
-    let mut lambda = [0.0; NX];
+    let mut gradient = [[zero; NU]; CONTROL_MOVES];
+    let mut lambda = [zero; NX];
     for k in (0..PREDICTION_STEPS).rev() {
         for (l, g) in lambda.iter_mut().zip(&position_grad[k]) {
-            *l += g;
+            *l = *l + *g;
         }
         let g = transposed_times(&input_jacobians[k], &lambda);
         for i in 0..NU {
-            gradient[MOVE_OF_STEP[k]][i] += g[i];
+            gradient[MOVE_OF_STEP[k]][i] = gradient[MOVE_OF_STEP[k]][i] + g[i];
         }
         lambda = transposed_times(&state_jacobians[k], &lambda);
     }
@@ -149,11 +202,12 @@ pub fn objective_and_gradient<M: Model<NX, NU>, const NX: usize, const NU: usize
     let mut before = *previous_input;
     for (j, m) in moves.iter().enumerate() {
         for i in 0..NU {
+            let weight = T::splat(config.move_weights[i]);
             let d = m[i] - before[i];
-            objective += config.move_weights[i] * d * d;
-            gradient[j][i] += 2.0 * config.move_weights[i] * d;
+            objective = objective + weight * d * d;
+            gradient[j][i] = gradient[j][i] + two * weight * d;
             if j > 0 {
-                gradient[j - 1][i] -= 2.0 * config.move_weights[i] * d;
+                gradient[j - 1][i] = gradient[j - 1][i] - two * weight * d;
             }
         }
         before = *m;
@@ -161,18 +215,15 @@ pub fn objective_and_gradient<M: Model<NX, NU>, const NX: usize, const NU: usize
     (objective, gradient, predicted_m)
 }
 
-/// `mᵀ v` with nalgebra's bits for `m.transpose() * v` (its `gemv`: element `i` is
-/// `Σⱼ m[(j, i)]·v[j]` summed in increasing `j` from the first product), without the transposed
-/// copy and the matrix types around it.
+/// `mᵀ v` for `m` given rows first, summed as nalgebra's `gemv` sums `m.transpose() * v`
+/// (element `i` is `Σⱼ m[j][i]·v[j]` in increasing `j` from the first product), so that the
+/// solver keeps the bits it had over nalgebra's matrices.
 #[inline]
-fn transposed_times<const R: usize, const C: usize>(
-    m: &nalgebra::SMatrix<f64, R, C>,
-    v: &[f64; R],
-) -> [f64; C] {
+fn transposed_times<T: Real, const R: usize, const C: usize>(m: &[[T; C]; R], v: &[T; R]) -> [T; C] {
     std::array::from_fn(|i| {
-        let mut sum = m[(0, i)] * v[0];
+        let mut sum = m[0][i] * v[0];
         for j in 1..R {
-            sum += m[(j, i)] * v[j];
+            sum = sum + m[j][i] * v[j];
         }
         sum
     })
@@ -195,6 +246,10 @@ mod tests {
             [0.5 * t, 0.2 * t * t]
         });
         (model, config, x0, reference)
+    }
+
+    fn rows<const R: usize, const C: usize>(m: &nalgebra::SMatrix<f64, R, C>) -> [[f64; C]; R] {
+        std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
     }
 
     /// `transposed_times` gives the bits of nalgebra's `m.transpose() * v`, zeros of both signs
@@ -246,9 +301,18 @@ mod tests {
             let expected_a = a.transpose() * nalgebra::SVector::<f64, 4>::from(v4);
             let expected_b = b.transpose() * nalgebra::SVector::<f64, 4>::from(v4);
             let expected_c = c.transpose() * nalgebra::SVector::<f64, 2>::from(v2);
-            assert_eq!(bits(&transposed_times(&a, &v4)), bits(expected_a.as_slice()));
-            assert_eq!(bits(&transposed_times(&b, &v4)), bits(expected_b.as_slice()));
-            assert_eq!(bits(&transposed_times(&c, &v2)), bits(expected_c.as_slice()));
+            assert_eq!(
+                bits(&transposed_times(&rows(&a), &v4)),
+                bits(expected_a.as_slice())
+            );
+            assert_eq!(
+                bits(&transposed_times(&rows(&b), &v4)),
+                bits(expected_b.as_slice())
+            );
+            assert_eq!(
+                bits(&transposed_times(&rows(&c), &v2)),
+                bits(expected_c.as_slice())
+            );
         }
     }
 
@@ -257,7 +321,14 @@ mod tests {
         let (model, config, x0, reference) = setup();
         let moves = [[0.45, 0.1], [0.5, 0.2], [0.55, -0.1]];
         let previous = [0.4, 0.0];
-        let (_, gradient, _) = objective_and_gradient(&model, &config, &x0, &reference, &previous, &moves);
+        let (_, gradient, _) = objective_and_gradient(
+            &ScalarPrediction(&model),
+            &config,
+            &x0,
+            &reference,
+            &previous,
+            &moves,
+        );
         for j in 0..CONTROL_MOVES {
             for i in 0..2 {
                 let h = 1e-6;
@@ -265,7 +336,8 @@ mod tests {
                 plus[j][i] += h;
                 minus[j][i] -= h;
                 let f = |m: &[[f64; 2]; CONTROL_MOVES]| {
-                    objective_and_gradient(&model, &config, &x0, &reference, &previous, m).0
+                    objective_and_gradient(&ScalarPrediction(&model), &config, &x0, &reference, &previous, m)
+                        .0
                 };
                 let numeric = (f(&plus) - f(&minus)) / (2.0 * h);
                 assert!(
@@ -282,9 +354,16 @@ mod tests {
         let (model, config, x0, reference) = setup();
         let previous = [0.4, 0.0];
         let mut warm = WarmStart::reset();
-        let first = solve(&model, &config, &x0, &reference, &previous, &mut warm);
+        let first = solve(
+            &ScalarPrediction(&model),
+            &config,
+            &x0,
+            &reference,
+            &previous,
+            &mut warm,
+        );
         let start = objective_and_gradient(
-            &model,
+            &ScalarPrediction(&model),
             &config,
             &x0,
             &reference,
@@ -294,7 +373,14 @@ mod tests {
         .0;
         assert!(first.objective < start, "{} vs {start}", first.objective);
         assert_ne!(warm, WarmStart::reset());
-        let second = solve(&model, &config, &x0, &reference, &previous, &mut warm);
+        let second = solve(
+            &ScalarPrediction(&model),
+            &config,
+            &x0,
+            &reference,
+            &previous,
+            &mut warm,
+        );
         assert!(second.objective <= first.objective + 1e-12);
     }
 }

@@ -366,7 +366,7 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
             Solver::Gradient => {
                 let reference_m = samples.map(|s| s.position_m);
                 let r = gradient::solve(
-                    &self.model,
+                    &gradient::ScalarPrediction(&self.model),
                     &self.config,
                     &x0,
                     &reference_m,
