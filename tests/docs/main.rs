@@ -29,7 +29,8 @@
 //! - ```python blocks compile (`python/tests/test_docs.py` runs those not marked `not run`).
 //! - Relative links name files that exist and headings that they have.
 //!
-//! `CPMX_DOCS_PAGES=docs/xp-marl.md,README.md cargo test --test docs` checks those pages alone.
+//! `CPMX_DOCS_PAGES=docs/xp-marl.md,README.md cargo test --test docs` checks those pages alone;
+//! `CPMX_DOCS_KEEP=1` keeps each page's scratch copy with what its commands wrote.
 
 #[path = "../support/mod.rs"]
 mod support;

@@ -97,9 +97,16 @@ impl Scratch {
 }
 
 impl Drop for Scratch {
-    /// The scratch copy goes with its page (a failure's output is in the test's message).
+    /// The scratch copy goes with its page (a failure's output is in the test's message), unless
+    /// `CPMX_DOCS_KEEP` is set: then it stays, with what the page's commands wrote (to update a
+    /// quoted table from them), and its path is printed.
     fn drop(&mut self) {
-        if let Some(top) = self.repo.parent() {
+        let Some(top) = self.repo.parent() else {
+            return;
+        };
+        if std::env::var_os("CPMX_DOCS_KEEP").is_some() {
+            eprintln!("docs: kept {}", top.display());
+        } else {
             let _ = std::fs::remove_dir_all(top);
         }
     }

@@ -176,15 +176,12 @@ impl BicycleModel {
 impl Model<5, 2> for BicycleModel {
     /// The prediction reaches the commanded speed and steering within the step: the plant's
     /// acceleration and steering-rate clamps are left out, because a clamp that saturates
-    /// makes the finite-difference linearisation say the input has no effect (and the
-    /// planner's trajectories steer at exactly the rate limit). The QP's rate constraints
-    /// keep the moves feasible instead.
+    /// makes the linearisation say the input has no effect (and the planner's trajectories
+    /// steer at exactly the rate limit). The QP's rate constraints keep the moves feasible
+    /// instead. The step of [`Model::step_jacobians`], so that the MPC predicts with one
+    /// formula (and cpmx-math's functions, as the whole follower).
     fn step(&self, state: &[f64; 5], input: &[f64; 2], dt_s: f64) -> [f64; 5] {
-        let mut free = self.bicycle;
-        free.params.accel_mps2 = (f64::NEG_INFINITY, f64::INFINITY);
-        free.params.max_steering_rate_rad_s = f64::INFINITY;
-        let out = free.step(&Self::to_state(state), Self::to_command(input), dt_s);
-        Self::from_state(&out.state)
+        self.step_jacobians(state, input, dt_s).0
     }
 
     fn position_m(&self, state: &[f64; 5]) -> [f64; 2] {
@@ -206,10 +203,11 @@ impl Model<5, 2> for BicycleModel {
         // hence tan δ = κL / sqrt(1 − (κ l_r)²).
         let kappa_lr = (sample.curvature_per_m() * p.rear_axle_m).clamp(-0.99, 0.99);
         let tan_delta = sample.curvature_per_m() * p.wheelbase_m / (1.0 - kappa_lr * kappa_lr).sqrt();
-        let steering = tan_delta.atan().clamp(-p.max_steering_rad, p.max_steering_rad);
+        let steering = cpmx_math::atan(tan_delta).clamp(-p.max_steering_rad, p.max_steering_rad);
 
-        // The velocity points along yaw + β.
-        let yaw = unwrap_near(sample.yaw_rad() - self.bicycle.sideslip_rad(steering), near[2]);
+        // The velocity points along yaw + β, β = atan(l_r/L·tan δ).
+        let sideslip = cpmx_math::atan(p.rear_axle_m / p.wheelbase_m * cpmx_math::tan(steering));
+        let yaw = unwrap_near(sample.yaw_rad() - sideslip, near[2]);
         let [x, y] = sample.position_m;
         ([x, y, yaw, speed, steering], [speed, steering])
     }
@@ -238,12 +236,12 @@ impl Model<5, 2> for BicycleModel {
         let p = &self.bicycle.params;
         let [_, _, yaw, v, delta] = *state;
         let k = p.rear_axle_m / p.wheelbase_m;
-        let tan = delta.tan();
+        let tan = cpmx_math::tan(delta);
         let sec2 = 1.0 + tan * tan;
-        let beta = (k * tan).atan();
+        let beta = cpmx_math::atan(k * tan);
         let dbeta = k * sec2 / (1.0 + k * k * tan * tan);
-        let (sin, cos) = (yaw + beta).sin_cos();
-        let (sin_b, cos_b) = beta.sin_cos();
+        let (sin, cos) = cpmx_math::sin_cos(yaw + beta);
+        let (sin_b, cos_b) = cpmx_math::sin_cos(beta);
         let mut a = SMatrix::<f64, 5, 5>::zeros();
         a[(0, 0)] = 1.0;
         a[(0, 2)] = -h * v * sin;
@@ -260,7 +258,7 @@ impl Model<5, 2> for BicycleModel {
         let mut b = SMatrix::<f64, 5, 2>::zeros();
         b[(3, 0)] = inside(input[0], p.max_speed_mps);
         b[(4, 1)] = inside(input[1], p.max_steering_rad);
-        // The step itself, from the same trigonometry ([`Model::step`] up to rounding).
+        // The step itself, from the same trigonometry (what [`Model::step`] returns).
         let next = [
             state[0] + h * v * cos,
             state[1] + h * v * sin,

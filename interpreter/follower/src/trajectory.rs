@@ -81,7 +81,7 @@ pub struct TrajectorySample {
 impl TrajectorySample {
     /// Speed `|v|` [m/s].
     pub fn speed_mps(&self) -> f64 {
-        self.velocity_mps[0].hypot(self.velocity_mps[1])
+        cpmx_math::hypot(self.velocity_mps[0], self.velocity_mps[1])
     }
 
     /// Speed and signed curvature as the lab's `TrajectoryInterpolation.cxx:59-60` computes
@@ -96,7 +96,7 @@ impl TrajectorySample {
 
     /// Direction of travel `atan2(vy, vx)` [rad] (0 when standing, as `atan2(0, 0)`).
     pub fn yaw_rad(&self) -> f64 {
-        self.velocity_mps[1].atan2(self.velocity_mps[0])
+        cpmx_math::atan2(self.velocity_mps[1], self.velocity_mps[0])
     }
 
     /// Signed curvature `(vx·ay − vy·ax)/|v|³` [1/m]; 0 when standing (where the lab's

@@ -259,7 +259,7 @@ impl GreyBoxMpcModel {
         if bits == throttle_abs.to_bits() {
             return power;
         }
-        let power = throttle_abs.powf(exponent);
+        let power = cpmx_math::pow(throttle_abs, exponent);
         self.last_power.set((throttle_abs.to_bits(), power));
         power
     }
@@ -296,7 +296,7 @@ impl Model<4, 2> for GreyBoxMpcModel {
         let d = input[1].clamp(-1.0, 1.0) + p[8];
         let gain = p[0] * (1.0 + p[1] * d * d);
         let s = gain * v;
-        let (sin, cos) = (yaw + p[2] * d + p[9]).sin_cos();
+        let (sin, cos) = cpmx_math::sin_cos(yaw + p[2] * d + p[9]);
         let motor = p[5] + p[6] * self.battery_voltage_v;
         let magnitude = self.throttle_power(f.abs(), p[7]);
         let sign = if f >= 0.0 { 1.0 } else { -1.0 };
@@ -371,7 +371,7 @@ impl Model<4, 2> for GreyBoxMpcModel {
                 return 0.0;
             }
             let ratio = -p[4] * speed / motor;
-            (ratio.abs().powf(1.0 / p[7]) * ratio.signum()).clamp(-1.0, 1.0)
+            (cpmx_math::pow(ratio.abs(), 1.0 / p[7]) * ratio.signum()).clamp(-1.0, 1.0)
         };
         if sample.speed_mps() < cpmx_follower::LOW_SPEED_MPS {
             // Near standstill keep the heading and linearise at a creeping throttle: at f = 0

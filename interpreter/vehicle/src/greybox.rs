@@ -183,7 +183,7 @@ impl GreyBoxVehicle {
         let p = &self.params.parameters;
         let delta = self.effective_steering(steering_servo);
         let speed = p[0] * state.speed_mps * (1.0 + p[1] * delta * delta);
-        let (sin, cos) = (state.yaw_rad + p[2] * delta + p[9]).sin_cos();
+        let (sin, cos) = cpmx_math::sin_cos(state.yaw_rad + p[2] * delta + p[9]);
         [speed * cos, speed * sin]
     }
 
@@ -200,7 +200,7 @@ impl GreyBoxVehicle {
             y_mps,
             yaw_rate_rad_s: p[3] * state.speed_mps * delta,
             accel_mps2: p[4] * state.speed_mps
-                + (p[5] + p[6] * input.battery_voltage_v) * sign * throttle.abs().powf(p[7]),
+                + (p[5] + p[6] * input.battery_voltage_v) * sign * cpmx_math::pow(throttle.abs(), p[7]),
         }
     }
 
