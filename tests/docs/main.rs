@@ -265,7 +265,7 @@ fn every_command_in_the_docs_runs_or_parses() {
         "docs: {ran} commands run, {parsed} cpmx commands parsed only, {cargo} cargo commands \
          checked, {not_run} other commands marked `not run`"
     );
-    costs.sort_by(|a, b| b.0.cmp(&a.0));
+    costs.sort_by_key(|cost| std::cmp::Reverse(cost.0));
     let total: std::time::Duration = costs.iter().map(|(d, _)| *d).sum();
     eprintln!(
         "docs: the commands run took {:.0} s; the slowest:",

@@ -352,35 +352,15 @@ mod tests {
     #[test]
     fn iterations_lower_the_objective_and_warm_start_carries_on() {
         let (model, config, x0, reference) = setup();
+        let prediction = ScalarPrediction(&model);
         let previous = [0.4, 0.0];
         let mut warm = WarmStart::reset();
-        let first = solve(
-            &ScalarPrediction(&model),
-            &config,
-            &x0,
-            &reference,
-            &previous,
-            &mut warm,
-        );
-        let start = objective_and_gradient(
-            &ScalarPrediction(&model),
-            &config,
-            &x0,
-            &reference,
-            &previous,
-            &WarmStart::<2>::reset().u_next,
-        )
-        .0;
+        let first = solve(&prediction, &config, &x0, &reference, &previous, &mut warm);
+        let reset = WarmStart::<2>::reset().u_next;
+        let start = objective_and_gradient(&prediction, &config, &x0, &reference, &previous, &reset).0;
         assert!(first.objective < start, "{} vs {start}", first.objective);
         assert_ne!(warm, WarmStart::reset());
-        let second = solve(
-            &ScalarPrediction(&model),
-            &config,
-            &x0,
-            &reference,
-            &previous,
-            &mut warm,
-        );
+        let second = solve(&prediction, &config, &x0, &reference, &previous, &mut warm);
         assert!(second.objective <= first.objective + 1e-12);
     }
 }

@@ -22,6 +22,7 @@
 
 mod follower;
 mod gradient;
+mod lanes;
 mod model;
 mod mpc;
 mod qp;
@@ -32,8 +33,15 @@ pub use follower::{
     Follower, FollowerConfig, MAX_PENDING_COMMANDS, Output, StateEstimate, Status, StopReason,
     TrajectoryCommand,
 };
-pub use gradient::{GRADIENT_ITERATIONS, LEARNING_RATE, MOMENTUM_RATE, RESET_VALUE, WarmStart};
-pub use model::{BicycleModel, InputLimits, LOW_SPEED_MPS, Model, unwrap_near};
+pub use gradient::solve as solve_one;
+pub use gradient::{
+    GRADIENT_ITERATIONS, GradientResult, LEARNING_RATE, MOMENTUM_RATE, Prediction, RESET_VALUE,
+    ScalarPrediction, StepJacobians, WarmStart,
+};
+pub use lanes::{LanesPrediction, Problem, solve_lanes};
+pub use model::{
+    BicycleModel, InputLimits, LOW_SPEED_MPS, MODEL_NUMBERS, Model, RealModel, as_matrices, unwrap_near,
+};
 pub use mpc::{
     BICYCLE_MOVE_WEIGHTS, CONTROL_MOVES, LAB_MOVE_WEIGHTS, Mpc, MpcConfig, PREDICTION_STEPS, Rejection,
     Solution, Solver,

@@ -11,8 +11,11 @@
 //! from speed), limits `[-1, 1]` without rate limits and the lab's stop signals
 //! (`throttle = clamp(−0.5·v)`, servo 0); the tests of `mpc.rs` contain one.
 
+use cpmx_math::Real;
 use cpmx_vehicle::{BicycleState, Command, KinematicBicycle};
 use nalgebra::SMatrix;
+
+use crate::gradient::StepJacobians;
 
 use crate::trajectory::TrajectorySample;
 
@@ -67,6 +70,39 @@ pub trait Model<const NX: usize, const NU: usize> {
     /// The measured battery voltage (low-pass filtered by the MPC) the model predicts with,
     /// for models whose motor depends on it; others ignore it.
     fn set_battery_voltage_v(&mut self, _voltage_v: f64) {}
+}
+
+/// Room for the numbers a model's prediction reads besides state and input (its parameters,
+/// the battery voltage): [`RealModel::numbers`].
+pub const MODEL_NUMBERS: usize = 12;
+
+/// A model whose step and Jacobians are written once over [`Real`], so that the lab's solver
+/// runs one vehicle's problem on `f64` and several side by side in lanes with the same
+/// operations (`lanes.rs`). Its tracked point is the state's first two entries.
+pub trait RealModel<const NX: usize, const NU: usize>: Model<NX, NU> {
+    /// The numbers [`RealModel::predict`] reads (unused entries 0).
+    fn numbers(&self) -> [f64; MODEL_NUMBERS];
+
+    /// The state after holding `input` for `h_s` from `state`, with its Jacobians, for the
+    /// numbers `n`; `power(x, y)` is `x^y` (a scalar model may remember its last power).
+    fn predict<T: Real>(
+        n: &[T; MODEL_NUMBERS],
+        state: &[T; NX],
+        input: &[T; NU],
+        h_s: f64,
+        power: impl Fn(T, T) -> T,
+    ) -> StepJacobians<T, NX, NU>;
+}
+
+/// `predict`'s Jacobians as nalgebra's matrices (for [`Model::step_jacobians`]).
+pub fn as_matrices<const NX: usize, const NU: usize>(
+    (next, a, b): StepJacobians<f64, NX, NU>,
+) -> ([f64; NX], SMatrix<f64, NX, NX>, SMatrix<f64, NX, NU>) {
+    (
+        next,
+        SMatrix::from_fn(|r, c| a[r][c]),
+        SMatrix::from_fn(|r, c| b[r][c]),
+    )
 }
 
 /// Finite-difference step used for Jacobians (relative to the magnitude of the entry).
@@ -226,51 +262,81 @@ impl Model<5, 2> for BicycleModel {
     }
 
     /// Exact Jacobians of [`Model::step`]: the speed and steering become the (clamped)
-    /// commands, the pose moves by one Euler step at the old state.
+    /// commands, the pose moves by one Euler step at the old state ([`RealModel::predict`]).
     fn step_jacobians(
         &self,
         state: &[f64; 5],
         input: &[f64; 2],
         h: f64,
     ) -> ([f64; 5], SMatrix<f64, 5, 5>, SMatrix<f64, 5, 2>) {
-        let p = &self.bicycle.params;
-        let [_, _, yaw, v, delta] = *state;
-        let k = p.rear_axle_m / p.wheelbase_m;
-        let tan = cpmx_math::tan(delta);
-        let sec2 = 1.0 + tan * tan;
-        let beta = cpmx_math::atan(k * tan);
-        let dbeta = k * sec2 / (1.0 + k * k * tan * tan);
-        let (sin, cos) = cpmx_math::sin_cos(yaw + beta);
-        let (sin_b, cos_b) = cpmx_math::sin_cos(beta);
-        let mut a = SMatrix::<f64, 5, 5>::zeros();
-        a[(0, 0)] = 1.0;
-        a[(0, 2)] = -h * v * sin;
-        a[(0, 3)] = h * cos;
-        a[(0, 4)] = -h * v * sin * dbeta;
-        a[(1, 1)] = 1.0;
-        a[(1, 2)] = h * v * cos;
-        a[(1, 3)] = h * sin;
-        a[(1, 4)] = h * v * cos * dbeta;
-        a[(2, 2)] = 1.0;
-        a[(2, 3)] = h / p.wheelbase_m * tan * cos_b;
-        a[(2, 4)] = h * v / p.wheelbase_m * (sec2 * cos_b - tan * sin_b * dbeta);
-        let inside = |u: f64, limit: f64| if u.abs() < limit { 1.0 } else { 0.0 };
-        let mut b = SMatrix::<f64, 5, 2>::zeros();
-        b[(3, 0)] = inside(input[0], p.max_speed_mps);
-        b[(4, 1)] = inside(input[1], p.max_steering_rad);
-        // The step itself, from the same trigonometry (what [`Model::step`] returns).
-        let next = [
-            state[0] + h * v * cos,
-            state[1] + h * v * sin,
-            yaw + h * v / p.wheelbase_m * tan * cos_b,
-            input[0].clamp(-p.max_speed_mps, p.max_speed_mps),
-            input[1].clamp(-p.max_steering_rad, p.max_steering_rad),
-        ];
-        (next, a, b)
+        as_matrices(Self::predict(&self.numbers(), state, input, h, cpmx_math::pow))
     }
 
     fn position_jacobian(&self, _: &[f64; 5]) -> SMatrix<f64, 2, 5> {
         SMatrix::<f64, 2, 5>::new(1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+    }
+}
+
+/// The bicycle's numbers: l_r/L, L, the largest speed and steering.
+const BICYCLE_REAR_RATIO: usize = 0;
+const BICYCLE_WHEELBASE: usize = 1;
+const BICYCLE_MAX_SPEED: usize = 2;
+const BICYCLE_MAX_STEERING: usize = 3;
+
+impl RealModel<5, 2> for BicycleModel {
+    fn numbers(&self) -> [f64; MODEL_NUMBERS] {
+        let p = &self.bicycle.params;
+        let mut n = [0.0; MODEL_NUMBERS];
+        n[BICYCLE_REAR_RATIO] = p.rear_axle_m / p.wheelbase_m;
+        n[BICYCLE_WHEELBASE] = p.wheelbase_m;
+        n[BICYCLE_MAX_SPEED] = p.max_speed_mps;
+        n[BICYCLE_MAX_STEERING] = p.max_steering_rad;
+        n
+    }
+
+    #[inline(always)]
+    fn predict<T: Real>(
+        n: &[T; MODEL_NUMBERS],
+        state: &[T; 5],
+        input: &[T; 2],
+        h_s: f64,
+        _power: impl Fn(T, T) -> T,
+    ) -> StepJacobians<T, 5, 2> {
+        let (zero, one, h) = (T::splat(0.0), T::splat(1.0), T::splat(h_s));
+        let (k, wheelbase) = (n[BICYCLE_REAR_RATIO], n[BICYCLE_WHEELBASE]);
+        let (max_speed, max_steering) = (n[BICYCLE_MAX_SPEED], n[BICYCLE_MAX_STEERING]);
+        let [x, y, yaw, v, delta] = *state;
+        let tan = delta.tan();
+        let sec2 = one + tan * tan;
+        let beta = (k * tan).atan();
+        let dbeta = k * sec2 / (one + k * k * tan * tan);
+        let (sin, cos) = (yaw + beta).sin_cos();
+        let (sin_b, cos_b) = beta.sin_cos();
+        let mut a = [[zero; 5]; 5];
+        a[0][0] = one;
+        a[0][2] = -h * v * sin;
+        a[0][3] = h * cos;
+        a[0][4] = -h * v * sin * dbeta;
+        a[1][1] = one;
+        a[1][2] = h * v * cos;
+        a[1][3] = h * sin;
+        a[1][4] = h * v * cos * dbeta;
+        a[2][2] = one;
+        a[2][3] = h / wheelbase * tan * cos_b;
+        a[2][4] = h * v / wheelbase * (sec2 * cos_b - tan * sin_b * dbeta);
+        let inside = |u: T, limit: T| T::select(u.abs().lt(limit), one, zero);
+        let mut b = [[zero; 2]; 5];
+        b[3][0] = inside(input[0], max_speed);
+        b[4][1] = inside(input[1], max_steering);
+        // The step itself, from the same trigonometry (what [`Model::step`] returns).
+        let next = [
+            x + h * v * cos,
+            y + h * v * sin,
+            yaw + h * v / wheelbase * tan * cos_b,
+            input[0].clamp(-max_speed, max_speed),
+            input[1].clamp(-max_steering, max_steering),
+        ];
+        (next, a, b)
     }
 }
 

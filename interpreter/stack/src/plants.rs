@@ -5,7 +5,11 @@
 
 use std::cell::Cell;
 
-use cpmx_follower::{BicycleModel, InputLimits, Model, TrajectorySample, unwrap_near};
+use cpmx_follower::{
+    BicycleModel, InputLimits, MODEL_NUMBERS, Model, RealModel, StepJacobians, TrajectorySample, as_matrices,
+    unwrap_near,
+};
+use cpmx_math::Real;
 use cpmx_sensing::Pose2;
 use cpmx_spec::model::GreyBoxModel;
 use cpmx_vehicle::{GreyBoxParams, GreyBoxState, GreyBoxVehicle, KinematicBicycle, VehicleParams};
@@ -276,9 +280,8 @@ impl Model<4, 2> for GreyBoxMpcModel {
         [out.x_m, out.y_m, out.yaw_rad, out.speed_mps]
     }
 
-    /// The Euler step's exact Jacobians (inputs inside [-1, 1], where the lab's solver keeps
-    /// them; the motor term's slope `p8·|f|^(p8−1)` vanishes at f = 0 as CasADi's does).
-    /// Inlined into the gradient solver (called 120 times a decision).
+    /// The Euler step's exact Jacobians ([`RealModel::predict`], with the last power
+    /// remembered). Inlined into the gradient solver (called 120 times a decision).
     #[inline]
     fn step_jacobians(
         &self,
@@ -290,57 +293,9 @@ impl Model<4, 2> for GreyBoxMpcModel {
         nalgebra::SMatrix<f64, 4, 4>,
         nalgebra::SMatrix<f64, 4, 2>,
     ) {
-        let p = &self.model.params().parameters;
-        let [x, y, yaw, v] = *state;
-        let f = input[0].clamp(-1.0, 1.0);
-        let d = input[1].clamp(-1.0, 1.0) + p[8];
-        let gain = p[0] * (1.0 + p[1] * d * d);
-        let s = gain * v;
-        let (sin, cos) = cpmx_math::sin_cos(yaw + p[2] * d + p[9]);
-        let motor = p[5] + p[6] * self.battery_voltage_v;
-        let magnitude = self.throttle_power(f.abs(), p[7]);
-        let sign = if f >= 0.0 { 1.0 } else { -1.0 };
-        let next = [
-            x + h * s * cos,
-            y + h * s * sin,
-            yaw + h * p[3] * v * d,
-            v + h * (p[4] * v + motor * sign * magnitude),
-        ];
-        let a = nalgebra::SMatrix::<f64, 4, 4>::new(
-            1.0,
-            0.0,
-            -h * s * sin,
-            h * gain * cos,
-            0.0,
-            1.0,
-            h * s * cos,
-            h * gain * sin,
-            0.0,
-            0.0,
-            1.0,
-            h * p[3] * d,
-            0.0,
-            0.0,
-            0.0,
-            1.0 + h * p[4],
-        );
-        let ds = 2.0 * p[0] * p[1] * d * v;
-        let motor_slope = if f == 0.0 {
-            0.0
-        } else {
-            motor * p[7] * magnitude / f.abs()
-        };
-        let b = nalgebra::SMatrix::<f64, 4, 2>::new(
-            0.0,
-            h * (ds * cos - s * sin * p[2]),
-            0.0,
-            h * (ds * sin + s * cos * p[2]),
-            0.0,
-            h * p[3] * v,
-            h * motor_slope,
-            0.0,
-        );
-        (next, a, b)
+        as_matrices(Self::predict(&self.numbers(), state, input, h, |x, y| {
+            self.throttle_power(x, y)
+        }))
     }
 
     #[inline]
@@ -407,6 +362,61 @@ impl Model<4, 2> for GreyBoxMpcModel {
     #[allow(clippy::manual_clamp)] // `clamp` keeps a NaN, the lab's clip does not
     fn stop_input(&self, state: &[f64; 4]) -> [f64; 2] {
         [(STOP_BRAKE_GAIN * (0.0 - state[3])).min(1.0).max(-1.0), 0.0]
+    }
+}
+
+/// Where the grey-box model's numbers sit: p1..p10, then the battery voltage.
+const GREYBOX_VOLTAGE: usize = 10;
+
+impl RealModel<4, 2> for GreyBoxMpcModel {
+    fn numbers(&self) -> [f64; MODEL_NUMBERS] {
+        let mut n = [0.0; MODEL_NUMBERS];
+        n[..10].copy_from_slice(&self.model.params().parameters);
+        n[GREYBOX_VOLTAGE] = self.battery_voltage_v;
+        n
+    }
+
+    /// The Euler step's exact Jacobians (inputs inside [-1, 1], where the lab's solver keeps
+    /// them; the motor term's slope `p8·|f|^(p8−1)` vanishes at f = 0 as CasADi's does).
+    #[inline(always)]
+    fn predict<T: Real>(
+        p: &[T; MODEL_NUMBERS],
+        state: &[T; 4],
+        input: &[T; 2],
+        h_s: f64,
+        power: impl Fn(T, T) -> T,
+    ) -> StepJacobians<T, 4, 2> {
+        let (zero, one, h) = (T::splat(0.0), T::splat(1.0), T::splat(h_s));
+        let [x, y, yaw, v] = *state;
+        let f = input[0].clamp(-one, one);
+        let d = input[1].clamp(-one, one) + p[8];
+        let gain = p[0] * (one + p[1] * d * d);
+        let s = gain * v;
+        let (sin, cos) = (yaw + p[2] * d + p[9]).sin_cos();
+        let motor = p[5] + p[6] * p[GREYBOX_VOLTAGE];
+        let magnitude = power(f.abs(), p[7]);
+        let sign = T::select(f.ge(zero), one, -one);
+        let next = [
+            x + h * s * cos,
+            y + h * s * sin,
+            yaw + h * p[3] * v * d,
+            v + h * (p[4] * v + motor * sign * magnitude),
+        ];
+        let a = [
+            [one, zero, -h * s * sin, h * gain * cos],
+            [zero, one, h * s * cos, h * gain * sin],
+            [zero, zero, one, h * p[3] * d],
+            [zero, zero, zero, one + h * p[4]],
+        ];
+        let ds = T::splat(2.0) * p[0] * p[1] * d * v;
+        let motor_slope = T::select(f.eq(zero), zero, motor * p[7] * magnitude / f.abs());
+        let b = [
+            [zero, h * (ds * cos - s * sin * p[2])],
+            [zero, h * (ds * sin + s * cos * p[2])],
+            [zero, h * p[3] * v],
+            [h * motor_slope, zero],
+        ];
+        (next, a, b)
     }
 }
 
