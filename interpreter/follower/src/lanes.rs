@@ -12,10 +12,10 @@ use crate::model::{MODEL_NUMBERS, RealModel};
 use crate::mpc::{CONTROL_MOVES, MpcConfig, PREDICTION_STEPS};
 
 /// `L` models' numbers and input bounds, lane by lane.
-pub struct LanesPrediction<M, const L: usize> {
+pub struct LanesPrediction<M, const NU: usize, const L: usize> {
     numbers: [Lanes<L>; MODEL_NUMBERS],
-    lower: Vec<Lanes<L>>,
-    upper: Vec<Lanes<L>>,
+    lower: [Lanes<L>; NU],
+    upper: [Lanes<L>; NU],
     model: std::marker::PhantomData<M>,
 }
 
@@ -25,7 +25,7 @@ fn gather<const L: usize>(value: impl Fn(usize) -> f64) -> Lanes<L> {
 }
 
 impl<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const L: usize> Prediction<Lanes<L>, NX, NU>
-    for LanesPrediction<M, L>
+    for LanesPrediction<M, NU, L>
 {
     #[inline(always)]
     fn step_jacobians(
@@ -49,10 +49,7 @@ impl<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const L: usize> Pre
 
     #[inline(always)]
     fn input_bounds(&self) -> ([Lanes<L>; NU], [Lanes<L>; NU]) {
-        (
-            std::array::from_fn(|i| self.lower[i]),
-            std::array::from_fn(|i| self.upper[i]),
-        )
+        (self.lower, self.upper)
     }
 }
 
@@ -79,10 +76,10 @@ pub fn solve_lanes<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const
 ) -> [GradientResult<NU>; L] {
     let numbers = models.map(|m| m.numbers());
     let limits = models.map(|m| m.input_limits());
-    let prediction = LanesPrediction::<M, L> {
+    let prediction = LanesPrediction::<M, NU, L> {
         numbers: std::array::from_fn(|k| gather(|i| numbers[i][k])),
-        lower: (0..NU).map(|k| gather(|i| limits[i].lower[k])).collect(),
-        upper: (0..NU).map(|k| gather(|i| limits[i].upper[k])).collect(),
+        lower: std::array::from_fn(|k| gather(|i| limits[i].lower[k])),
+        upper: std::array::from_fn(|k| gather(|i| limits[i].upper[k])),
         model: std::marker::PhantomData,
     };
     let x0: [Lanes<L>; NX] = std::array::from_fn(|k| gather(|i| problems[i].x0[k]));
@@ -205,7 +202,6 @@ mod tests {
                     "momentum"
                 );
             }
-            assert_eq!(PREDICTION_STEPS, together[0].predicted_m.len());
         }
     }
 }
