@@ -24,7 +24,7 @@ use cpmx_vehicle::{BicycleState, VehicleParams};
 use crate::engine::{Engine, RunError, RunInputs};
 use cpmx_stack::{
     CONTROL_PERIOD_NS, CONTROL_PERIOD_S, DecisionSchedule, RUN_START_NS, StampedState, VehicleStack,
-    anchor_ns, max_state_age_ns, trajectory_points,
+    anchor_ns, max_state_age_ns, step_together, trajectory_points,
 };
 
 /// The lab's control stack around simulated vehicles.
@@ -118,9 +118,7 @@ impl Engine for TwinEngine {
             // The vehicles' 50 Hz loops until the next policy period.
             for sub in 0..schedule.periods_after(u64::from(tick)) {
                 let now_ns = tick_ns + sub * CONTROL_PERIOD_NS;
-                for vehicle in &mut vehicles {
-                    vehicle.step(now_ns);
-                }
+                step_together(vehicles.iter_mut().map(|vehicle| (vehicle, now_ns)));
             }
 
             if spec.on_collision == OnCollision::EndRun

@@ -30,7 +30,7 @@ use cpmx_safety::layer::LayerFilter;
 use cpmx_spec::model::{DrawnFidelity, Lookahead, SimulatedFidelity};
 use cpmx_stack::{
     CONTROL_PERIOD_NS, CONTROL_PERIOD_S, InitialState, RUN_START_NS, StampedState, VehicleStack, anchor_ns,
-    control_periods, max_state_age_ns, trajectory_points,
+    control_periods, max_state_age_ns, step_together, trajectory_points,
 };
 use cpmx_vehicle::{BicycleState, Command, Footprint, KinematicBicycle, VehicleParams, footprint_corners};
 use rand::{Rng, SeedableRng};
@@ -280,12 +280,22 @@ impl StackWorld {
                 .map(|s| footprint_corners(vehicle, s.x_m, s.y_m, s.yaw_rad))
                 .collect(),
         );
-        let mut out = Vec::with_capacity(self.vehicles.len());
         for ((v, listed), trajectory) in self.vehicles.iter_mut().zip(&self.listed).zip(&trajectories) {
             let anchor = anchor_ns(listed.create_ns, v.clock_ns, self.max_age_ns);
             let points = trajectory_points(trajectory, anchor, self.dt_ns);
-            follow(&mut v.stack, v.clock_ns, &points, self.substeps);
+            v.stack.receive(points.clone(), v.clock_ns, v.clock_ns);
             v.received.push((v.clock_ns, points));
+        }
+        // The vehicles' 50 Hz loops for the period, their MPCs solved together.
+        for sub in 0..self.substeps as u64 {
+            step_together(
+                self.vehicles
+                    .iter_mut()
+                    .map(|v| (&mut v.stack, v.clock_ns + sub * CONTROL_PERIOD_NS)),
+            );
+        }
+        let mut out = Vec::with_capacity(self.vehicles.len());
+        for v in &mut self.vehicles {
             v.clock_ns += self.dt_ns;
             let sample = v.stack.true_sample();
             let along =
@@ -443,7 +453,7 @@ impl StackWorld {
 fn follow(stack: &mut VehicleStack, tick_ns: u64, points: &[TrajectoryPoint], substeps: usize) {
     stack.receive(points.to_vec(), tick_ns, tick_ns);
     for sub in 0..substeps as u64 {
-        stack.step(tick_ns + sub * CONTROL_PERIOD_NS);
+        step_together([(&mut *stack, tick_ns + sub * CONTROL_PERIOD_NS)]);
     }
 }
 

@@ -27,8 +27,9 @@
 
 use thiserror::Error;
 
+use crate::gradient::GradientResult;
 use crate::model::Model;
-use crate::mpc::{Mpc, Rejection};
+use crate::mpc::{Begun, Mpc, Pending, Rejection, Solution};
 use crate::trajectory::Trajectory;
 
 /// Commands received but not yet valid are kept up to this many (the oldest by creation
@@ -163,15 +164,58 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Follower<M, NX, NU> {
     }
 
     /// One control period at `t_now_ns`: the input to apply and the status.
+    ///
+    /// The same as [`Follower::begin`], the MPC's pending problem solved alone, then
+    /// [`Follower::finish`].
     pub fn control(&mut self, t_now_ns: u64, estimate: &StateEstimate<NX>) -> Output<NU> {
+        match self.begin(t_now_ns, estimate) {
+            Begun::Decided(output) => output,
+            Begun::Gradient(pending) => {
+                let result = self.mpc.solve_pending(&pending);
+                self.finish(&pending, result)
+            }
+        }
+    }
+
+    /// The first half of [`Follower::control`]: the command in force, the controller's own
+    /// stops, and the MPC's decision up to its gradient solve ([`Mpc::begin`]), so that
+    /// several vehicles' problems can be solved together before each [`Follower::finish`]es.
+    pub fn begin(&mut self, t_now_ns: u64, estimate: &StateEstimate<NX>) -> Begun<Output<NU>, NX, NU> {
         self.activate_commands(t_now_ns);
-        match self.decide(t_now_ns, estimate) {
-            Ok(input) => Output {
-                input,
+        let trajectory = match command_to_follow(self.current.as_ref(), &self.config, t_now_ns, estimate) {
+            Ok(trajectory) => trajectory,
+            Err(reason) => return Begun::Decided(self.output(&estimate.state, Err(reason))),
+        };
+        match self.mpc.begin(t_now_ns, &estimate.state, trajectory) {
+            Begun::Decided(decision) => {
+                Begun::Decided(self.output(&estimate.state, decision.map_err(Into::into)))
+            }
+            Begun::Gradient(pending) => Begun::Gradient(pending),
+        }
+    }
+
+    /// The MPC, for a solve of its pending problem together with other vehicles'
+    /// ([`Mpc::gradient_parts`]).
+    pub fn mpc_mut(&mut self) -> &mut Mpc<M, NX, NU> {
+        &mut self.mpc
+    }
+
+    /// The second half of [`Follower::control`]: the gradient solver's `result` for the
+    /// MPC's `pending` problem, checked by the MPC; the input to apply and the status.
+    pub fn finish(&mut self, pending: &Pending<NX, NU>, result: GradientResult<NU>) -> Output<NU> {
+        let decision = self.mpc.finish(pending, result).map_err(Into::into);
+        self.output(&pending.state, decision)
+    }
+
+    /// The output of a decision: the MPC's input, or the model's stop input for `state`.
+    fn output(&self, state: &[f64; NX], decision: Result<Solution<NU>, StopReason>) -> Output<NU> {
+        match decision {
+            Ok(solution) => Output {
+                input: solution.input,
                 status: Status::Following,
             },
             Err(reason) => Output {
-                input: self.mpc.model().stop_input(&estimate.state),
+                input: self.mpc.model().stop_input(state),
                 status: Status::Stopped(reason),
             },
         }
@@ -197,23 +241,27 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Follower<M, NX, NU> {
             }
         }
     }
+}
 
-    /// The MPC input, or why the car must stop: the controller's own stops first, without
-    /// calling the MPC, then the MPC's decision.
-    fn decide(&mut self, t_now_ns: u64, estimate: &StateEstimate<NX>) -> Result<[f64; NU], StopReason> {
-        let command = self.current.as_ref().ok_or(StopReason::NoCommand)?;
-        let age_ns = t_now_ns.saturating_sub(command.valid_after_ns);
-        let fresh = age_ns < self.config.command_timeout_ns;
-        if !fresh {
-            return Err(StopReason::StaleCommand { age_ns });
-        }
-        let ips_lost = estimate.ips_update_age_ns > self.config.ips_timeout_ns;
-        if ips_lost {
-            return Err(StopReason::LostIps {
-                age_ns: estimate.ips_update_age_ns,
-            });
-        }
-        let solution = self.mpc.solve(t_now_ns, &estimate.state, &command.trajectory)?;
-        Ok(solution.input)
+/// The trajectory of the command in force, or why the car must stop without calling its MPC
+/// (no command, a stale one, lost IPS).
+fn command_to_follow<'a, const NX: usize>(
+    current: Option<&'a TrajectoryCommand>,
+    config: &FollowerConfig,
+    t_now_ns: u64,
+    estimate: &StateEstimate<NX>,
+) -> Result<&'a Trajectory, StopReason> {
+    let command = current.ok_or(StopReason::NoCommand)?;
+    let age_ns = t_now_ns.saturating_sub(command.valid_after_ns);
+    let fresh = age_ns < config.command_timeout_ns;
+    if !fresh {
+        return Err(StopReason::StaleCommand { age_ns });
     }
+    let ips_lost = estimate.ips_update_age_ns > config.ips_timeout_ns;
+    if ips_lost {
+        return Err(StopReason::LostIps {
+            age_ns: estimate.ips_update_age_ns,
+        });
+    }
+    Ok(&command.trajectory)
 }

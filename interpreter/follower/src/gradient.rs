@@ -112,7 +112,9 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Prediction<f64, NX, NU>
 }
 
 /// Runs the lab's iterations from `warm` (updated in place) for the delay-compensated state
-/// `x0` and the reference positions `reference_m`.
+/// `x0` and the reference positions `reference_m`. (Inlined always: in lanes it is compiled
+/// inside `lanes.rs`'s functions for the CPU's vector extensions.)
+#[inline(always)]
 pub fn solve<T: Real, P: Prediction<T, NX, NU>, const NX: usize, const NU: usize>(
     prediction: &P,
     config: &MpcConfig<NU>,
@@ -153,6 +155,7 @@ pub type ObjectiveAndGradient<T, const NU: usize> = (T, [[T; NU]; CONTROL_MOVES]
 
 /// The lab's objective `Σ wₖ²·|p(xₖ) − rₖ|² + Σᵢ Rᵢ·Σⱼ (uⱼ,ᵢ − uⱼ₋₁,ᵢ)²` (u₋₁ = the previous
 /// input), its gradient with respect to the moves, and the predicted positions.
+#[inline(always)]
 pub fn objective_and_gradient<T: Real, P: Prediction<T, NX, NU>, const NX: usize, const NU: usize>(
     prediction: &P,
     config: &MpcConfig<NU>,

@@ -5,18 +5,38 @@
 //! This module owns gathering and scattering; the iteration and the model's step are
 //! `gradient.rs`'s and the model's.
 
+use std::cell::Cell;
+
 use cpmx_math::{Lanes, Real};
 
 use crate::gradient::{self, GradientResult, Prediction, StepJacobians, WarmStart};
-use crate::model::{MODEL_NUMBERS, RealModel};
-use crate::mpc::{CONTROL_MOVES, MpcConfig, PREDICTION_STEPS};
+use crate::model::{MODEL_NUMBERS, Power, RealModel};
+use crate::mpc::{CONTROL_MOVES, MpcConfig, PREDICTION_STEPS, Problem};
 
 /// `L` models' numbers and input bounds, lane by lane.
 pub struct LanesPrediction<M, const NU: usize, const L: usize> {
     numbers: [Lanes<L>; MODEL_NUMBERS],
     lower: [Lanes<L>; NU],
     upper: [Lanes<L>; NU],
+    /// The last powers computed, by the bits of their bases (see [`Power`]).
+    last_power: Cell<([u64; L], Lanes<L>)>,
     model: std::marker::PhantomData<M>,
+}
+
+impl<M, const NU: usize, const L: usize> Power<Lanes<L>> for LanesPrediction<M, NU, L> {
+    /// `x^y` of each lane, remembered from the call before when every lane's base is the one
+    /// before (the exponents are the models' numbers, fixed for a solve).
+    #[inline(always)]
+    fn power(&self, x: Lanes<L>, y: Lanes<L>) -> Lanes<L> {
+        let (bits, power) = self.last_power.get();
+        let base = x.0.map(f64::to_bits);
+        if bits == base {
+            return power;
+        }
+        let power = x.pow(y);
+        self.last_power.set((base, power));
+        power
+    }
 }
 
 /// Lane `i` of `L` values `value(i)`.
@@ -34,7 +54,7 @@ impl<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const L: usize> Pre
         input: &[Lanes<L>; NU],
         h_s: f64,
     ) -> StepJacobians<Lanes<L>, NX, NU> {
-        M::predict(&self.numbers, state, input, h_s, Real::pow)
+        M::predict(&self.numbers, state, input, h_s, self)
     }
 
     #[inline(always)]
@@ -53,22 +73,60 @@ impl<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const L: usize> Pre
     }
 }
 
-/// One vehicle's problem: what [`gradient::solve`] takes besides the model and the
-/// configuration.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Problem<const NX: usize, const NU: usize> {
-    /// The delay-compensated state.
-    pub x0: [f64; NX],
-    /// The reference positions [m].
-    pub reference_m: [[f64; 2]; PREDICTION_STEPS],
-    /// The input the first move is penalised against.
-    pub previous_input: [f64; NU],
-}
-
 /// Solves `L` vehicles' problems together, each with its model and warm start (updated as
 /// [`gradient::solve`] updates one): the results and warm starts have the bits of `L` separate
 /// solves. All share `config` (the lab's).
 pub fn solve_lanes<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const L: usize>(
+    models: [&M; L],
+    config: &MpcConfig<NU>,
+    problems: &[Problem<NX, NU>; L],
+    warm: [&mut WarmStart<NU>; L],
+) -> [GradientResult<NU>; L] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512dq")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+        {
+            // SAFETY: the CPU has these extensions (checked above).
+            return unsafe { solve_lanes_avx512(models, config, problems, warm) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked above).
+            return unsafe { solve_lanes_avx2(models, config, problems, warm) };
+        }
+    }
+    solve_lanes_portable(models, config, problems, warm)
+}
+
+/// [`solve_lanes`] compiled for AVX-512 (F, DQ for the conversions between integers and
+/// doubles, VL for the narrower vectors).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2")]
+fn solve_lanes_avx512<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const L: usize>(
+    models: [&M; L],
+    config: &MpcConfig<NU>,
+    problems: &[Problem<NX, NU>; L],
+    warm: [&mut WarmStart<NU>; L],
+) -> [GradientResult<NU>; L] {
+    solve_lanes_portable(models, config, problems, warm)
+}
+
+/// [`solve_lanes`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn solve_lanes_avx2<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const L: usize>(
+    models: [&M; L],
+    config: &MpcConfig<NU>,
+    problems: &[Problem<NX, NU>; L],
+    warm: [&mut WarmStart<NU>; L],
+) -> [GradientResult<NU>; L] {
+    solve_lanes_portable(models, config, problems, warm)
+}
+
+/// [`solve_lanes`]'s body, inlined into each variant.
+#[inline(always)]
+fn solve_lanes_portable<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const L: usize>(
     models: [&M; L],
     config: &MpcConfig<NU>,
     problems: &[Problem<NX, NU>; L],
@@ -80,6 +138,7 @@ pub fn solve_lanes<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const
         numbers: std::array::from_fn(|k| gather(|i| numbers[i][k])),
         lower: std::array::from_fn(|k| gather(|i| limits[i].lower[k])),
         upper: std::array::from_fn(|k| gather(|i| limits[i].upper[k])),
+        last_power: Cell::new(([f64::NAN.to_bits(); L], Lanes::splat(f64::NAN))),
         model: std::marker::PhantomData,
     };
     let x0: [Lanes<L>; NX] = std::array::from_fn(|k| gather(|i| problems[i].x0[k]));
@@ -104,6 +163,71 @@ pub fn solve_lanes<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const
         objective: result.objective.0[i],
         predicted_m: result.predicted_m.map(|p| p.map(|v| v.0[i])),
     })
+}
+
+/// One MPC's share of a solve together with others ([`solve_together`]): its model,
+/// configuration and warm start ([`crate::Mpc::gradient_parts`]) and its pending problem.
+pub struct LaneJob<'a, M, const NX: usize, const NU: usize> {
+    /// The MPC's model.
+    pub model: &'a M,
+    /// The MPC's configuration.
+    pub config: &'a MpcConfig<NU>,
+    /// The MPC's warm start, updated by the solve.
+    pub warm: &'a mut WarmStart<NU>,
+    /// The problem [`crate::Mpc::begin`] left pending.
+    pub problem: &'a Problem<NX, NU>,
+}
+
+/// The most problems solved side by side in one pass (eight `f64` lanes fill an AVX-512
+/// register).
+pub const WIDEST_LANES: usize = 8;
+
+/// Solves every job's problem with its own model and warm start, in order: runs of up to
+/// eight jobs with equal configurations at a time, in 1, 2, 4 or 8 lanes (the fewest that hold
+/// the run; lanes beyond it solve a copy of its first job, and their results are dropped). Each
+/// result and warm start has the bits of the job's own solve.
+pub fn solve_together<M: RealModel<NX, NU>, const NX: usize, const NU: usize>(
+    jobs: &mut [LaneJob<'_, M, NX, NU>],
+) -> Vec<GradientResult<NU>> {
+    let mut results = Vec::with_capacity(jobs.len());
+    let mut rest = jobs;
+    while let Some(first) = rest.first() {
+        let alike = rest
+            .iter()
+            .take(WIDEST_LANES)
+            .take_while(|job| job.config == first.config)
+            .count();
+        let (chunk, tail) = rest.split_at_mut(alike);
+        match alike.next_power_of_two() {
+            1 => results.extend(solve_chunk::<M, NX, NU, 1>(chunk)),
+            2 => results.extend(solve_chunk::<M, NX, NU, 2>(chunk)),
+            4 => results.extend(solve_chunk::<M, NX, NU, 4>(chunk)),
+            _ => results.extend(solve_chunk::<M, NX, NU, 8>(chunk)),
+        }
+        rest = tail;
+    }
+    results
+}
+
+/// Up to `L` jobs of one configuration solved in `L` lanes; the results of the jobs given.
+fn solve_chunk<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const L: usize>(
+    chunk: &mut [LaneJob<'_, M, NX, NU>],
+) -> impl Iterator<Item = GradientResult<NU>> {
+    let n = chunk.len();
+    debug_assert!((1..=L).contains(&n));
+    let job = |i: usize| &chunk[if i < n { i } else { 0 }];
+    let models: [&M; L] = std::array::from_fn(|i| job(i).model);
+    let problems: [Problem<NX, NU>; L] = std::array::from_fn(|i| *job(i).problem);
+    let config = *chunk[0].config;
+    // The padding lanes' warm starts are copies, whatever becomes of them.
+    let mut padding: [WarmStart<NU>; L] = std::array::from_fn(|_| *chunk[0].warm);
+    let mut own = chunk.iter_mut().map(|job| &mut *job.warm);
+    let mut spare = padding.iter_mut();
+    let warm: [&mut WarmStart<NU>; L] = std::array::from_fn(|_| match own.next() {
+        Some(warm) => warm,
+        None => spare.next().expect("L warm starts"),
+    });
+    solve_lanes(models, &config, &problems, warm).into_iter().take(n)
 }
 
 #[cfg(test)]
@@ -201,6 +325,44 @@ mod tests {
                     bits(&own_warm[i].momentum),
                     "momentum"
                 );
+            }
+        }
+    }
+
+    /// The variants compiled for each vector extension this CPU has give the portable code's
+    /// bits (what runs elsewhere gives what runs here).
+    #[test]
+    fn every_vector_extension_gives_the_portable_bits() {
+        let mut rng = ChaCha8Rng::seed_from_u64(12);
+        let config = MpcConfig::lab(BICYCLE_MOVE_WEIGHTS);
+        let vehicle = BicycleModel {
+            bicycle: KinematicBicycle::new(VehicleParams::MU_CAR),
+        };
+        let mut portable: [WarmStart<2>; 8] = std::array::from_fn(|_| WarmStart::reset());
+        #[cfg(target_arch = "x86_64")]
+        let (mut avx2, mut avx512) = (portable, portable);
+        for period in 0..20 {
+            let problems: [Problem<5, 2>; 8] = std::array::from_fn(|_| problem(&mut rng));
+            let models = [&vehicle; 8];
+            let expected = solve_lanes_portable(models, &config, &problems, portable.each_mut());
+            let expected: Vec<u64> = expected.iter().flat_map(|r| bits(&r.moves)).collect();
+            #[cfg(target_arch = "x86_64")]
+            {
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU has AVX2 (checked above).
+                    let got = unsafe { solve_lanes_avx2(models, &config, &problems, avx2.each_mut()) };
+                    let got: Vec<u64> = got.iter().flat_map(|r| bits(&r.moves)).collect();
+                    assert_eq!(got, expected, "period {period}: AVX2");
+                }
+                let avx512_here = std::arch::is_x86_feature_detected!("avx512f")
+                    && std::arch::is_x86_feature_detected!("avx512dq")
+                    && std::arch::is_x86_feature_detected!("avx512vl");
+                if avx512_here {
+                    // SAFETY: the CPU has these extensions (checked above).
+                    let got = unsafe { solve_lanes_avx512(models, &config, &problems, avx512.each_mut()) };
+                    let got: Vec<u64> = got.iter().flat_map(|r| bits(&r.moves)).collect();
+                    assert_eq!(got, expected, "period {period}: AVX-512");
+                }
             }
         }
     }

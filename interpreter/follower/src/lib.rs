@@ -38,13 +38,14 @@ pub use gradient::{
     GRADIENT_ITERATIONS, GradientResult, LEARNING_RATE, MOMENTUM_RATE, Prediction, RESET_VALUE,
     ScalarPrediction, StepJacobians, WarmStart,
 };
-pub use lanes::{LanesPrediction, Problem, solve_lanes};
+pub use lanes::{LaneJob, LanesPrediction, WIDEST_LANES, solve_lanes, solve_together};
 pub use model::{
-    BicycleModel, InputLimits, LOW_SPEED_MPS, MODEL_NUMBERS, Model, RealModel, as_matrices, unwrap_near,
+    BicycleModel, Computed, InputLimits, LOW_SPEED_MPS, MODEL_NUMBERS, Model, Power, RealModel, as_matrices,
+    unwrap_near,
 };
 pub use mpc::{
-    BICYCLE_MOVE_WEIGHTS, CONTROL_MOVES, LAB_MOVE_WEIGHTS, Mpc, MpcConfig, PREDICTION_STEPS, Rejection,
-    Solution, Solver,
+    BICYCLE_MOVE_WEIGHTS, Begun, CONTROL_MOVES, LAB_MOVE_WEIGHTS, Mpc, MpcConfig, PREDICTION_STEPS, Pending,
+    Problem, Rejection, Solution, Solver,
 };
 pub use qp::FEEDFORWARD_PULL;
 pub use trajectory::{Trajectory, TrajectoryError, TrajectoryPoint, TrajectorySample, seconds_from_ns};

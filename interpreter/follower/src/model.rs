@@ -84,14 +84,34 @@ pub trait RealModel<const NX: usize, const NU: usize>: Model<NX, NU> {
     fn numbers(&self) -> [f64; MODEL_NUMBERS];
 
     /// The state after holding `input` for `h_s` from `state`, with its Jacobians, for the
-    /// numbers `n`; `power(x, y)` is `x^y` (a scalar model may remember its last power).
+    /// numbers `n`; `power.power(x, y)` is `x^y` (computed, or remembered from the call before).
     fn predict<T: Real>(
         n: &[T; MODEL_NUMBERS],
         state: &[T; NX],
         input: &[T; NU],
         h_s: f64,
-        power: impl Fn(T, T) -> T,
+        power: &impl Power<T>,
     ) -> StepJacobians<T, NX, NU>;
+}
+
+/// `x^y` where a model's step needs it ([`RealModel::predict`]): computed each time
+/// ([`Computed`]), or remembered from the call before, as the prediction holds each move for
+/// two steps (every second power is then the one before: the same call, the same bits). A
+/// trait rather than a closure, so that it is inlined into the step, also in lanes.
+pub trait Power<T> {
+    /// `x^y` ([`cpmx_math::pow`]).
+    fn power(&self, x: T, y: T) -> T;
+}
+
+/// `x^y` computed each time.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Computed;
+
+impl<T: Real> Power<T> for Computed {
+    #[inline(always)]
+    fn power(&self, x: T, y: T) -> T {
+        x.pow(y)
+    }
 }
 
 /// `predict`'s Jacobians as nalgebra's matrices (for [`Model::step_jacobians`]).
@@ -269,7 +289,7 @@ impl Model<5, 2> for BicycleModel {
         input: &[f64; 2],
         h: f64,
     ) -> ([f64; 5], SMatrix<f64, 5, 5>, SMatrix<f64, 5, 2>) {
-        as_matrices(Self::predict(&self.numbers(), state, input, h, cpmx_math::pow))
+        as_matrices(Self::predict(&self.numbers(), state, input, h, &Computed))
     }
 
     fn position_jacobian(&self, _: &[f64; 5]) -> SMatrix<f64, 2, 5> {
@@ -300,7 +320,7 @@ impl RealModel<5, 2> for BicycleModel {
         state: &[T; 5],
         input: &[T; 2],
         h_s: f64,
-        _power: impl Fn(T, T) -> T,
+        _power: &impl Power<T>,
     ) -> StepJacobians<T, 5, 2> {
         let (zero, one, h) = (T::splat(0.0), T::splat(1.0), T::splat(h_s));
         let (k, wheelbase) = (n[BICYCLE_REAR_RATIO], n[BICYCLE_WHEELBASE]);

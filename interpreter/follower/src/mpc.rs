@@ -49,7 +49,7 @@ use std::collections::VecDeque;
 
 use thiserror::Error;
 
-use crate::gradient::{self, WarmStart};
+use crate::gradient::{self, GradientResult, WarmStart};
 use crate::model::Model;
 use crate::qp::{self, QpCache};
 use crate::trajectory::Trajectory;
@@ -302,14 +302,86 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
     /// shifted in; a refused reference leaves the history as it was; a rejection after
     /// optimising shifts in the model's stop input for `state`; every rejection resets the
     /// warm start.
+    ///
+    /// The same as [`Mpc::begin`], the pending problem solved alone, then [`Mpc::finish`].
     pub fn solve(
         &mut self,
         t_now_ns: u64,
         state: &[f64; NX],
         trajectory: &Trajectory,
     ) -> Result<Solution<NU>, Rejection> {
-        let result = self.decide(t_now_ns, state, trajectory);
-        match &result {
+        match self.begin(t_now_ns, state, trajectory) {
+            Begun::Decided(decision) => decision,
+            Begun::Gradient(pending) => {
+                let result = self.solve_pending(&pending);
+                self.finish(&pending, result)
+            }
+        }
+    }
+
+    /// The first half of [`Mpc::solve`]: the decision up to the gradient solver's iterations,
+    /// so that several vehicles' problems can be solved together
+    /// ([`crate::solve_lanes`] with [`Mpc::gradient_parts`]) before each [`Mpc::finish`]es
+    /// its own. A decision that needs no gradient solve (a refused reference, a non-finite
+    /// state, the QP solver) is taken here, its history and warm start updated.
+    pub fn begin(
+        &mut self,
+        t_now_ns: u64,
+        state: &[f64; NX],
+        trajectory: &Trajectory,
+    ) -> Begun<Result<Solution<NU>, Rejection>, NX, NU> {
+        match self.prepare(t_now_ns, state, trajectory) {
+            Ok(Prepared::Gradient(problem)) => Begun::Gradient(Pending {
+                problem,
+                state: *state,
+            }),
+            Ok(Prepared::Solved(solution)) => Begun::Decided(self.conclude(state, self.checked(solution))),
+            Err(rejection) => Begun::Decided(self.conclude(state, Err(rejection))),
+        }
+    }
+
+    /// The pending problem solved by this MPC alone (the lab's 20 gradient steps).
+    pub fn solve_pending(&mut self, pending: &Pending<NX, NU>) -> GradientResult<NU> {
+        let p = &pending.problem;
+        gradient::solve(
+            &gradient::ScalarPrediction(&self.model),
+            &self.config,
+            &p.x0,
+            &p.reference_m,
+            &p.previous_input,
+            &mut self.warm,
+        )
+    }
+
+    /// What a solve of this MPC's pending problem needs besides the problem: the model, the
+    /// configuration and the warm start it updates.
+    pub fn gradient_parts(&mut self) -> (&M, &MpcConfig<NU>, &mut WarmStart<NU>) {
+        (&self.model, &self.config, &mut self.warm)
+    }
+
+    /// The second half of [`Mpc::solve`]: the gradient solver's `result` for `pending`
+    /// checked and remembered (objective check, input history, warm start after a rejection).
+    pub fn finish(
+        &mut self,
+        pending: &Pending<NX, NU>,
+        result: GradientResult<NU>,
+    ) -> Result<Solution<NU>, Rejection> {
+        let solution = Solution {
+            input: result.moves[0],
+            objective: result.objective,
+            predicted_m: result.predicted_m,
+            reference_m: pending.problem.reference_m,
+        };
+        self.conclude(&pending.state, self.checked(solution))
+    }
+
+    /// Remembers a decision as the lab does at the end of `update`.
+    fn conclude(
+        &mut self,
+        state: &[f64; NX],
+        decision: Result<Solution<NU>, Rejection>,
+    ) -> Result<Solution<NU>, Rejection> {
+        match &decision {
             Ok(solution) => self.shift_history(solution.input),
             Err(rejection) => {
                 // `reset_optimizer` (`:170`, `:332`).
@@ -319,7 +391,7 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
                 }
             }
         }
-        result
+        decision
     }
 
     /// Shifts `input` into the history as the newest output (`MpcController.cxx:186-194`).
@@ -331,14 +403,14 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
         self.previous_input = input;
     }
 
-    /// The lab's `update` up to its shift: battery filter, delay compensation, reference
-    /// window, optimisation, objective check.
-    fn decide(
+    /// The lab's `update` up to its optimisation: battery filter, reference window, delay
+    /// compensation; the QP solved here, the gradient solve's problem handed back.
+    fn prepare(
         &mut self,
         t_now_ns: u64,
         state: &[f64; NX],
         trajectory: &Trajectory,
-    ) -> Result<Solution<NU>, Rejection> {
+    ) -> Result<Prepared<NX, NU>, Rejection> {
         // Filter the battery voltage (`:156`), whatever follows.
         if let Some(measured) = self.battery_measured_v {
             self.battery_filtered_v += self.config.battery_filter_gain * (measured - self.battery_filtered_v);
@@ -354,41 +426,68 @@ impl<M: Model<NX, NU>, const NX: usize, const NU: usize> Mpc<M, NX, NU> {
             return Err(Rejection::NonFiniteState);
         }
         let x0 = self.compensate_delay(state);
-        let solution = match self.config.solver {
-            Solver::Qp => qp::solve(
+        Ok(match self.config.solver {
+            Solver::Qp => Prepared::Solved(qp::solve(
                 &self.model,
                 &self.config,
                 &x0,
                 &samples,
                 &self.previous_input,
                 &mut self.qp,
-            )?,
-            Solver::Gradient => {
-                let reference_m = samples.map(|s| s.position_m);
-                let r = gradient::solve(
-                    &gradient::ScalarPrediction(&self.model),
-                    &self.config,
-                    &x0,
-                    &reference_m,
-                    &self.previous_input,
-                    &mut self.warm,
-                );
-                Solution {
-                    input: r.moves[0],
-                    objective: r.objective,
-                    predicted_m: r.predicted_m,
-                    reference_m,
-                }
-            }
-        };
-
-        // Check the objective (`:256`, `:323-334`).
-        let acceptable = solution.objective < self.config.max_objective;
-        if !acceptable {
-            return Err(Rejection::LargeObjective {
-                objective: solution.objective,
-            });
-        }
-        Ok(solution)
+            )?),
+            Solver::Gradient => Prepared::Gradient(Problem {
+                x0,
+                reference_m: samples.map(|s| s.position_m),
+                previous_input: self.previous_input,
+            }),
+        })
     }
+
+    /// The objective check (`:256`, `:323-334`).
+    fn checked(&self, solution: Solution<NU>) -> Result<Solution<NU>, Rejection> {
+        if solution.objective < self.config.max_objective {
+            Ok(solution)
+        } else {
+            Err(Rejection::LargeObjective {
+                objective: solution.objective,
+            })
+        }
+    }
+}
+
+/// One vehicle's problem for the gradient solver: what [`gradient::solve`] takes besides the
+/// model, the configuration and the warm start.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Problem<const NX: usize, const NU: usize> {
+    /// The delay-compensated state.
+    pub x0: [f64; NX],
+    /// The reference positions [m].
+    pub reference_m: [[f64; 2]; PREDICTION_STEPS],
+    /// The input the first move is penalised against.
+    pub previous_input: [f64; NU],
+}
+
+/// Where the first half of a decision leaves it ([`Mpc::begin`]: `D` the MPC's decision;
+/// `Follower::begin`: the follower's output).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Begun<D, const NX: usize, const NU: usize> {
+    /// Taken without a gradient solve (and remembered).
+    Decided(D),
+    /// Waiting for the gradient solver: hand its result to [`Mpc::finish`].
+    Gradient(Pending<NX, NU>),
+}
+
+/// A decision waiting for its gradient solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pending<const NX: usize, const NU: usize> {
+    /// What the solver takes besides the model.
+    pub problem: Problem<NX, NU>,
+    /// The state estimate the decision is for (a rejection's stop input is the model's for it).
+    pub state: [f64; NX],
+}
+
+/// [`Mpc::prepare`]'s outcome.
+enum Prepared<const NX: usize, const NU: usize> {
+    Solved(Solution<NU>),
+    Gradient(Problem<NX, NU>),
 }

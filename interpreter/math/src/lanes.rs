@@ -190,7 +190,7 @@ macro_rules! pairs {
 }
 
 /// sin and cos of each lane.
-#[inline]
+#[inline(always)]
 pub fn sin_cos_lanes<const N: usize>(x: [f64; N]) -> ([f64; N], [f64; N]) {
     let (mut sin, mut cos) = sin_cos_block(&x);
     sin_cos_fix(&x, &mut sin, &mut cos);
@@ -198,31 +198,31 @@ pub fn sin_cos_lanes<const N: usize>(x: [f64; N]) -> ([f64; N], [f64; N]) {
 }
 
 /// tan x of each lane.
-#[inline]
+#[inline(always)]
 pub fn tan_lanes<const N: usize>(x: [f64; N]) -> [f64; N] {
     tan_block(&x)
 }
 
 /// e^x of each lane.
-#[inline]
+#[inline(always)]
 pub fn exp_lanes<const N: usize>(x: [f64; N]) -> [f64; N] {
     exp_block(&x)
 }
 
 /// x^y of each pair of lanes.
-#[inline]
+#[inline(always)]
 pub fn pow_lanes<const N: usize>(x: [f64; N], y: [f64; N]) -> [f64; N] {
     pow_block(&x, &y)
 }
 
 /// atan2(y, x) of each pair of lanes.
-#[inline]
+#[inline(always)]
 pub fn atan2_lanes<const N: usize>(y: [f64; N], x: [f64; N]) -> [f64; N] {
     atan2_block(&y, &x)
 }
 
 /// hypot(x, y) of each pair of lanes.
-#[inline]
+#[inline(always)]
 pub fn hypot_lanes<const N: usize>(x: [f64; N], y: [f64; N]) -> [f64; N] {
     hypot_block(&x, &y)
 }

@@ -1,5 +1,5 @@
-//! The lab's grey-box MPC for eight vehicles: eight solves one after the other against one
-//! solve of eight lanes (the same bits; `tests/greybox_lanes.rs`). docs/performance.md quotes it:
+//! The lab's grey-box MPC for two, four and eight vehicles: the solves one after the other against
+//! one solve in as many lanes (the same bits; `tests/greybox_lanes.rs`). docs/performance.md quotes it:
 //!
 //!     cargo bench -p cpmx-stack --bench mpc_lanes
 
@@ -12,11 +12,9 @@ use cpmx_stack::GreyBoxMpcModel;
 use cpmx_vehicle::GreyBoxParams;
 use criterion::{Criterion, criterion_group, criterion_main};
 
-fn bench(c: &mut Criterion) {
-    let config = MpcConfig::lab(LAB_MOVE_WEIGHTS);
-    let vehicles: [GreyBoxMpcModel; 8] =
-        std::array::from_fn(|_| GreyBoxMpcModel::new(GreyBoxParams::LAB).expect("the lab's parameters"));
-    let problems: [Problem<4, 2>; 8] = std::array::from_fn(|i| {
+/// `L` grey-box vehicles' problems (speeds, headings and turns of their own).
+fn problems<const L: usize>() -> [Problem<4, 2>; L] {
+    std::array::from_fn(|i| {
         let (speed, yaw) = (0.5 + 0.05 * i as f64, 0.3 * i as f64);
         let x0 = [0.1 * i as f64, -0.2, yaw, speed];
         Problem {
@@ -31,12 +29,20 @@ fn bench(c: &mut Criterion) {
             }),
             previous_input: [0.2, 0.05],
         }
-    });
-    let mut group = c.benchmark_group("grey-box MPC, 8 vehicles");
+    })
+}
+
+/// `L` vehicles' MPCs one by one against `L` lanes.
+fn bench_width<const L: usize>(c: &mut Criterion) {
+    let config = MpcConfig::lab(LAB_MOVE_WEIGHTS);
+    let vehicles: [GreyBoxMpcModel; L] =
+        std::array::from_fn(|_| GreyBoxMpcModel::new(GreyBoxParams::LAB).expect("the lab's parameters"));
+    let problems = problems::<L>();
+    let mut group = c.benchmark_group(format!("grey-box MPC, {L} vehicles"));
     group.bench_function("one by one", |b| {
-        let mut warm: [WarmStart<2>; 8] = std::array::from_fn(|_| WarmStart::reset());
+        let mut warm: [WarmStart<2>; L] = std::array::from_fn(|_| WarmStart::reset());
         b.iter(|| {
-            for i in 0..8 {
+            for i in 0..L {
                 let p = &problems[i];
                 black_box(solve_one(
                     &ScalarPrediction(&vehicles[i]),
@@ -49,8 +55,8 @@ fn bench(c: &mut Criterion) {
             }
         })
     });
-    group.bench_function("in 8 lanes", |b| {
-        let mut warm: [WarmStart<2>; 8] = std::array::from_fn(|_| WarmStart::reset());
+    group.bench_function(format!("in {L} lanes"), |b| {
+        let mut warm: [WarmStart<2>; L] = std::array::from_fn(|_| WarmStart::reset());
         b.iter(|| {
             black_box(solve_lanes(
                 vehicles.each_ref(),
@@ -61,6 +67,13 @@ fn bench(c: &mut Criterion) {
         })
     });
     group.finish();
+}
+
+fn bench(c: &mut Criterion) {
+    bench_width::<1>(c);
+    bench_width::<2>(c);
+    bench_width::<4>(c);
+    bench_width::<8>(c);
 }
 
 criterion_group!(benches, bench);

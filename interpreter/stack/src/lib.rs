@@ -1,6 +1,7 @@
 //! One simulated µCar with the lab's on-board stack, apart from what drives it: the plant
 //! (`plants.rs`: the kinematic bicycle of sim-mpc or the lab's grey-box model of the twin), the
-//! actuation delay, on-car sensing and the 50 Hz MPC trajectory follower (`stack.rs`). The twin
+//! actuation delay, on-car sensing and the 50 Hz MPC trajectory follower (`stack.rs`); several vehicles' steps with their MPCs
+//! solved together in SIMD lanes (`together.rs`). The twin
 //! engine drives several from the planner, `cpmx lab emulate` from trajectories received over
 //! DDS, `cpmx train` in a `control: trajectory` fidelity; none owns the vehicle. Also here: how
 //! plans are timed for the vehicles on their nanosecond clock (`timing.rs`) and how a
@@ -13,6 +14,7 @@ mod plants;
 mod randomise;
 mod stack;
 mod timing;
+mod together;
 
 pub use neighbours::{communication_params, neighbour_knowledge, perception_params};
 pub use plants::GreyBoxMpcModel;
@@ -25,6 +27,7 @@ pub use timing::{
     DecisionSchedule, RUN_START_NS, VEHICLE_LEAD_NS, VEHICLE_LEAD_S, anchor_ns, anchored_time_ns,
     control_periods, duration_ns, max_state_age_ns, trajectory_points,
 };
+pub use together::step_together;
 
 /// Where one agent starts.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -6,8 +6,8 @@
 use std::cell::Cell;
 
 use cpmx_follower::{
-    BicycleModel, InputLimits, MODEL_NUMBERS, Model, RealModel, StepJacobians, TrajectorySample, as_matrices,
-    unwrap_near,
+    BicycleModel, InputLimits, MODEL_NUMBERS, Model, Power, RealModel, StepJacobians, TrajectorySample,
+    as_matrices, unwrap_near,
 };
 use cpmx_math::Real;
 use cpmx_sensing::Pose2;
@@ -31,7 +31,7 @@ pub struct PlantStep<const NX: usize> {
 /// A vehicle model as the twin engine drives it.
 pub trait Plant<const NX: usize, const NU: usize> {
     /// The model its MPC follower predicts with.
-    type Model: Model<NX, NU> + Clone;
+    type Model: RealModel<NX, NU> + Clone;
 
     fn mpc_model(&self) -> Self::Model;
     /// Weights of input moves in the MPC cost.
@@ -255,10 +255,12 @@ impl GreyBoxMpcModel {
             last_power: Cell::new((f64::NAN.to_bits(), f64::NAN)),
         })
     }
+}
 
-    /// `|throttle|^p8`, the motor term's magnitude.
-    #[inline]
-    fn throttle_power(&self, throttle_abs: f64, exponent: f64) -> f64 {
+impl Power<f64> for GreyBoxMpcModel {
+    /// `|throttle|^p8`, the motor term's magnitude, remembered from the call before.
+    #[inline(always)]
+    fn power(&self, throttle_abs: f64, exponent: f64) -> f64 {
         let (bits, power) = self.last_power.get();
         if bits == throttle_abs.to_bits() {
             return power;
@@ -293,9 +295,7 @@ impl Model<4, 2> for GreyBoxMpcModel {
         nalgebra::SMatrix<f64, 4, 4>,
         nalgebra::SMatrix<f64, 4, 2>,
     ) {
-        as_matrices(Self::predict(&self.numbers(), state, input, h, |x, y| {
-            self.throttle_power(x, y)
-        }))
+        as_matrices(Self::predict(&self.numbers(), state, input, h, self))
     }
 
     #[inline]
@@ -384,7 +384,7 @@ impl RealModel<4, 2> for GreyBoxMpcModel {
         state: &[T; 4],
         input: &[T; 2],
         h_s: f64,
-        power: impl Fn(T, T) -> T,
+        power: &impl Power<T>,
     ) -> StepJacobians<T, 4, 2> {
         let (zero, one, h) = (T::splat(0.0), T::splat(1.0), T::splat(h_s));
         let [x, y, yaw, v] = *state;
@@ -394,7 +394,7 @@ impl RealModel<4, 2> for GreyBoxMpcModel {
         let s = gain * v;
         let (sin, cos) = (yaw + p[2] * d + p[9]).sin_cos();
         let motor = p[5] + p[6] * p[GREYBOX_VOLTAGE];
-        let magnitude = power(f.abs(), p[7]);
+        let magnitude = power.power(f.abs(), p[7]);
         let sign = T::select(f.ge(zero), one, -one);
         let next = [
             x + h * s * cos,

@@ -18,8 +18,8 @@
 //! rounded), and the IPS age it reports is rounded back to whole nanoseconds for the follower.
 
 use cpmx_follower::{
-    Follower, FollowerConfig, Mpc, MpcConfig, Solver, StateEstimate, Status, TrajectoryCommand,
-    TrajectoryPoint,
+    Begun, Follower, FollowerConfig, Mpc, MpcConfig, Output, Solver, StateEstimate, Status,
+    TrajectoryCommand, TrajectoryPoint,
 };
 use cpmx_recording::AgentSample;
 use cpmx_sensing::{ActuationDelay, IpsParams, LocalizationParams, OdometryReading, OnCarSensing, Pose2};
@@ -305,6 +305,19 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
     }
 
     fn step(&mut self, now_ns: u64) -> Status {
+        let output = match self.begin_step(now_ns) {
+            Begun::Decided(output) => output,
+            Begun::Gradient(pending) => {
+                let result = self.follower.mpc_mut().solve_pending(&pending);
+                self.follower.finish(&pending, result)
+            }
+        };
+        self.end_step(now_ns, output)
+    }
+
+    /// The first half of a step: the estimate and the follower's decision up to its MPC's
+    /// gradient solve (`together.rs` solves several vehicles' together).
+    pub(crate) fn begin_step(&mut self, now_ns: u64) -> Begun<Output<NU>, NX, NU> {
         let estimate = match &self.sensing {
             Some(sensing) => {
                 let e = sensing.estimate();
@@ -312,13 +325,22 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
             }
             None => self.state,
         };
-        let output = self.follower.control(
+        self.follower.begin(
             now_ns,
             &StateEstimate {
                 state: estimate,
                 ips_update_age_ns: self.ips_update_age_ns(now_ns),
             },
-        );
+        )
+    }
+
+    /// The follower, for a solve of its MPC's pending problem together with other vehicles'.
+    pub(crate) fn follower_mut(&mut self) -> &mut Follower<P::Model, NX, NU> {
+        &mut self.follower
+    }
+
+    /// The second half of a step, with the follower's `output`: delay, move, sense, publish.
+    pub(crate) fn end_step(&mut self, now_ns: u64, output: Output<NU>) -> Status {
         let input = match &mut self.delay {
             Some(delay) => delay.push(output.input),
             None => output.input,

@@ -21,7 +21,7 @@ use cpmx_vehicle::VehicleParams;
 use super::faults::FaultPlan;
 use super::mapping::lab_state;
 use super::safe_stop::is_stop_command;
-use cpmx_stack::{CONTROL_PERIOD_NS, RUN_START_NS, StampedState, VehicleStack};
+use cpmx_stack::{CONTROL_PERIOD_NS, RUN_START_NS, StampedState, VehicleStack, step_together};
 
 /// A vehicle slower than this stands [m/s].
 const STANDING_MPS: f64 = 0.01;
@@ -182,8 +182,8 @@ impl Stage {
                 v.lose_ips(now_ns, lost);
                 self.ips_lost[agent] = lost;
             }
-            v.step(now_ns);
         }
+        step_together(self.vehicles.iter_mut().map(|v| (v, now_ns)));
         self.clock_ns = now_ns + CONTROL_PERIOD_NS;
     }
 
