@@ -125,7 +125,7 @@ pub fn solve<T: Real, P: Prediction<T, NX, NU>, const NX: usize, const NU: usize
 ) -> GradientResult<NU, T> {
     let (lower, upper) = prediction.input_bounds();
     let clip = |moves: &[[T; NU]; CONTROL_MOVES]| {
-        moves.map(|m| std::array::from_fn(|i| m[i].clamp(lower[i], upper[i])))
+        std::array::from_fn(|m| std::array::from_fn(|i| moves[m][i].clamp(lower[i], upper[i])))
     };
     let (momentum_rate, learning_rate) = (T::splat(MOMENTUM_RATE), T::splat(LEARNING_RATE));
     let mut objective = T::splat(f64::INFINITY);

@@ -29,7 +29,7 @@ impl<M, const NU: usize, const L: usize> Power<Lanes<L>> for LanesPrediction<M, 
     #[inline(always)]
     fn power(&self, x: Lanes<L>, y: Lanes<L>) -> Lanes<L> {
         let (bits, power) = self.last_power.get();
-        let base = x.0.map(f64::to_bits);
+        let base: [u64; L] = std::array::from_fn(|i| x.0[i].to_bits());
         if bits == base {
             return power;
         }

@@ -138,7 +138,8 @@ pub struct Lanes<const L: usize>(pub [f64; L]);
 impl<const L: usize> Lanes<L> {
     #[inline(always)]
     fn map(self, f: impl Fn(f64) -> f64) -> Self {
-        Lanes(self.0.map(f))
+        // `from_fn` rather than `array::map`, which is not inlined into the callers' vector code.
+        Lanes(std::array::from_fn(|i| f(self.0[i])))
     }
 
     #[inline(always)]
