@@ -99,29 +99,30 @@ pub fn solve_lanes<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const
     solve_lanes_portable(models, config, problems, warm)
 }
 
-/// [`solve_lanes`] compiled for AVX-512 (F, DQ for the conversions between integers and
-/// doubles, VL for the narrower vectors).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2")]
-fn solve_lanes_avx512<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const L: usize>(
-    models: [&M; L],
-    config: &MpcConfig<NU>,
-    problems: &[Problem<NX, NU>; L],
-    warm: [&mut WarmStart<NU>; L],
-) -> [GradientResult<NU>; L] {
-    solve_lanes_portable(models, config, problems, warm)
+/// Variants of [`solve_lanes`] compiled for vector extensions: the same body
+/// ([`solve_lanes_portable`], inlined), its vectors as wide as the extensions allow.
+macro_rules! compiled_for {
+    ($($(#[doc = $doc:literal])* $name:ident: $features:literal;)*) => {$(
+        $(#[doc = $doc])*
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        fn $name<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const L: usize>(
+            models: [&M; L],
+            config: &MpcConfig<NU>,
+            problems: &[Problem<NX, NU>; L],
+            warm: [&mut WarmStart<NU>; L],
+        ) -> [GradientResult<NU>; L] {
+            solve_lanes_portable(models, config, problems, warm)
+        }
+    )*};
 }
 
-/// [`solve_lanes`] compiled for AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn solve_lanes_avx2<M: RealModel<NX, NU>, const NX: usize, const NU: usize, const L: usize>(
-    models: [&M; L],
-    config: &MpcConfig<NU>,
-    problems: &[Problem<NX, NU>; L],
-    warm: [&mut WarmStart<NU>; L],
-) -> [GradientResult<NU>; L] {
-    solve_lanes_portable(models, config, problems, warm)
+compiled_for! {
+    /// AVX-512 (F; DQ for the conversions between integers and doubles; VL for the narrower
+    /// vectors).
+    solve_lanes_avx512: "avx512f,avx512dq,avx512vl,avx2";
+    /// AVX2.
+    solve_lanes_avx2: "avx2";
 }
 
 /// [`solve_lanes`]'s body, inlined into each variant.
