@@ -159,18 +159,24 @@ pub fn evaluate(
         })
         .collect();
 
-    // How many samples of each agent are measured: with `end_at_path_end`, those up to (and
-    // with) the one that reached the end of an open path; else all.
-    let counted: Vec<usize> = (0..agent_count)
+    // The samples of each agent that are measured: those it is present in (an agent placed
+    // instead of a collided one under `on_collision: replace-agent` comes later, the collided
+    // one leaves), and with `end_at_path_end` only up to (and with) the one that reached the
+    // end of an open path.
+    let measured: Vec<std::ops::Range<usize>> = (0..agent_count)
         .map(|agent| {
+            let present = |row: &Vec<AgentSample>| row[agent].is_present();
+            let Some(first) = states.iter().position(present) else {
+                return 0..0;
+            };
+            let end = states.iter().rposition(present).map_or(first, |last| last + 1);
             if !(config.end_at_path_end && open_paths[agent]) {
-                return states.len();
+                return first..end;
             }
             let line = centre_lines[agent].polyline();
-            states
-                .iter()
-                .position(|row| line.remaining_m([row[agent].x_m, row[agent].y_m]) <= END_REACHED_M)
-                .map_or(states.len(), |k| k + 1)
+            let reached = (first..end)
+                .find(|&k| line.remaining_m([states[k][agent].x_m, states[k][agent].y_m]) <= END_REACHED_M);
+            first..reached.map_or(end, |k| k + 1)
         })
         .collect();
 
@@ -179,12 +185,18 @@ pub fn evaluate(
     let mut agent_events = vec![Vec::new(); agent_count];
     for i in 0..agent_count {
         for j in i + 1..agent_count {
-            let distances_m: Vec<f64> = boxes
+            let both = measured[i].start.max(measured[j].start)..measured[i].end.min(measured[j].end);
+            if both.is_empty() {
+                continue;
+            }
+            let distances_m: Vec<f64> = boxes[both.clone()]
                 .iter()
-                .take(counted[i].min(counted[j]))
                 .map(|row| signed_distance_m(config.cra_a.geometry, &row[i], &row[j]))
                 .collect();
-            for sample in event_samples(&distances_m, config.cra_a.hysteresis) {
+            for sample in event_samples(&distances_m, config.cra_a.hysteresis)
+                .into_iter()
+                .map(|k| k + both.start)
+            {
                 pair_events.push(PairEvent {
                     agents: [i, j],
                     sample,
@@ -205,10 +217,11 @@ pub fn evaluate(
         let mut lane_violation_m = 0.0;
         let mut violation_samples = Vec::new();
         let (mut cd_sum_m, mut speed_sum_mps) = (0.0, 0.0);
-        let counted = counted[agent];
-        for (k, row) in states.iter().enumerate().take(counted) {
-            let s = &row[agent];
-            let step_m = if k == 0 {
+        let measured = measured[agent].clone();
+        let counted = measured.len();
+        for k in measured.clone() {
+            let s = &states[k][agent];
+            let step_m = if k == measured.start {
                 0.0
             } else {
                 let p = &states[k - 1][agent];
@@ -248,14 +261,17 @@ pub fn evaluate(
             f64::NAN
         }
     };
-    let n = agent_count as f64;
+    // Means over the agents measured in at least one sample (every agent, unless agents came
+    // and went).
+    let measured_agents = || agents.iter().filter(|a| !a.cd_m.is_nan());
+    let n = measured_agents().count() as f64;
     Ok(RunMetrics {
         num_samples: kept,
         num_agents: agent_count,
         cra_a: per_distance(a2a_events as f64, config.cra_a.per_distance_m),
         cra_l: per_distance(lane_violation_m, config.cra_l.per_distance_m),
-        cd_m: agents.iter().map(|a| a.cd_m).sum::<f64>() / n,
-        as_mps: agents.iter().map(|a| a.as_mps).sum::<f64>() / n,
+        cd_m: measured_agents().map(|a| a.cd_m).sum::<f64>() / n,
+        as_mps: measured_agents().map(|a| a.as_mps).sum::<f64>() / n,
         a2a_events,
         distance_m,
         lane_violation_m,
@@ -321,6 +337,51 @@ mod tests {
             ref_paths: vec![0; rows.first().map_or(0, Vec::len)],
             samples: rows,
         }
+    }
+
+    #[test]
+    fn an_agent_that_comes_later_is_measured_over_its_own_samples_only() {
+        let lane = Straight::new();
+        let gone = AgentSample::ABSENT;
+        // Agent 0 drives throughout; agent 1 collides with it and leaves after sample 4; agent 2,
+        // placed instead far behind, drives from sample 5 on, 0.04 m off the centre.
+        let rows: Vec<Vec<AgentSample>> = (0..10)
+            .map(|k| {
+                let x = 1.0 + 0.1 * k as f64;
+                let first = sample(x, 0.0, 0.0);
+                let collided = if k < 5 { sample(x + 0.05, 0.01, 0.0) } else { gone };
+                let later = if k >= 5 {
+                    sample(10.0 + 0.2 * k as f64, 0.04, 0.0)
+                } else {
+                    gone
+                };
+                vec![first, collided, later]
+            })
+            .collect();
+        let mut r = recording(rows.clone());
+        let config = MetricsConfig::sigmarl_script(100.0);
+        let m = evaluate(&r, &lane.geometry(), &VehicleParams::MU_CAR, &config).unwrap();
+        // One event between agents 0 and 1, found from their first sample.
+        assert_eq!(m.pair_events.len(), 1, "{:?}", m.pair_events);
+        assert_eq!(m.pair_events[0].agents, [0, 1]);
+        // Agent 2's distance has no jump from nowhere: 4 steps of 0.2 m.
+        assert!(
+            (m.agents[2].distance_m - 0.8).abs() < 1e-12,
+            "{}",
+            m.agents[2].distance_m
+        );
+        assert!((m.agents[1].distance_m - 0.4).abs() < 1e-12);
+        // The means are over the samples present: agent 2's CD is its own 0.04 m.
+        assert!((m.agents[2].cd_m - 0.04).abs() < 1e-12);
+        assert!((m.cd_m - (0.01 + 0.04) / 3.0).abs() < 1e-12);
+        // The same agent alone, with its own five samples, measures the same.
+        r.samples = rows[5..].iter().map(|row| vec![row[2]]).collect();
+        r.times_s.truncate(5);
+        r.ref_paths.truncate(1);
+        let alone = evaluate(&r, &lane.geometry(), &VehicleParams::MU_CAR, &config).unwrap();
+        assert_eq!(alone.agents[0].distance_m, m.agents[2].distance_m);
+        assert_eq!(alone.agents[0].cd_m, m.agents[2].cd_m);
+        assert_eq!(alone.agents[0].as_mps, m.agents[2].as_mps);
     }
 
     #[test]

@@ -18,6 +18,11 @@ pub struct AgentSample {
 }
 
 /// The states of all agents over time: `samples[k][agent]` at `times_s[k]`.
+///
+/// An agent is present over one unbroken range of samples: every agent of most recordings
+/// from the first sample to the last, while under `on_collision: replace-agent` a car that
+/// collided leaves and the car placed instead is a new agent that appears later. Samples of an
+/// absent agent are [`AgentSample::ABSENT`] (NaN), and `trajectory.csv` has no rows for them.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Recording {
     /// Sample times [s] from the run's start, strictly increasing.
@@ -39,6 +44,22 @@ pub struct Recording {
     pub statistics: std::collections::BTreeMap<String, f64>,
 }
 
+impl AgentSample {
+    /// The sample of an agent that is not present at that time.
+    pub const ABSENT: AgentSample = AgentSample {
+        x_m: f64::NAN,
+        y_m: f64::NAN,
+        yaw_rad: f64::NAN,
+        velocity_mps: [f64::NAN; 2],
+        steering_rad: f64::NAN,
+    };
+
+    /// Whether the agent is present in this sample (an absent one's position is NaN).
+    pub fn is_present(&self) -> bool {
+        !self.x_m.is_nan()
+    }
+}
+
 /// Why a trajectory file could not be read.
 #[derive(Debug, thiserror::Error)]
 pub enum RecordingError {
@@ -54,8 +75,13 @@ pub enum RecordingError {
     },
     #[error("line {line}: agent {agent} appears twice at t = {t_s} s")]
     DuplicateSample { line: u64, agent: usize, t_s: f64 },
-    #[error("t = {t_s} s has {found} agents, the recording has {expected}")]
-    MissingAgents { t_s: f64, found: usize, expected: usize },
+    #[error(
+        "agent {agent} is missing at t = {t_s} s, between samples it has (an agent is present \
+         over one unbroken range of times)"
+    )]
+    GapInAgent { agent: usize, t_s: f64 },
+    #[error("agent {agent} has no rows (agents are numbered 0, 1, ... without holes)")]
+    UnusedAgent { agent: usize },
     #[error("line {line}: agent {agent} changes its reference path")]
     RefPathChanged { line: u64, agent: usize },
     #[error("line {line}: time goes backwards")]
@@ -72,13 +98,36 @@ impl Recording {
         self.ref_paths.len()
     }
 
-    /// Writes `trajectory.csv`: one row per sample and agent, in time then agent order.
+    /// The samples `agent` is present in (`first..end`; empty if never).
+    pub fn span(&self, agent: usize) -> std::ops::Range<usize> {
+        let present = |row: &Vec<AgentSample>| row.get(agent).is_some_and(AgentSample::is_present);
+        match self.samples.iter().position(present) {
+            Some(first) => {
+                first
+                    ..self
+                        .samples
+                        .iter()
+                        .rposition(present)
+                        .map_or(first, |last| last + 1)
+            }
+            None => 0..0,
+        }
+    }
+
+    /// Whether every agent is present in every sample (no agent came or left).
+    pub fn is_complete(&self) -> bool {
+        self.samples
+            .iter()
+            .all(|row| row.iter().all(AgentSample::is_present))
+    }
+
+    /// Writes `trajectory.csv`: one row per sample and present agent, in time then agent order.
     /// Floats are written with Rust's shortest round-trip formatting, so reading back is exact.
     pub fn write_csv<W: Write>(&self, out: W) -> Result<(), csv::Error> {
         let mut writer = csv::Writer::from_writer(out);
         writer.write_record(TRAJECTORY_HEADER)?;
         for (t_s, row) in self.times_s.iter().zip(&self.samples) {
-            for (agent, s) in row.iter().enumerate() {
+            for (agent, s) in row.iter().enumerate().filter(|(_, s)| s.is_present()) {
                 let steering = if s.steering_rad.is_nan() {
                     String::new()
                 } else {
@@ -163,9 +212,22 @@ impl Recording {
                 })?,
                 _ => f64::NAN,
             };
+            let position = |index: usize, name: &'static str| -> Result<f64, RecordingError> {
+                // A position must be a number: NaN marks an absent agent in memory.
+                let value = number(index, name)?;
+                if value.is_finite() {
+                    Ok(value)
+                } else {
+                    Err(RecordingError::BadNumber {
+                        line,
+                        column: name,
+                        value: value.to_string(),
+                    })
+                }
+            };
             let sample = AgentSample {
-                x_m: number(x_col, "x")?,
-                y_m: number(y_col, "y")?,
+                x_m: position(x_col, "x")?,
+                y_m: position(y_col, "y")?,
                 yaw_rad: number(yaw_col, "yaw")?,
                 velocity_mps: [number(vx_col, "vx")?, number(vy_col, "vy")?],
                 steering_rad,
@@ -191,31 +253,31 @@ impl Recording {
             }
             let row = recording.samples.last_mut().expect("a row was just opened");
             if row.len() <= agent {
-                row.resize(
-                    agent + 1,
-                    AgentSample {
-                        x_m: f64::NAN,
-                        ..sample
-                    },
-                );
-            } else if !row[agent].x_m.is_nan() {
+                row.resize(agent + 1, AgentSample::ABSENT);
+            } else if row[agent].is_present() {
                 return Err(RecordingError::DuplicateSample { line, agent, t_s });
             }
             row[agent] = sample;
         }
 
-        // Every agent must be present at every time.
+        // Every agent is present over one unbroken range of times (rows of agents that came
+        // later or left earlier are absent).
         let agent_count = ref_paths.len();
         if agent_count == 0 || recording.times_s.is_empty() {
             return Err(RecordingError::Empty);
         }
-        for (t_s, row) in recording.times_s.iter().zip(&recording.samples) {
-            let found = row.iter().filter(|s| !s.x_m.is_nan()).count();
-            if found != agent_count {
-                return Err(RecordingError::MissingAgents {
-                    t_s: *t_s,
-                    found,
-                    expected: agent_count,
+        for row in &mut recording.samples {
+            row.resize(agent_count, AgentSample::ABSENT);
+        }
+        for (agent, ref_path) in ref_paths.iter().enumerate() {
+            if ref_path.is_none() {
+                return Err(RecordingError::UnusedAgent { agent });
+            }
+            let span = recording.span(agent);
+            if let Some(k) = span.clone().find(|&k| !recording.samples[k][agent].is_present()) {
+                return Err(RecordingError::GapInAgent {
+                    agent,
+                    t_s: recording.times_s[k],
                 });
             }
         }
@@ -260,18 +322,61 @@ mod tests {
     }
 
     #[test]
-    fn a_missing_agent_is_an_error() {
-        let text = "t,agent,x,y,yaw,vx,vy,steering,ref_path\n0,0,1,1,0,0,0,,3\n0,1,1,1,0,0,0,,3\n0.1,0,1,1,0,0,0,,3\n";
+    fn agents_may_come_late_and_leave_early_and_round_trip() {
+        let gone = AgentSample::ABSENT;
+        let recording = Recording {
+            times_s: vec![0.0, 0.1, 0.2],
+            ref_paths: vec![6, 2, 9],
+            samples: vec![
+                vec![sample(1.0), sample(2.0), gone],
+                vec![sample(1.1), gone, sample(3.0)],
+                vec![sample(1.2), gone, sample(3.1)],
+            ],
+            ..Recording::default()
+        };
+        assert_eq!(recording.span(0), 0..3);
+        assert_eq!(recording.span(1), 0..1);
+        assert_eq!(recording.span(2), 1..3);
+        assert!(!recording.is_complete());
+        let mut bytes = Vec::new();
+        recording.write_csv(&mut bytes).unwrap();
+        let text = String::from_utf8(bytes.clone()).unwrap();
+        assert_eq!(text.lines().count(), 1 + 6, "no rows for absent agents:\n{text}");
+        let back = Recording::read_csv(bytes.as_slice()).unwrap();
+        assert_eq!(back.ref_paths, recording.ref_paths);
+        for (a, b) in back
+            .samples
+            .iter()
+            .flatten()
+            .zip(recording.samples.iter().flatten())
+        {
+            assert_eq!(a.is_present(), b.is_present());
+            if a.is_present() {
+                assert_eq!(a, b);
+            }
+        }
+    }
+
+    #[test]
+    fn a_gap_in_an_agent_is_an_error() {
+        let text = "t,agent,x,y,yaw,vx,vy,steering,ref_path\n0,0,1,1,0,0,0,,3\n0,1,1,1,0,0,0,,3\n\
+                    0.1,0,1,1,0,0,0,,3\n0.2,0,1,1,0,0,0,,3\n0.2,1,1,1,0,0,0,,3\n";
         let err = Recording::read_csv(text.as_bytes()).unwrap_err();
         assert!(
-            matches!(
-                err,
-                RecordingError::MissingAgents {
-                    found: 1,
-                    expected: 2,
-                    ..
-                }
-            ),
+            matches!(err, RecordingError::GapInAgent { agent: 1, t_s } if t_s == 0.1),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn an_agent_number_without_rows_or_a_nan_position_is_an_error() {
+        let text = "t,agent,x,y,yaw,vx,vy,steering,ref_path\n0,0,1,1,0,0,0,,3\n0,2,1,1,0,0,0,,3\n";
+        let err = Recording::read_csv(text.as_bytes()).unwrap_err();
+        assert!(matches!(err, RecordingError::UnusedAgent { agent: 1 }), "{err}");
+        let text = "t,agent,x,y,yaw,vx,vy,steering,ref_path\n0,0,NaN,1,0,0,0,,3\n";
+        let err = Recording::read_csv(text.as_bytes()).unwrap_err();
+        assert!(
+            matches!(err, RecordingError::BadNumber { column: "x", .. }),
             "{err}"
         );
     }
