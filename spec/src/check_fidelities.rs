@@ -7,7 +7,7 @@ use std::collections::HashSet;
 use crate::check::{CheckContext, InterpreterChecks};
 use crate::diagnostic::Problem;
 use crate::model::{
-    ActuationLayer, Control, Distribution, DynamicsLayer, Fidelity, KinematicKeyword, Parameter,
+    ActuationLayer, Control, Distribution, DynamicsLayer, Fidelity, KinematicKeyword, OnCollision, Parameter,
     ParameterRange, SensingLayer, SimulatedFidelity, Spec,
 };
 use crate::yaml::escape_pointer;
@@ -39,6 +39,7 @@ pub(crate) fn check_fidelities(spec: &Spec, ctx: &mut CheckContext<'_>) {
     }
     for (name, fidelity) in &spec.fidelities {
         let pointer = format!("/fidelities/{}", escape_pointer(name));
+        check_replacement(spec, name, fidelity, ctx);
         if spec.planner.is_none() && needs_planner(fidelity) {
             let spans = ctx.spans(&pointer);
             ctx.push(
@@ -106,6 +107,34 @@ pub(crate) fn check_fidelities(spec: &Spec, ctx: &mut CheckContext<'_>) {
             }
         }
     }
+}
+
+/// `on_collision: replace-agent` places new cars in the sim engine's loop: a fidelity that
+/// plans trajectories for followers, filters actions or drives the lab cannot replace a car.
+fn check_replacement(spec: &Spec, name: &str, fidelity: &Fidelity, ctx: &mut CheckContext<'_>) {
+    if spec.on_collision != OnCollision::ReplaceAgent {
+        return;
+    }
+    let reason = match fidelity {
+        Fidelity::Lab(_) => "drives the lab, where a car cannot be taken off the track",
+        Fidelity::Simulated(f) if f.control != Control::Direct => {
+            "plans trajectories for followers (`control: trajectory`); cpmx replaces cars in `control: direct` fidelities only"
+        }
+        Fidelity::Simulated(f) if f.safety.is_some() => {
+            "filters its actions (`safety:`), and the filter's paths do not follow a replaced car yet"
+        }
+        Fidelity::Simulated(_) => return,
+    };
+    let span = ctx.span("/on_collision");
+    ctx.push(
+        Problem::error(
+            "cpmx::check::replace-agent",
+            format!("`on_collision: replace-agent`, but fidelity `{name}` {reason}"),
+            span,
+            "replaces cars",
+        )
+        .with_help("run this fidelity in an experiment with `on_collision: continue` (or `end-run`)"),
+    );
 }
 
 /// A safety filter's speed range must be a range.

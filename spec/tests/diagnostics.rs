@@ -409,7 +409,7 @@ fn a_number_where_a_choice_belongs_names_every_choice() {
     let messages: Vec<&str> = problems.iter().map(|p| p.problem.message.as_str()).collect();
     assert_eq!(
         messages,
-        ["`on_collision` must be one of continue, reset-agent, end-run"]
+        ["`on_collision` must be one of continue, reset-agent, end-run, replace-agent"]
     );
 }
 
@@ -695,4 +695,26 @@ fn draws_per_repetition_are_independent_repetitions() {
         rendered.contains("places 3 agents, but the spec has `agents: 2`"),
         "{rendered}"
     );
+}
+
+#[test]
+fn replacing_cars_is_refused_for_a_fidelity_that_plans_trajectories_and_for_the_lab() {
+    let text = edit(
+        "  sim: {control: direct, dynamics: kinematic}\n",
+        "  sim: {control: direct, dynamics: kinematic}\n  \
+         sim-mpc: {control: trajectory, dynamics: kinematic}\n  \
+         lab: {driver: cpm-dds, domain: 21, vehicle_ids: [1, 2]}\n\
+         planner: {control_horizon: 4, prediction_horizon: 12}\n\
+         on_collision: replace-agent\n",
+    );
+    let problems = check(&text).unwrap_err();
+    let replace: Vec<_> = problems
+        .iter()
+        .filter(|p| p.problem.code == "cpmx::check::replace-agent")
+        .cloned()
+        .collect();
+    assert_eq!(replace.len(), 2, "{problems:?}");
+    insta::assert_snapshot!(cpmx_spec::render(&replace, false));
+    // The sim alone may replace cars.
+    assert!(check(&edit("seed: 5\n", "seed: 5\non_collision: replace-agent\n")).is_ok());
 }

@@ -26,6 +26,9 @@ pub enum RunError {
     UnknownRefPath(usize),
     #[error("the safety filter needs each agent's path to have two boundary points or more")]
     SafetyLanes,
+    /// `on_collision: replace-agent` could not prepare the map's paths or place a car.
+    #[error("on_collision: replace-agent: {0}")]
+    Replacement(String),
     #[error("the policy failed: {0}")]
     Policy(#[from] PolicyError),
     #[error("the spec has no policy `{0}`")]

@@ -14,6 +14,7 @@ mod onnx;
 mod pipeline;
 mod policies;
 mod randomise;
+mod replace;
 mod runner;
 mod safety;
 mod sim;

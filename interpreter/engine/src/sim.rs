@@ -13,7 +13,10 @@ use cpmx_recording::{AgentSample, Recording};
 use cpmx_spec::model::{DynamicsLayer, KinematicKeyword, OnCollision};
 use cpmx_vehicle::{BicycleState, Command, KinematicBicycle, VmasMotion};
 
+use cpmx_spec::matrix::stream_key;
+
 use crate::engine::{Engine, RunError, RunInputs};
+use crate::replace::Replacements;
 use crate::starts::InitialState;
 
 /// Runge–Kutta substeps of a `kinematic-rk4` step (within about 1e-6 m of SigmaRL 1.4.0's dopri5).
@@ -36,7 +39,7 @@ impl Engine for SimEngine {
 
         // Place the agents and prepare their paths.
         let starts = inputs.starts;
-        let paths = inputs.agent_paths()?;
+        let mut paths = inputs.agent_paths()?;
         let mut states: Vec<BicycleState> = starts.iter().map(initial_bicycle_state).collect();
         let mut velocities: Vec<[f64; 2]> = states.iter().map(|s| model.velocity_mps(s)).collect();
         // VMAS's yaw rates (`kinematic-vmas` only): from rest, as SigmaRL places its agents.
@@ -58,6 +61,23 @@ impl Engine for SimEngine {
         )?;
         let mut knowledge = inputs.neighbour_knowledge();
         let mut agents = vec![AgentState::default(); states.len()];
+        // `replace-agent`: the recording's agent in each slot (a replaced car's slot gets a new
+        // one), and the slots whose cars leave once the policy has acted on their last state.
+        let mut replacements = match spec.on_collision {
+            OnCollision::ReplaceAgent => Some(
+                Replacements::new(
+                    inputs.map(),
+                    &recording.ref_paths,
+                    experiment.vehicle,
+                    stream_key(inputs.plan.seed, "replace-agent"),
+                )
+                .map_err(RunError::Replacement)?,
+            ),
+            _ => None,
+        };
+        let mut agent_in_slot: Vec<usize> = (0..states.len()).collect();
+        let mut replaced = 0u32;
+        let mut leaving = vec![false; states.len()];
         let mut commands = vec![Command::default(); states.len()];
 
         for step in 0..spec.timing.steps {
@@ -66,13 +86,11 @@ impl Engine for SimEngine {
             recording
                 .times_s
                 .push((f64::from(step) * dt_s * 1e9).round() / 1e9);
-            recording.samples.push(
-                states
-                    .iter()
-                    .zip(&velocities)
-                    .map(|(s, v)| sample(s, *v))
-                    .collect(),
-            );
+            let mut row = vec![AgentSample::ABSENT; recording.ref_paths.len()];
+            for ((state, velocity), &agent) in states.iter().zip(&velocities).zip(&agent_in_slot) {
+                row[agent] = sample(state, *velocity);
+            }
+            recording.samples.push(row);
 
             // Decide and move.
             for ((agent, state), velocity) in agents.iter_mut().zip(&states).zip(&velocities) {
@@ -91,6 +109,21 @@ impl Engine for SimEngine {
             policy.act(&input, &mut commands)?;
             if let Some(filter) = &mut safety {
                 filter.apply(&states, &velocities, &mut commands);
+            }
+            if let Some(replacements) = &mut replacements {
+                // The cars that collided at the last step leave; new ones act on the command
+                // their slot's policy chose from the collision's state (SigmaRL's stale one).
+                for slot in (0..states.len()).filter(|&slot| leaving[slot]) {
+                    let (ref_path, prepared, state) = replacements.place(slot, &states).ok_or_else(|| {
+                        RunError::Replacement(format!("no free place for a new car at t = {t_s:.2} s"))
+                    })?;
+                    states[slot] = state;
+                    velocities[slot] = model.velocity_mps(&state);
+                    paths.paths[slot] = prepared;
+                    agent_in_slot[slot] = recording.ref_paths.len();
+                    recording.ref_paths.push(ref_path);
+                    replaced += 1;
+                }
             }
             for (((state, velocity), yaw_rate_rad_s), command) in states
                 .iter_mut()
@@ -120,7 +153,9 @@ impl Engine for SimEngine {
             }
 
             // Collisions, as the spec asks.
-            if spec.on_collision != OnCollision::Continue {
+            if let Some(replacements) = &replacements {
+                leaving = replacements.leaving(&states);
+            } else if spec.on_collision != OnCollision::Continue {
                 let colliding = colliding_agents(&states, &experiment.vehicle);
                 if colliding.iter().any(|&c| c) {
                     match spec.on_collision {
@@ -133,13 +168,23 @@ impl Engine for SimEngine {
                             }
                             policy.reset();
                         }
-                        OnCollision::Continue => {}
+                        OnCollision::Continue | OnCollision::ReplaceAgent => {}
                     }
                 }
             }
         }
         if let Some(filter) = &safety {
             crate::safety::record(filter, &mut recording);
+        }
+        if replacements.is_some() {
+            // Agents placed later are absent from the rows recorded before them.
+            let agents = recording.ref_paths.len();
+            for row in &mut recording.samples {
+                row.resize(agents, AgentSample::ABSENT);
+            }
+            recording
+                .statistics
+                .insert("replaced".into(), f64::from(replaced));
         }
         Ok(recording)
     }

@@ -9,7 +9,9 @@ use cpmx_recording::Recording;
 use cpmx_spec::Resources;
 use cpmx_spec::RunPlan;
 use cpmx_spec::matrix::{ConfigurationSource, NamedConfiguration, stream_key};
-use cpmx_spec::model::{AgentStart, FromPosesSpec, InitialConfiguration, SampleDraw, SampleSpec, Spec};
+use cpmx_spec::model::{
+    AgentStart, FromPosesSpec, InitialConfiguration, SampleDraw, SamplePlacement, SampleSpec, Spec,
+};
 use cpmx_spec::poses::MeasuredPoses;
 use cpmx_vehicle::{VehicleParams, footprint_corners};
 use cpmx_world::Map;
@@ -17,6 +19,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha20Rng;
 
 use crate::experiment::PrepareError;
+use crate::replace::TestingPaths;
 
 pub use cpmx_stack::InitialState;
 
@@ -249,6 +252,9 @@ pub fn sample_starts(
 ) -> Result<Vec<InitialState>, String> {
     const TRIES_PER_AGENT: usize = 10_000;
     let mut rng = ChaCha20Rng::from_seed(stream_key(sample.seed, &draw.stream()));
+    if sample.placement == SamplePlacement::Sigmarl {
+        return sigmarl_starts(sample, &mut rng, agents, map, vehicle);
+    }
     let ids = map.valid_path_ids();
     if ids.is_empty() {
         return Err("the map has no reference paths".into());
@@ -286,6 +292,38 @@ pub fn sample_starts(
                 ));
             }
         }
+    }
+    Ok(states)
+}
+
+/// SigmaRL's testing-mode starts (`sample: {placement: sigmarl}`): the agents placed in order,
+/// each clear of those before it by `min_gap`, as `on_collision: replace-agent` places a car.
+fn sigmarl_starts(
+    sample: &SampleSpec,
+    rng: &mut ChaCha20Rng,
+    agents: usize,
+    map: &Map,
+    vehicle: &VehicleParams,
+) -> Result<Vec<InitialState>, String> {
+    let paths = TestingPaths::of_map(map)?;
+    let mut states: Vec<InitialState> = Vec::with_capacity(agents);
+    for agent in 0..agents {
+        let placed: Vec<[f64; 2]> = states.iter().map(|s| [s.x_m, s.y_m]).collect();
+        let (ref_path, placement) = paths
+            .draw(rng, sample.min_gap, vehicle.max_speed_mps, &placed)
+            .ok_or_else(|| {
+                format!(
+                    "no free place for agent {agent} with min_gap {} m",
+                    sample.min_gap
+                )
+            })?;
+        states.push(InitialState {
+            ref_path,
+            x_m: placement.state.x_m,
+            y_m: placement.state.y_m,
+            yaw_rad: placement.state.yaw_rad,
+            speed_mps: placement.state.speed_mps,
+        });
     }
     Ok(states)
 }

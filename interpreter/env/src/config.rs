@@ -393,8 +393,13 @@ pub enum ConfigError {
     NoPaths,
     #[error("episode_steps must be at least 2 (an episode lasts episode_steps - 1 steps)")]
     EpisodeTooShort,
-    #[error("reference path {id} has {points} centre-line points: no start index in [{first}, {points}/2)")]
-    NoStartPoint { id: usize, points: usize, first: usize },
+    #[error("reference path {id} has {points} centre-line points: no start index in [{first}, {end})")]
+    NoStartPoint {
+        id: usize,
+        points: usize,
+        first: usize,
+        end: usize,
+    },
     #[error("reference path {id} is degenerate (fewer than two centre-line or boundary points)")]
     DegeneratePath { id: usize },
     #[error("the speed range [{low}, {high}) is empty")]

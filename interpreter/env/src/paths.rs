@@ -32,20 +32,32 @@ pub struct TrainingPath {
 }
 
 impl TrainingPath {
-    /// Prepares `path`, with start indices in `[first_index, floor(n / 2))`.
+    /// Prepares `path`, with start indices in `[first_index, floor(n / 2))` (SigmaRL's
+    /// training scenario).
     pub fn new(path: &ReferencePath, first_index: usize) -> Result<Self, ConfigError> {
+        Self::with_start_window(path, first_index, path.center_line.points.len() / 2)
+    }
+
+    /// Prepares `path`, with start indices in `[3, n - 3)`: SigmaRL's testing mode on every
+    /// scenario but its training mix (its starts and re-placements).
+    pub fn for_testing(path: &ReferencePath) -> Result<Self, ConfigError> {
+        const MARGIN: usize = 3;
+        Self::with_start_window(path, MARGIN, path.center_line.points.len().saturating_sub(MARGIN))
+    }
+
+    fn with_start_window(path: &ReferencePath, first_index: usize, end: usize) -> Result<Self, ConfigError> {
         let n = path.center_line.points.len();
         let left = &path.left_boundary_shared.points;
         let right = &path.right_boundary_shared.points;
         if n < 2 || left.len() < 2 || right.len() < 2 || path.center_line_yaw_rad.len() + 1 < n {
             return Err(ConfigError::DegeneratePath { id: path.id });
         }
-        let end = n / 2;
         if first_index >= end {
             return Err(ConfigError::NoStartPoint {
                 id: path.id,
                 points: n,
                 first: first_index,
+                end,
             });
         }
         let (entry, exit) = if path.is_loop {

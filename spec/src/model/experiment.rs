@@ -327,4 +327,12 @@ pub enum OnCollision {
     ResetAgent,
     /// Stop the run at the first collision.
     EndRun,
+    /// SigmaRL's testing mode (its evaluation scripts): a car whose outline crosses another
+    /// car's, its road's boundaries or its path's entry or exit line leaves, and a new agent
+    /// is placed instead, on a reference path of the map drawn uniformly, at a centre-line
+    /// point drawn uniformly in `[3, n - 3)`, at least 1.2 of the car's diagonal from every
+    /// other car, heading along the lane, at a speed drawn in `[0, max speed)`. The metrics
+    /// measure each agent over the samples it is present in. Simulated `control: direct`
+    /// fidelities only.
+    ReplaceAgent,
 }

@@ -45,7 +45,7 @@ pub use preset::PresetOr;
 pub use safety::{CbfAgents, CbfFilter, CbfWeights, SafetyLayer};
 pub use start::{
     AgentStart, DEFAULT_OFF_ROAD_TOLERANCE_M, ExplicitConfiguration, FromPoses, FromPosesSpec, FromRuns,
-    FromRunsSpec, InitialConfiguration, Pose, SampleDraw, SampleSpec, SampledStarts,
+    FromRunsSpec, InitialConfiguration, Pose, SampleDraw, SamplePlacement, SampleSpec, SampledStarts,
 };
 pub use training::{
     Activation, AlgorithmSpec, CbfMarginsSpec, CentreLineSpec, Lookahead, MappoSpec, NearAgentsSpec,

@@ -167,6 +167,31 @@ pub struct SampleSpec {
     /// configuration (SigmaRL's evaluation: each of its environments its own random start).
     #[serde(default, skip_serializing_if = "SampleDraw::is_per_configuration")]
     pub draw: SampleDraw,
+    /// `on-road` (default): a uniform arc length, a car length clear of the path's ends, the
+    /// footprint on the road, at rest. `sigmarl`: as SigmaRL's testing mode places its cars
+    /// (the rule of `on_collision: replace-agent`, with this entry's `min_gap`): a centre-line
+    /// point drawn uniformly in `[3, n - 3)`, heading along the lane, a speed drawn in
+    /// `[0, max speed)`.
+    #[serde(default, skip_serializing_if = "SamplePlacement::is_on_road")]
+    pub placement: SamplePlacement,
+}
+
+/// How a `sample` entry places each car.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum SamplePlacement {
+    /// A uniform arc length on a uniform path, on the road, at rest.
+    #[default]
+    OnRoad,
+    /// SigmaRL's testing-mode placement: centre-line point index in `[3, n - 3)`, a uniform
+    /// speed.
+    Sigmarl,
+}
+
+impl SamplePlacement {
+    fn is_on_road(&self) -> bool {
+        *self == SamplePlacement::OnRoad
+    }
 }
 
 /// What one draw of a `sample` entry starts: all runs of a configuration, or one repetition.
