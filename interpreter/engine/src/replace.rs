@@ -76,6 +76,28 @@ impl TestingPaths {
     }
 }
 
+/// Why a car leaves the run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Leave {
+    /// Its outline crosses another car's.
+    Collision,
+    /// Its outline crosses its road's boundaries.
+    OffRoad,
+    /// Its outline crosses its path's entry or exit line (reaching the end of its path).
+    PathEnd,
+}
+
+impl Leave {
+    /// The name of the run's count of replacements for this reason.
+    pub(crate) fn statistic(self) -> &'static str {
+        match self {
+            Leave::Collision => "replaced.collision",
+            Leave::OffRoad => "replaced.off_road",
+            Leave::PathEnd => "replaced.path_end",
+        }
+    }
+}
+
 /// The replacements of one run: the map's paths, the run's `replace-agent` stream and the
 /// path every slot follows now.
 #[derive(Debug)]
@@ -112,35 +134,54 @@ impl Replacements {
         })
     }
 
-    /// Which slots' cars leave: their outline crosses another car's, their road's boundaries
-    /// or their path's entry or exit line (SigmaRL's `interX` tests).
-    pub(crate) fn leaving(&self, states: &[BicycleState]) -> Vec<bool> {
+    /// Which slots' cars leave and why: their outline crosses another car's, their road's
+    /// boundaries or their path's entry or exit line (SigmaRL's `interX` tests; the first
+    /// reason that holds, in that order).
+    pub(crate) fn leaving(&self, states: &[BicycleState]) -> Vec<Option<Leave>> {
         let outlines: Vec<_> = states
             .iter()
             .map(|s| footprint_corners(&self.vehicle, s.x_m, s.y_m, s.yaw_rad))
             .collect();
-        let mut leaving = vec![false; states.len()];
+        let mut leaving = vec![None; states.len()];
         for i in 0..outlines.len() {
             for j in i + 1..outlines.len() {
                 if rectangles_cross(&outlines[i], &outlines[j]) {
-                    leaving[i] = true;
-                    leaving[j] = true;
+                    leaving[i] = Some(Leave::Collision);
+                    leaving[j] = Some(Leave::Collision);
                 }
             }
         }
         for (slot, outline) in outlines.iter().enumerate() {
             let path = &self.paths.paths[self.slot_paths[slot]];
-            let lines = [path.entry, path.exit];
-            if path.boundaries.crossed_by(outline)
-                || lines
-                    .iter()
-                    .flatten()
-                    .any(|&line| rectangle_crosses_segment(outline, line))
+            if leaving[slot].is_some() {
+                continue;
+            }
+            if self.off_road(slot, outline) {
+                leaving[slot] = Some(Leave::OffRoad);
+            } else if [path.entry, path.exit]
+                .iter()
+                .flatten()
+                .any(|&line| rectangle_crosses_segment(outline, line))
             {
-                leaving[slot] = true;
+                leaving[slot] = Some(Leave::PathEnd);
             }
         }
         leaving
+    }
+
+    /// Whether any car's outline crosses its road's boundaries (SigmaRL's flag of a sample's
+    /// collision with the lanelets, whatever else the car hit).
+    pub(crate) fn any_off_road(&self, states: &[BicycleState]) -> bool {
+        states
+            .iter()
+            .enumerate()
+            .any(|(slot, s)| self.off_road(slot, &footprint_corners(&self.vehicle, s.x_m, s.y_m, s.yaw_rad)))
+    }
+
+    fn off_road(&self, slot: usize, outline: &cpmx_vehicle::Footprint) -> bool {
+        self.paths.paths[self.slot_paths[slot]]
+            .boundaries
+            .crossed_by(outline)
     }
 
     /// Places a new car in `slot`, clear of the other cars of `states`: its reference path id,
@@ -214,7 +255,7 @@ mod tests {
         if apart.iter().any(|s| s.x_m.is_nan()) || length_a < 2.0 {
             panic!("the built-in map's paths are shorter than the test assumes");
         }
-        assert_eq!(replacements.leaving(&apart), [false, false, false]);
+        assert_eq!(replacements.leaving(&apart), [None, None, None]);
         // Two cars overlapping with crossing outlines both leave.
         let mut overlap = apart;
         overlap[1] = BicycleState {
@@ -222,19 +263,21 @@ mod tests {
             y_m: apart[0].y_m + 0.02,
             ..apart[0]
         };
-        assert_eq!(replacements.leaving(&overlap), [true, true, false]);
+        let collided = Some(Leave::Collision);
+        assert_eq!(replacements.leaving(&overlap), [collided, collided, None]);
         // Turned across its lane, a car crosses its road's boundary.
         let mut across = apart;
         across[2].yaw_rad += std::f64::consts::FRAC_PI_2;
         assert_eq!(
             replacements.leaving(&across),
-            [false, false, true],
+            [None, None, Some(Leave::OffRoad)],
             "a car sideways in its lane"
         );
+        assert!(replacements.any_off_road(&across) && !replacements.any_off_road(&overlap));
         // At the end of its path a car touches the exit line.
         let mut at_end = apart;
         at_end[0] = on_path(&map, a, length_a);
-        assert_eq!(replacements.leaving(&at_end), [true, false, false]);
+        assert_eq!(replacements.leaving(&at_end), [Some(Leave::PathEnd), None, None]);
     }
 
     #[test]

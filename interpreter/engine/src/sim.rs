@@ -16,8 +16,16 @@ use cpmx_vehicle::{BicycleState, Command, KinematicBicycle, VmasMotion};
 use cpmx_spec::matrix::stream_key;
 
 use crate::engine::{Engine, RunError, RunInputs};
-use crate::replace::Replacements;
+use crate::replace::{Leave, Replacements};
 use crate::starts::InitialState;
+
+/// `replace-agent`'s count of samples in which two cars' outlines cross (SigmaRL's CR_AA
+/// counts them).
+const SAMPLES_WITH_COLLISION: &str = "samples.collision";
+
+/// `replace-agent`'s count of samples in which a car's outline crosses its road's boundaries
+/// (SigmaRL's CR_AL counts them).
+const SAMPLES_OFF_ROAD: &str = "samples.off_road";
 
 /// Runge–Kutta substeps of a `kinematic-rk4` step (within about 1e-6 m of SigmaRL 1.4.0's dopri5).
 const RK4_SUBSTEPS: u32 = 5;
@@ -76,8 +84,8 @@ impl Engine for SimEngine {
             _ => None,
         };
         let mut agent_in_slot: Vec<usize> = (0..states.len()).collect();
-        let mut replaced = 0u32;
-        let mut leaving = vec![false; states.len()];
+        let mut replaced = std::collections::BTreeMap::<&str, u32>::new();
+        let mut leaving: Vec<Option<Leave>> = vec![None; states.len()];
         let mut commands = vec![Command::default(); states.len()];
 
         for step in 0..spec.timing.steps {
@@ -110,10 +118,17 @@ impl Engine for SimEngine {
             if let Some(filter) = &mut safety {
                 filter.apply(&states, &velocities, &mut commands);
             }
-            if let Some(replacements) = &mut replacements {
+            if let Some(replacements) = &mut replacements
+                && step + 1 < spec.timing.steps
+            {
                 // The cars that collided at the last step leave; new ones act on the command
                 // their slot's policy chose from the collision's state (SigmaRL's stale one).
-                for slot in (0..states.len()).filter(|&slot| leaving[slot]) {
+                // (None is placed in the last step: its first sample would not be recorded.)
+                for (slot, why) in leaving
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(slot, why)| Some((slot, (*why)?)))
+                {
                     let (ref_path, prepared, state) = replacements.place(slot, &states).ok_or_else(|| {
                         RunError::Replacement(format!("no free place for a new car at t = {t_s:.2} s"))
                     })?;
@@ -122,7 +137,7 @@ impl Engine for SimEngine {
                     paths.paths[slot] = prepared;
                     agent_in_slot[slot] = recording.ref_paths.len();
                     recording.ref_paths.push(ref_path);
-                    replaced += 1;
+                    *replaced.entry(why.statistic()).or_default() += 1;
                 }
             }
             for (((state, velocity), yaw_rate_rad_s), command) in states
@@ -155,6 +170,15 @@ impl Engine for SimEngine {
             // Collisions, as the spec asks.
             if let Some(replacements) = &replacements {
                 leaving = replacements.leaving(&states);
+                // SigmaRL's per-sample collision flags, on the states the next sample records.
+                if step + 1 < spec.timing.steps {
+                    if leaving.contains(&Some(Leave::Collision)) {
+                        *replaced.entry(SAMPLES_WITH_COLLISION).or_default() += 1;
+                    }
+                    if replacements.any_off_road(&states) {
+                        *replaced.entry(SAMPLES_OFF_ROAD).or_default() += 1;
+                    }
+                }
             } else if spec.on_collision != OnCollision::Continue {
                 let colliding = colliding_agents(&states, &experiment.vehicle);
                 if colliding.iter().any(|&c| c) {
@@ -182,9 +206,16 @@ impl Engine for SimEngine {
             for row in &mut recording.samples {
                 row.resize(agents, AgentSample::ABSENT);
             }
-            recording
-                .statistics
-                .insert("replaced".into(), f64::from(replaced));
+            let count = |name: &str| f64::from(replaced.get(name).copied().unwrap_or(0));
+            let reasons = [Leave::Collision, Leave::OffRoad, Leave::PathEnd].map(Leave::statistic);
+            let total: f64 = reasons.iter().map(|name| count(name)).sum();
+            recording.statistics.insert("replaced".into(), total);
+            for name in reasons
+                .into_iter()
+                .chain([SAMPLES_WITH_COLLISION, SAMPLES_OFF_ROAD])
+            {
+                recording.statistics.insert(name.into(), count(name));
+            }
         }
         Ok(recording)
     }

@@ -52,9 +52,13 @@ pub struct AgentMetrics {
     pub distance_m: f64,
     /// Distance it travelled into violating samples [m].
     pub lane_violation_m: f64,
-    /// Mean distance of its centre to its centre line [m].
+    /// Mean distance of its centre to its centre line [m] (NaN, `null` in JSON, for an agent
+    /// present in no measured sample: one that came and went between two samples of the
+    /// metrics' period).
+    #[serde(with = "nan_as_null")]
     pub cd_m: f64,
-    /// Its mean speed [m/s].
+    /// Its mean speed [m/s] (NaN when it is in no measured sample).
+    #[serde(with = "nan_as_null")]
     pub as_mps: f64,
     /// Samples at which collision events involving it start (one per pair event).
     pub event_samples: Vec<usize>,
