@@ -54,15 +54,17 @@ fn run(dir: &Path, path: &Path, out: &Path, jobs: &str) {
     assert!(out.status.success(), "{}", unwrapped(&out.stderr));
 }
 
-/// The agents present at each time of a run's trajectory (in time order), and each agent's
-/// reference path.
-fn presence(out: &Path, key: &str) -> (Vec<(String, Vec<usize>)>, BTreeMap<usize, String>) {
+/// The agents present at each time of a run (in time order).
+type Presence = Vec<(String, Vec<usize>)>;
+
+/// The agents present at each time of a run's trajectory, and each agent's reference path.
+fn presence(out: &Path, key: &str) -> (Presence, BTreeMap<usize, String>) {
     let text = std::fs::read_to_string(out.join("runs").join(key).join("trajectory.csv")).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
     let (t, agent, ref_path) = (col("t"), col("agent"), col("ref_path"));
-    let mut at = Vec::<(String, Vec<usize>)>::new();
+    let mut at = Presence::new();
     let mut paths = BTreeMap::new();
     for line in lines {
         let cols: Vec<&str> = line.split(',').collect();
