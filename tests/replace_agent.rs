@@ -29,7 +29,7 @@ seed: 11
 on_collision: replace-agent
 fidelities:
   sim: {control: direct, dynamics: kinematic-vmas}
-metrics: stdlib:at25
+metrics: {extends: stdlib:at25, per_sample_collisions: {}}
 ";
     let path = dir.join("replace.yaml");
     std::fs::write(&path, text).unwrap();
@@ -112,10 +112,14 @@ fn collided_cars_leave_and_new_agents_drive_in_their_slots() {
         .position(|h| *h == "replaced")
         .expect("a `replaced` column");
     let cd = header.iter().position(|h| *h == "cd_m").unwrap();
+    let shares = ["cr_aa_pct", "cr_al_pct"].map(|c| header.iter().position(|h| *h == c).unwrap());
     for line in per_run.lines().skip(1) {
         let cols: Vec<&str> = line.split(',').collect();
         assert!(cols[replaced].parse::<f64>().unwrap() >= 1.0, "{line}");
         assert!(cols[cd].parse::<f64>().unwrap().is_finite(), "{line}");
+        for share in shares {
+            assert!((0.0..=100.0).contains(&cols[share].parse::<f64>().unwrap()), "{line}");
+        }
     }
     let (_, paths) = presence(&out, "sim/m0/crossing/rep1");
     let metrics = std::fs::read_to_string(out.join("runs/sim/m0/crossing/rep1/metrics.json")).unwrap();
@@ -138,6 +142,7 @@ fn collided_cars_leave_and_new_agents_drive_in_their_slots() {
     assert!(report.status.success(), "{}", unwrapped(&report.stderr));
     let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
     assert_eq!(String::from_utf8(report.stdout).unwrap(), summary);
+    assert!(summary.contains("CR-AA ↓ [% of samples] | CR-AL ↓ [% of samples] |"), "{summary}");
 
     // The same runs on one thread.
     let single = dir.join("single");

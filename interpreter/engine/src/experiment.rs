@@ -508,5 +508,6 @@ pub fn metrics_config(m: &MetricsSpec, timing: &cpmx_spec::model::Timing) -> Met
         max_steps: None,
         rotate180: None,
         end_at_path_end: timing.stop_at_path_end == cpmx_spec::model::StopAtPathEnd::EndAgent,
+        per_sample_collisions: m.per_sample_collisions.is_some(),
     }
 }

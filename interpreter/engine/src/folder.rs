@@ -382,7 +382,7 @@ fn write_plots(
     write: Write<'_>,
 ) {
     let plots = out.join("plots");
-    for metric in cpmx_report::Metric::ALL {
+    for &metric in summary.units.metrics() {
         let svg = cpmx_report::distribution_svg(summary, metric);
         write(
             plots.join(format!("distribution-{}.svg", metric.id())),

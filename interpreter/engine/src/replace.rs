@@ -169,15 +169,6 @@ impl Replacements {
         leaving
     }
 
-    /// Whether any car's outline crosses its road's boundaries (SigmaRL's flag of a sample's
-    /// collision with the lanelets, whatever else the car hit).
-    pub(crate) fn any_off_road(&self, states: &[BicycleState]) -> bool {
-        states
-            .iter()
-            .enumerate()
-            .any(|(slot, s)| self.off_road(slot, &footprint_corners(&self.vehicle, s.x_m, s.y_m, s.yaw_rad)))
-    }
-
     fn off_road(&self, slot: usize, outline: &cpmx_vehicle::Footprint) -> bool {
         self.paths.paths[self.slot_paths[slot]]
             .boundaries
@@ -273,7 +264,6 @@ mod tests {
             [None, None, Some(Leave::OffRoad)],
             "a car sideways in its lane"
         );
-        assert!(replacements.any_off_road(&across) && !replacements.any_off_road(&overlap));
         // At the end of its path a car touches the exit line.
         let mut at_end = apart;
         at_end[0] = on_path(&map, a, length_a);

@@ -19,14 +19,6 @@ use crate::engine::{Engine, RunError, RunInputs};
 use crate::replace::{Leave, Replacements};
 use crate::starts::InitialState;
 
-/// `replace-agent`'s count of samples in which two cars' outlines cross (SigmaRL's CR_AA
-/// counts them).
-const SAMPLES_WITH_COLLISION: &str = "samples.collision";
-
-/// `replace-agent`'s count of samples in which a car's outline crosses its road's boundaries
-/// (SigmaRL's CR_AL counts them).
-const SAMPLES_OFF_ROAD: &str = "samples.off_road";
-
 /// Runge–Kutta substeps of a `kinematic-rk4` step (within about 1e-6 m of SigmaRL 1.4.0's dopri5).
 const RK4_SUBSTEPS: u32 = 5;
 
@@ -170,15 +162,6 @@ impl Engine for SimEngine {
             // Collisions, as the spec asks.
             if let Some(replacements) = &replacements {
                 leaving = replacements.leaving(&states);
-                // SigmaRL's per-sample collision flags, on the states the next sample records.
-                if step + 1 < spec.timing.steps {
-                    if leaving.contains(&Some(Leave::Collision)) {
-                        *replaced.entry(SAMPLES_WITH_COLLISION).or_default() += 1;
-                    }
-                    if replacements.any_off_road(&states) {
-                        *replaced.entry(SAMPLES_OFF_ROAD).or_default() += 1;
-                    }
-                }
             } else if spec.on_collision != OnCollision::Continue {
                 let colliding = colliding_agents(&states, &experiment.vehicle);
                 if colliding.iter().any(|&c| c) {
@@ -210,10 +193,7 @@ impl Engine for SimEngine {
             let reasons = [Leave::Collision, Leave::OffRoad, Leave::PathEnd].map(Leave::statistic);
             let total: f64 = reasons.iter().map(|name| count(name)).sum();
             recording.statistics.insert("replaced".into(), total);
-            for name in reasons
-                .into_iter()
-                .chain([SAMPLES_WITH_COLLISION, SAMPLES_OFF_ROAD])
-            {
+            for name in reasons {
                 recording.statistics.insert(name.into(), count(name));
             }
         }

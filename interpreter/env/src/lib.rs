@@ -19,7 +19,6 @@
 //! Randomness: environment `e` draws its starts from the ChaCha stream `train/env/<e>` of
 //! the seed (`cpmx_spec::matrix::stream_key`), so results do not depend on threads.
 
-mod collision;
 mod config;
 mod from_spec;
 mod neighbours;
@@ -36,12 +35,12 @@ use std::path::Path;
 
 use cpmx_world::{Map, MapError, PathSet, ReferencePath};
 
-pub use collision::{Walls, cross_properly, rectangle_crosses_segment, rectangles_cross};
 pub use config::{
     CentreLineTerm, ConfigError, EnvConfig, NearAgentsTerm, NearBoundaryTerm, Plant, ProgressTerm, Ramp,
     ResetRule, ResetScope, RewardConfig, ScenarioConfig, SpeedTerm, StartRule, SteeringChangeTerm, TimeTerm,
     TtcTerm, VelocityToPointsTerm,
 };
+pub use cpmx_vehicle::{Walls, cross_properly, rectangle_crosses_segment, rectangles_cross};
 pub use from_spec::{config_from_training, training_paths};
 pub use neighbours::NeighbourLayers;
 pub use paths::{TrainingPath, prepare_paths};

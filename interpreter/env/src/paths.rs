@@ -9,8 +9,8 @@ use std::sync::Arc;
 use cpmx_policy::PreparedPath;
 use cpmx_world::{Point, ReferencePath};
 
-use crate::collision::Walls;
 use crate::config::ConfigError;
+use cpmx_vehicle::Walls;
 
 /// One reference path as the environment uses it.
 #[derive(Debug, Clone)]

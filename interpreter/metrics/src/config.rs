@@ -33,6 +33,11 @@ pub struct MetricsConfig {
     /// elsewhere, not parked where others pile up on it).
     #[serde(default)]
     pub end_at_path_end: bool,
+    /// Also measure SigmaRL's per-sample collision rates (its ITSC 2024 evaluation): the share
+    /// of samples [%] in which two agents' outlines cross (CR-AA) and in which an agent's
+    /// outline crosses its road's boundaries (CR-AL), with SigmaRL's `interX` tests.
+    #[serde(default)]
+    pub per_sample_collisions: bool,
 }
 
 /// How close to the end of an open reference path (along it) an agent has reached it [m]:
@@ -152,6 +157,7 @@ impl Default for MetricsConfig {
             max_steps: None,
             rotate180: None,
             end_at_path_end: false,
+            per_sample_collisions: false,
         }
     }
 }
@@ -176,6 +182,7 @@ impl MetricsConfig {
             max_steps: None,
             rotate180: None,
             end_at_path_end: false,
+            per_sample_collisions: false,
         }
     }
 

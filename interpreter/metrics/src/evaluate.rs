@@ -6,7 +6,7 @@
 //! paths only, never an engine.
 
 use cpmx_recording::{AgentSample, Recording};
-use cpmx_vehicle::{VehicleParams, footprint_corners};
+use cpmx_vehicle::{VehicleParams, Walls, footprint_corners, rectangles_cross};
 use cpmx_world::{Point, Polyline, ReferencePath, SegmentBoxes, polyline::dist};
 
 use crate::MetricsError;
@@ -247,6 +247,23 @@ pub fn evaluate(
         });
     }
 
+    // SigmaRL's per-sample collision rates, over the agents present in each sample.
+    let (cr_aa_pct, cr_al_pct) = if config.per_sample_collisions {
+        let roads: Vec<Walls> = (0..agent_count)
+            .map(|agent| {
+                let path = ref_paths
+                    .iter()
+                    .find(|p| p.id == recording.ref_paths[agent])
+                    .expect("every path was found above");
+                let map = |line: &[Point]| -> Vec<Point> { line.iter().map(|&p| rotate(p)).collect() };
+                Walls::new(&[&map(path.road_left_boundary), &map(path.road_right_boundary)])
+            })
+            .collect();
+        per_sample_collision_rates(&states, vehicle, &roads)
+    } else {
+        (f64::NAN, f64::NAN)
+    };
+
     // Totals and the normalised rates (NaN when nothing moved).
     let distance_m: f64 = agents.iter().map(|a| a.distance_m).sum();
     let lane_violation_m: f64 = agents.iter().map(|a| a.lane_violation_m).sum();
@@ -272,6 +289,8 @@ pub fn evaluate(
         cra_l: per_distance(lane_violation_m, config.cra_l.per_distance_m),
         cd_m: measured_agents().map(|a| a.cd_m).sum::<f64>() / n,
         as_mps: measured_agents().map(|a| a.as_mps).sum::<f64>() / n,
+        cr_aa_pct,
+        cr_al_pct,
         a2a_events,
         distance_m,
         lane_violation_m,
@@ -279,6 +298,33 @@ pub fn evaluate(
         pair_events,
         agents,
     })
+}
+
+/// The shares of samples [%] in which two present agents' outlines cross and in which a
+/// present agent's outline crosses its road's boundaries (`roads[agent]`): SigmaRL's
+/// `interX` flags, counted per sample as its evaluation counts them.
+fn per_sample_collision_rates(
+    states: &[Vec<AgentSample>],
+    vehicle: &VehicleParams,
+    roads: &[Walls],
+) -> (f64, f64) {
+    let (mut between_agents, mut off_road) = (0usize, 0usize);
+    for row in states {
+        let outlines: Vec<(usize, cpmx_vehicle::Footprint)> = row
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.is_present())
+            .map(|(agent, s)| (agent, footprint_corners(vehicle, s.x_m, s.y_m, s.yaw_rad)))
+            .collect();
+        let crossing = outlines
+            .iter()
+            .enumerate()
+            .any(|(k, (_, a))| outlines[k + 1..].iter().any(|(_, b)| rectangles_cross(a, b)));
+        between_agents += usize::from(crossing);
+        off_road += usize::from(outlines.iter().any(|(agent, o)| roads[*agent].crossed_by(o)));
+    }
+    let share = |count: usize| 100.0 * count as f64 / states.len() as f64;
+    (share(between_agents), share(off_road))
 }
 
 #[cfg(test)]
@@ -382,6 +428,36 @@ mod tests {
         assert_eq!(alone.agents[0].distance_m, m.agents[2].distance_m);
         assert_eq!(alone.agents[0].cd_m, m.agents[2].cd_m);
         assert_eq!(alone.agents[0].as_mps, m.agents[2].as_mps);
+    }
+
+    #[test]
+    fn per_sample_collision_rates_count_samples_with_any_crossing() {
+        let lane = Straight::new();
+        let gone = AgentSample::ABSENT;
+        // Sample 0: apart; 1: agents 0 and 1 cross (and 2 is elsewhere); 2: agent 0 across the
+        // road's left boundary; 3: agent 1 has left, agent 2 lies on agent 0 exactly (identical
+        // outlines do not cross: SigmaRL's test).
+        let rows = vec![
+            vec![
+                sample(1.0, 0.0, 0.0),
+                sample(3.0, 0.0, 0.0),
+                sample(6.0, 0.0, 0.0),
+            ],
+            vec![
+                sample(1.1, 0.0, 0.0),
+                sample(1.15, 0.01, 0.0),
+                sample(6.1, 0.0, 0.0),
+            ],
+            vec![sample(1.2, 0.06, 0.0), gone, sample(6.2, 0.0, 0.0)],
+            vec![sample(1.3, 0.0, 0.0), gone, sample(1.3, 0.0, 0.0)],
+        ];
+        let r = recording(rows);
+        let mut config = MetricsConfig::default();
+        let without = evaluate(&r, &lane.geometry(), &VehicleParams::MU_CAR, &config).unwrap();
+        assert!(without.cr_aa_pct.is_nan() && without.cr_al_pct.is_nan());
+        config.per_sample_collisions = true;
+        let m = evaluate(&r, &lane.geometry(), &VehicleParams::MU_CAR, &config).unwrap();
+        assert_eq!((m.cr_aa_pct, m.cr_al_pct), (25.0, 25.0));
     }
 
     #[test]

@@ -29,6 +29,14 @@ pub struct RunMetrics {
     /// AS: mean over samples and agents of the speed `|v|` [m/s].
     #[serde(with = "nan_as_null")]
     pub as_mps: f64,
+    /// CR-AA: the share of samples in which two agents' outlines cross [%] (NaN unless
+    /// `per_sample_collisions`).
+    #[serde(with = "nan_as_null", default = "nan")]
+    pub cr_aa_pct: f64,
+    /// CR-AL: the share of samples in which an agent's outline crosses its road's boundaries
+    /// [%] (NaN unless `per_sample_collisions`).
+    #[serde(with = "nan_as_null", default = "nan")]
+    pub cr_al_pct: f64,
     /// Collision events as counted by `cra_a.count` (per agent: 2 per pair event).
     pub a2a_events: usize,
     /// Total distance travelled by all agents [m].
@@ -75,7 +83,20 @@ pub struct PairEvent {
     pub sample: usize,
 }
 
+fn nan() -> f64 {
+    f64::NAN
+}
+
 impl RunMetrics {
+    /// The columns of the per-sample collision rates, appended to [`RunMetrics::CSV_COLUMNS`]
+    /// when the runs measure them.
+    pub const PER_SAMPLE_CSV_COLUMNS: [&'static str; 2] = ["cr_aa_pct", "cr_al_pct"];
+
+    /// This run's values for [`RunMetrics::PER_SAMPLE_CSV_COLUMNS`].
+    pub fn per_sample_csv_row(&self) -> [String; 2] {
+        [format_float(self.cr_aa_pct), format_float(self.cr_al_pct)]
+    }
+
     /// The metric columns of `per_run.csv`, in their fixed order (the report prepends the
     /// run's key columns).
     pub const CSV_COLUMNS: [&'static str; 9] = [
@@ -150,6 +171,8 @@ mod tests {
             cra_l: 94.17839656651672,
             cd_m: 7.285012445142532e-9,
             as_mps: 0.0,
+            cr_aa_pct: f64::NAN,
+            cr_al_pct: f64::NAN,
             a2a_events: 2,
             distance_m: 14.056489944458008,
             lane_violation_m: 0.0,

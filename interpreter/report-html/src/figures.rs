@@ -16,7 +16,7 @@ use crate::{PageRun, data};
 pub(crate) fn distributions(out: &mut String, summary: &Summary, runs: &[PageRun<'_>]) {
     out.push_str("<section id=\"distributions\"><h2>Metric distributions</h2><div class=\"panels\">\n");
     let policies = data::distinct(runs.iter().map(|run| &run.record.plan.policy));
-    for metric in Metric::ALL {
+    for &metric in summary.units.metrics() {
         let caption = distribution_caption(summary, metric, &policies);
         figure(out, &distribution_svg(summary, metric), &caption);
     }

@@ -82,7 +82,7 @@ pub struct Group {
     /// Independent units among them: runs that are not bit-identical copies of an earlier
     /// repetition. Every statistic of the group is computed over these.
     pub units: usize,
-    /// One summary per metric, in [`Metric::ALL`] order.
+    /// One summary per metric the runs measure, in table order ([`Units::metrics`]).
     pub metrics: Vec<MetricSummary>,
     /// What the fidelity's layers counted over every run of the group (all runs: a layer's
     /// counts are not a metric of independent units), by name: a `*.largest_*` statistic
@@ -293,7 +293,8 @@ pub(crate) fn summarize_group(
     bootstrap: Option<&Bootstrap>,
 ) -> Group {
     let independent = distinct_units(members.iter().copied());
-    let metrics = Metric::ALL
+    let metrics = units
+        .metrics()
         .iter()
         .map(|&metric| {
             let values: Vec<f64> = independent.iter().map(|r| metric.of(&r.metrics)).collect();

@@ -70,7 +70,7 @@ pub struct FidelityComparison {
     /// `None` when the pairs pool them (a `group_by` without that axis, as at25 pools its
     /// training seeds).
     pub policy: Option<String>,
-    /// One entry per metric, in [`Metric::ALL`] order.
+    /// One entry per metric the runs measure, in table order ([`crate::Units::metrics`]).
     pub metrics: Vec<PairedMetric>,
 }
 
@@ -128,6 +128,7 @@ pub fn compare(runs: &[RunRecord], reference: &str, bootstrap: &Bootstrap, by_po
     } else {
         vec![None]
     };
+    let measured = crate::Units::of_runs(runs.iter().map(|r| &r.metrics)).metrics();
     let mut compared = Vec::new();
     for fidelity in fidelities {
         let reference = paired_reference(fidelity, reference, names.iter().copied());
@@ -144,7 +145,7 @@ pub fn compare(runs: &[RunRecord], reference: &str, bootstrap: &Bootstrap, by_po
             compared.push(FidelityComparison {
                 fidelity: fidelity.to_owned(),
                 policy: policy.map(str::to_owned),
-                metrics: Metric::ALL
+                metrics: measured
                     .iter()
                     .map(|&metric| {
                         paired_metric(&compared_runs, &copies, fidelity, &reference, metric, bootstrap)

@@ -17,11 +17,26 @@ pub enum Metric {
     Cd,
     /// Mean speed [m/s] (higher is better: hesitation and stops lower it).
     As,
+    /// SigmaRL's share of samples with two cars' outlines crossing [%] (lower is better).
+    CrAa,
+    /// SigmaRL's share of samples with a car's outline crossing its road's boundaries [%]
+    /// (lower is better).
+    CrAl,
 }
 
 impl Metric {
-    /// Every metric, in table order.
+    /// The paper's four metrics, in table order: every summary shows them.
     pub const ALL: [Metric; 4] = [Metric::CraA, Metric::CraL, Metric::Cd, Metric::As];
+
+    /// The paper's four and SigmaRL's per-sample collision rates, in table order.
+    pub const WITH_PER_SAMPLE: [Metric; 6] = [
+        Metric::CraA,
+        Metric::CraL,
+        Metric::Cd,
+        Metric::As,
+        Metric::CrAa,
+        Metric::CrAl,
+    ];
 
     /// Its column in `per_run.csv` and its key in `summary.json`.
     pub fn id(self) -> &'static str {
@@ -30,6 +45,8 @@ impl Metric {
             Metric::CraL => "cra_l",
             Metric::Cd => "cd_m",
             Metric::As => "as_mps",
+            Metric::CrAa => "cr_aa_pct",
+            Metric::CrAl => "cr_al_pct",
         }
     }
 
@@ -40,6 +57,8 @@ impl Metric {
             Metric::CraL => "CRA-L",
             Metric::Cd => "CD",
             Metric::As => "AS",
+            Metric::CrAa => "CR-AA",
+            Metric::CrAl => "CR-AL",
         }
     }
 
@@ -59,21 +78,27 @@ impl Metric {
         }
     }
 
-    /// Decimals shown in the tables (the paper's: rates 2, metres and speeds 3).
+    /// Decimals shown in the tables (the paper's: rates 2, metres and speeds 3; SigmaRL's
+    /// percentages 2).
     pub fn decimals(self) -> usize {
         match self {
-            Metric::CraA | Metric::CraL => 2,
+            Metric::CraA | Metric::CraL | Metric::CrAa | Metric::CrAl => 2,
             Metric::Cd | Metric::As => 3,
         }
     }
 
     /// The values the metric can take: every rate, distance and speed is at least 0, and
-    /// CRA-L (metres outside the lane per distance driven) at most its normalising distance.
+    /// CRA-L (metres outside the lane per distance driven) at most its normalising distance,
+    /// a share of samples at most 100 %.
     pub fn range(self, units: Units) -> Range {
         match self {
             Metric::CraL => Range {
                 low: 0.0,
                 high: units.cra_l_per_distance_m,
+            },
+            Metric::CrAa | Metric::CrAl => Range {
+                low: 0.0,
+                high: 100.0,
             },
             Metric::CraA | Metric::Cd | Metric::As => Range::NON_NEGATIVE,
         }
@@ -86,6 +111,8 @@ impl Metric {
             Metric::CraL => metrics.cra_l,
             Metric::Cd => metrics.cd_m,
             Metric::As => metrics.as_mps,
+            Metric::CrAa => metrics.cr_aa_pct,
+            Metric::CrAl => metrics.cr_al_pct,
         }
     }
 }
@@ -97,6 +124,8 @@ pub struct Units {
     pub cra_a_per_distance_m: f64,
     /// CRA-L counts metres outside the lane per this distance [m].
     pub cra_l_per_distance_m: f64,
+    /// Whether the runs also measure SigmaRL's per-sample collision rates.
+    pub per_sample_collisions: bool,
 }
 
 impl Units {
@@ -107,6 +136,17 @@ impl Units {
         Units {
             cra_a_per_distance_m: config.cra_a.per_distance_m,
             cra_l_per_distance_m: config.cra_l.per_distance_m,
+            per_sample_collisions: config.per_sample_collisions,
+        }
+    }
+
+    /// The metrics the runs measure, in table order: the paper's four, and SigmaRL's
+    /// per-sample collision rates when the spec asks for them.
+    pub fn metrics(self) -> &'static [Metric] {
+        if self.per_sample_collisions {
+            &Metric::WITH_PER_SAMPLE
+        } else {
+            &Metric::ALL
         }
     }
 
@@ -117,6 +157,7 @@ impl Units {
             Metric::CraL => format!("m/{} m", self.cra_l_per_distance_m),
             Metric::Cd => "m".into(),
             Metric::As => "m/s".into(),
+            Metric::CrAa | Metric::CrAl => "% of samples".into(),
         }
     }
 }
@@ -133,6 +174,7 @@ mod tests {
         let other = Units {
             cra_a_per_distance_m: 1000.0,
             cra_l_per_distance_m: 0.5,
+            per_sample_collisions: false,
         };
         assert_eq!(other.text(Metric::CraA), "events/1000 m");
         assert_eq!(other.text(Metric::CraL), "m/0.5 m");

@@ -24,6 +24,8 @@ pub fn record(fidelity: &str, policy: &str, init: &str, repetition: u32, values:
             cra_l: values[1],
             cd_m: values[2],
             as_mps: values[3],
+            cr_aa_pct: f64::NAN,
+            cr_al_pct: f64::NAN,
             a2a_events: 0,
             distance_m: 40.0,
             lane_violation_m: 0.0,

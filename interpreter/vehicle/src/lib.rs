@@ -7,11 +7,13 @@
 
 mod bicycle;
 mod bicycle_f32;
+mod crossing;
 mod footprint;
 mod greybox;
 mod vmas;
 
 pub use bicycle::{BicycleState, Command, KinematicBicycle, Precision, StepOutput};
+pub use crossing::{Walls, cross_properly, rectangle_crosses_segment, rectangles_cross};
 pub use footprint::{Footprint, footprint_corners};
 pub use greybox::{
     GreyBoxDerivative, GreyBoxError, GreyBoxInput, GreyBoxParams, GreyBoxState, GreyBoxStep, GreyBoxVehicle,

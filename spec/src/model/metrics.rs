@@ -23,6 +23,12 @@ pub struct MetricsSpec {
     /// Average speed.
     #[serde(default, skip_serializing_if = "Option::is_none", rename = "as")]
     pub average_speed: Option<AsSpec>,
+    /// SigmaRL's per-sample collision rates of its ITSC 2024 evaluation, beside the four: CR-AA,
+    /// the share of samples [%] in which two cars' outlines cross, and CR-AL, the share in
+    /// which a car's outline crosses its road's boundaries (SigmaRL's `interX` tests, on the
+    /// metrics' footprint). `{}`: no parameters.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub per_sample_collisions: Option<PerSampleCollisionsSpec>,
     /// The vehicle whose footprint (length and width) the metrics score: collisions between
     /// agents, lane violations. Default: the spec's `vehicle`. A run can observe and drive as
     /// its actor was trained (`vehicle: stdlib:sigmarl-2025`) and be scored with the µCar of the
@@ -31,6 +37,11 @@ pub struct MetricsSpec {
     #[schemars(with = "Option<super::PresetOr<super::VehicleSpec>>")]
     pub footprint: Option<super::VehicleSpec>,
 }
+
+/// `per_sample_collisions: {}`: SigmaRL's per-sample collision rates (no parameters).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PerSampleCollisionsSpec {}
 
 /// CRA-A: agent-agent collision events per distance.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]

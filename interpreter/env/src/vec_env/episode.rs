@@ -12,7 +12,6 @@ use cpmx_safety::layer::{Lane, LayerFilter};
 use cpmx_safety::margins::joint_margins;
 use cpmx_safety::{CbfState, Vehicle};
 
-use crate::collision::{rectangle_crosses_segment, rectangles_cross};
 use crate::config::{EnvConfig, Plant, ResetScope};
 use crate::neighbours::EnvNeighbours;
 use crate::paths::TrainingPath;
@@ -20,6 +19,7 @@ use crate::result::{AgentStepInfo, StepTotals};
 use crate::reward::{RewardInput, reward};
 use crate::stack_world::StackWorld;
 use crate::starts::{Placement, draw_placement};
+use cpmx_vehicle::{rectangle_crosses_segment, rectangles_cross};
 
 /// One agent of one environment.
 #[derive(Debug, Clone)]

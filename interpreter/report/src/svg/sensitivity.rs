@@ -110,7 +110,7 @@ pub fn sensitivity_svgs(summary: &Summary) -> Vec<SensitivityPlot> {
         for (axis, label) in labels.iter().enumerate() {
             let lines = lines(&of_base, axis);
             let keys: Vec<String> = lines.iter().map(|(key, _)| key.clone()).collect();
-            for metric in Metric::ALL {
+            for &metric in summary.units.metrics() {
                 plots.push(SensitivityPlot {
                     name: format!("sensitivity-{base}-{label}-{}", metric.id()),
                     fidelity: base.to_owned(),

@@ -19,7 +19,8 @@ const RUN_COLUMNS: [&str; 6] = [
     "seed",
 ];
 
-/// `per_run.csv`: the run's matrix columns, then [`RunMetrics::CSV_COLUMNS`], then a column
+/// `per_run.csv`: the run's matrix columns, then [`RunMetrics::CSV_COLUMNS`] (and
+/// [`RunMetrics::PER_SAMPLE_CSV_COLUMNS`] when any run measures them), then a column
 /// per randomised layer parameter of any run (`actuation.delay_ms`, by name; empty where a
 /// run's fidelity does not draw it), then a column per number a layer counted in any run
 /// (`safety.changed`, by name; empty where a run's fidelity has no such layer), in run order.
@@ -33,9 +34,16 @@ pub fn per_run_csv(runs: &[RunRecord]) -> String {
         .iter()
         .flat_map(|r| r.statistics.keys().map(String::as_str))
         .collect();
+    let per_sample = runs.iter().any(|r| r.metrics.config.per_sample_collisions);
+    let per_sample_columns: &[&str] = if per_sample {
+        &RunMetrics::PER_SAMPLE_CSV_COLUMNS
+    } else {
+        &[]
+    };
     let header: Vec<&str> = RUN_COLUMNS
         .iter()
         .chain(&RunMetrics::CSV_COLUMNS)
+        .chain(per_sample_columns)
         .copied()
         .chain(drawn.iter().copied())
         .chain(counted.iter().copied())
@@ -52,6 +60,9 @@ pub fn per_run_csv(runs: &[RunRecord]) -> String {
             p.seed.to_string(),
         ];
         fields.extend(run.metrics.csv_row());
+        if per_sample {
+            fields.extend(run.metrics.per_sample_csv_row());
+        }
         fields.extend(drawn.iter().map(|name| {
             run.drawn_parameters
                 .get(*name)

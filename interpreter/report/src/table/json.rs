@@ -9,7 +9,6 @@ use serde_json::{Map, Value, json};
 use super::csv::better;
 use crate::aggregate::{CONFIDENCE, axis_name};
 use crate::compare::{Comparison, PairedMetric};
-use crate::metric::Metric;
 use crate::{Group, MetricSummary, Summary};
 
 /// The pretty-printed JSON summary, ending in a newline.
@@ -31,7 +30,7 @@ pub fn render(summary: &Summary) -> String {
         "statistics": statistics,
         "confidence": CONFIDENCE,
         "bootstrap": {"resamples": summary.bootstrap.resamples, "seed": summary.bootstrap.seed},
-        "metrics": Metric::ALL.iter().map(|&m| json!({
+        "metrics": summary.units.metrics().iter().map(|&m| json!({
             "id": m.id(),
             "label": m.label(),
             "unit": summary.units.text(m),

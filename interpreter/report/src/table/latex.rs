@@ -31,13 +31,14 @@ pub fn render(summary: &Summary) -> String {
     if let Some(note) = super::pooled_note(summary) {
         let _ = writeln!(out, "% {}", note.replace('`', ""));
     }
-    let columns = "l".repeat(summary.group_by.len()) + &"c".repeat(Metric::ALL.len());
+    let metrics = summary.units.metrics();
+    let columns = "l".repeat(summary.group_by.len()) + &"c".repeat(metrics.len());
     let _ = writeln!(out, "\\begin{{tabular}}{{{columns}}}\n\\toprule");
 
     // The header: axis names, then one braced column head per metric.
     let axes: Vec<&str> = summary.group_by.iter().map(|&a| axis_title(a)).collect();
     let _ = writeln!(out, "{}", axes.join(" & "));
-    for metric in Metric::ALL {
+    for &metric in metrics {
         let _ = writeln!(
             out,
             "& {{{} ${}$ [{}]}}",
@@ -53,7 +54,7 @@ pub fn render(summary: &Summary) -> String {
     for (index, group) in summary.groups.iter().enumerate() {
         let keys: Vec<String> = group.key.iter().map(|k| escape(k)).collect();
         let _ = writeln!(out, "{}", keys.join(" & "));
-        for (metric, best) in Metric::ALL.into_iter().zip(&best) {
+        for (&metric, best) in metrics.iter().zip(&best) {
             let bold = |s: String| {
                 if *best == Some(index) {
                     format!("\\textbf{{{s}}}")
@@ -100,6 +101,7 @@ fn unit(units: Units, metric: Metric) -> String {
         ),
         Metric::Cd => "\\si{\\meter}".into(),
         Metric::As => "\\si{\\meter\\per\\second}".into(),
+        Metric::CrAa | Metric::CrAl => "\\si{\\percent}".into(),
     }
 }
 

@@ -100,7 +100,7 @@ fn transfer_tables(out: &mut String, summary: &Summary, transfer: &Transfer) {
          (columns): mean [t 95 % CI] (n independent units) over every training seed, initial \
          configuration and repetition."
     );
-    for metric in Metric::ALL {
+    for &metric in summary.units.metrics() {
         let d = metric.decimals();
         let _ = writeln!(out, "\n**{}**\n", metric_name(summary, metric));
         let mut header = vec!["trained in / evaluated in".to_owned()];
@@ -166,7 +166,7 @@ fn main_table(out: &mut String, summary: &Summary) {
     header.extend(["runs".into(), "units".into()]);
     let mut align = vec![":--"; summary.group_by.len()];
     align.extend(["--:", "--:"]);
-    for metric in Metric::ALL {
+    for &metric in summary.units.metrics() {
         header.push(format!(
             "{} {} [{}]",
             metric.label(),
@@ -182,7 +182,7 @@ fn main_table(out: &mut String, summary: &Summary) {
     for (index, group) in summary.groups.iter().enumerate() {
         let mut cells = group_cells(group);
         cells.extend([group.runs.to_string(), group.units.to_string()]);
-        for (metric, best) in Metric::ALL.into_iter().zip(&best) {
+        for (&metric, best) in summary.units.metrics().iter().zip(&best) {
             let bold = |s: String| {
                 if *best == Some(index) {
                     format!("**{s}**")

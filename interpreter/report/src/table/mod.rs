@@ -175,11 +175,13 @@ impl CellParts {
     }
 }
 
-/// For each metric, the index of the group with the best mean (none with fewer than two
+/// For each metric of the summary, the index of the group with the best mean (none with fewer than two
 /// groups with a finite mean, or when every finite mean is equal).
 fn best_groups(summary: &Summary) -> Vec<Option<usize>> {
     use cpmx_metrics::stats::Direction;
-    Metric::ALL
+    summary
+        .units
+        .metrics()
         .iter()
         .map(|&metric| {
             let means: Vec<(usize, f64)> = summary

@@ -64,6 +64,8 @@ pub fn record(
             cra_l: values[1],
             cd_m: values[2],
             as_mps: values[3],
+            cr_aa_pct: f64::NAN,
+            cr_al_pct: f64::NAN,
             a2a_events: if values[0].is_nan() {
                 0
             } else {

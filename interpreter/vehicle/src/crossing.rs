@@ -2,9 +2,14 @@
 //! segment of one properly crosses a segment of the other, i.e. the end points of each lie
 //! strictly on opposite sides of the other's line. Touching and containment are not
 //! collisions. Rectangles are closed curves of their 4 edges.
+//!
+//! The training environment's collisions and resets, the sim engine's `replace-agent` and the
+//! metrics' per-sample collision rates all use these tests.
 
-use cpmx_vehicle::Footprint;
-use cpmx_world::Point;
+use crate::Footprint;
+
+/// A point of the map frame [m].
+type Point = [f64; 2];
 
 /// `(b - a) x (c - a)`.
 #[inline(always)]
@@ -132,9 +137,9 @@ mod tests {
         #[test]
         fn pruning_agrees_with_all_pairs(ax in -2.0..2.0f64, ay in -2.0..2.0f64, yaw in -4.0..4.0f64,
                                           bx in -2.0..2.0f64, by in -2.0..2.0f64, yaw2 in -4.0..4.0f64) {
-            let p = cpmx_vehicle::VehicleParams { length_m: 1.5, width_m: 0.7, ..cpmx_vehicle::VehicleParams::MU_CAR };
-            let a = cpmx_vehicle::footprint_corners(&p, ax, ay, yaw);
-            let b = cpmx_vehicle::footprint_corners(&p, bx, by, yaw2);
+            let p = crate::VehicleParams { length_m: 1.5, width_m: 0.7, ..crate::VehicleParams::MU_CAR };
+            let a = crate::footprint_corners(&p, ax, ay, yaw);
+            let b = crate::footprint_corners(&p, bx, by, yaw2);
             let plain = edges(&a).iter().any(|s| edges(&b).iter().any(|t| cross_properly(*s, *t)));
             prop_assert_eq!(rectangles_cross(&a, &b), plain);
             let line = vec![b[0], b[1], b[2]];
