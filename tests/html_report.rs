@@ -423,7 +423,7 @@ fn the_report_page_uses_the_width_of_a_wide_and_of_a_narrow_window() {
 /// the roundabout's runs keep its 3.5 m × 2.0 m shape and the CPM map's stay nearly square,
 /// and no script fails.
 #[test]
-fn the_report_page_draws_each_run_on_its_map() {
+fn the_report_page_draws_each_run_on_its_map_and_agents_that_come_and_go() {
     let Some(browser) = browser() else {
         return;
     };
@@ -438,7 +438,7 @@ fn the_report_page_draws_each_run_on_its_map() {
 name: two-maps
 map: {file: maps/cpm.xml, tag: 1.2.0}
 vehicle: {length: 0.16, width: 0.08, wheelbase: 0.16, rear_axle: 0.08, max_steering_deg: 35, max_steering_rate_deg_s: 900, accel: [-20, 20], max_speed: 1.0}
-timing: {dt: 0.05, steps: 40}
+timing: {dt: 0.05, steps: 200}
 agents: 4
 policies:
   - {name: m0, mlp: {sigmarl: sigmarl-published/checkpoints/itsc24/M0, tag: 1.2.0}}
@@ -447,6 +447,7 @@ initial_configurations:
   - {name: roundabout, map: {sigmarl: roundabout_1}, sample: {count: 1, seed: 3, min_gap: 0.22}}
 repetitions: 1
 seed: 3
+on_collision: replace-agent
 fidelities:
   sim: {control: direct, dynamics: kinematic-vmas}
 ",
@@ -466,7 +467,23 @@ fidelities:
         .output()
         .unwrap();
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-    let url = format!("file://{}", out.join("report.html").display());
+    // Cars that reach their path's end are replaced: agents come and go in the replay.
+    let per_run = std::fs::read_to_string(out.join("per_run.csv")).unwrap();
+    let agents_col = per_run
+        .lines()
+        .next()
+        .unwrap()
+        .split(',')
+        .position(|h| h == "num_agents")
+        .unwrap();
+    assert!(
+        per_run
+            .lines()
+            .skip(1)
+            .any(|l| l.split(',').nth(agents_col).unwrap().parse::<usize>().unwrap() > 4),
+        "{per_run}"
+    );
+    let url = format!("file://{}#autoplay", out.join("report.html").display());
     let dom = loaded_dom(&browser, &dir.join("profile"), &url);
     let aspects: Vec<f64> = dom
         .split("aspect-ratio: ")

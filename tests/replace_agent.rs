@@ -118,7 +118,10 @@ fn collided_cars_leave_and_new_agents_drive_in_their_slots() {
         assert!(cols[replaced].parse::<f64>().unwrap() >= 1.0, "{line}");
         assert!(cols[cd].parse::<f64>().unwrap().is_finite(), "{line}");
         for share in shares {
-            assert!((0.0..=100.0).contains(&cols[share].parse::<f64>().unwrap()), "{line}");
+            assert!(
+                (0.0..=100.0).contains(&cols[share].parse::<f64>().unwrap()),
+                "{line}"
+            );
         }
     }
     let (_, paths) = presence(&out, "sim/m0/crossing/rep1");
@@ -142,7 +145,10 @@ fn collided_cars_leave_and_new_agents_drive_in_their_slots() {
     assert!(report.status.success(), "{}", unwrapped(&report.stderr));
     let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
     assert_eq!(String::from_utf8(report.stdout).unwrap(), summary);
-    assert!(summary.contains("CR-AA ↓ [% of samples] | CR-AL ↓ [% of samples] |"), "{summary}");
+    assert!(
+        summary.contains("CR-AA ↓ [% of samples] | CR-AL ↓ [% of samples] |"),
+        "{summary}"
+    );
 
     // The same runs on one thread.
     let single = dir.join("single");

@@ -149,7 +149,13 @@
     }
     return run.episodes;
   }
-  const defined = (a, i) => i >= 0 && i < a.x.length && a.x[i] !== null && a.y[i] !== null;
+  // Agent a's `field` at drawn sample i: its arrays start at its first drawn sample (agents
+  // placed later under `on_collision: replace-agent` start later, and leave earlier).
+  const at = (a, field, i) => a[field][i - a.first];
+  const defined = (a, i) => {
+    const j = i - a.first;
+    return j >= 0 && j < a.x.length && a.x[j] !== null && a.y[j] !== null;
+  };
   // One run at sample k: violation bands, reference paths, trails, collision marks, violation
   // rings, footprints.
   function drawRun(canvas, run, k) {
@@ -165,11 +171,11 @@
       let points = 0;
       for (let i = first; i <= Math.min(last, k); i++) {
         if (!defined(a, i)) continue;
-        if (points++ === 0) ctx.moveTo(f.x(a.x[i]), f.y(a.y[i])); else ctx.lineTo(f.x(a.x[i]), f.y(a.y[i]));
+        if (points++ === 0) ctx.moveTo(f.x(at(a, "x", i)), f.y(at(a, "y", i))); else ctx.lineTo(f.x(at(a, "x", i)), f.y(at(a, "y", i)));
       }
       if (points > 1) ctx.stroke();
       else if (points === 1 && defined(a, first)) {
-        ctx.beginPath(); ctx.arc(f.x(a.x[first]), f.y(a.y[first]), 3.5, 0, 2 * Math.PI); ctx.fill();
+        ctx.beginPath(); ctx.arc(f.x(at(a, "x", first)), f.y(at(a, "y", first)), 3.5, 0, 2 * Math.PI); ctx.fill();
       }
       ctx.globalAlpha = 1;
     }
@@ -183,9 +189,9 @@
     run.agents.forEach((a, agent) => {
       ctx.strokeStyle = colour(agent); ctx.lineWidth = 1.5; ctx.beginPath();
       let started = false;
-      for (let i = 0; i <= Math.min(k, a.x.length - 1); i++) {
+      for (let i = a.first; i <= Math.min(k, a.first + a.x.length - 1); i++) {
         if (!defined(a, i)) continue;
-        if (!started) ctx.moveTo(f.x(a.x[i]), f.y(a.y[i])); else ctx.lineTo(f.x(a.x[i]), f.y(a.y[i]));
+        if (!started) ctx.moveTo(f.x(at(a, "x", i)), f.y(at(a, "y", i))); else ctx.lineTo(f.x(at(a, "x", i)), f.y(at(a, "y", i)));
         started = true;
       }
       ctx.stroke();
@@ -195,19 +201,19 @@
       const [a, b] = [run.agents[i], run.agents[j]];
       if (sample > k || !a || !b || !defined(a, sample) || !defined(b, sample)) continue;
       ctx.lineWidth = 1.5;
-      for (const v of [a, b]) { outlinePath(ctx, f, v.x[sample], v.y[sample], v.yaw[sample]); ctx.stroke(); }
+      for (const v of [a, b]) { outlinePath(ctx, f, at(v, "x", sample), at(v, "y", sample), at(v, "yaw", sample)); ctx.stroke(); }
       ctx.lineWidth = 2.5;
-      cross(ctx, (f.x(a.x[sample]) + f.x(b.x[sample])) / 2, (f.y(a.y[sample]) + f.y(b.y[sample])) / 2, 5);
+      cross(ctx, (f.x(at(a, "x", sample)) + f.x(at(b, "x", sample))) / 2, (f.y(at(a, "y", sample)) + f.y(at(b, "y", sample))) / 2, 5);
     }
     ctx.strokeStyle = VIOLATION_INK; ctx.lineWidth = 1.5;
     for (const [agent, first] of episodes(run)) {
       const a = run.agents[agent];
       if (first > k || !a || !defined(a, first)) continue;
-      ctx.beginPath(); ctx.arc(f.x(a.x[first]), f.y(a.y[first]), 5, 0, 2 * Math.PI); ctx.stroke();
+      ctx.beginPath(); ctx.arc(f.x(at(a, "x", first)), f.y(at(a, "y", first)), 5, 0, 2 * Math.PI); ctx.stroke();
     }
     run.agents.forEach((a, agent) => {
-      const i = Math.min(k, a.x.length - 1);
-      if (defined(a, i)) footprint(ctx, f, a.x[i], a.y[i], a.yaw[i], colour(agent));
+      const i = k;
+      if (defined(a, i)) footprint(ctx, f, at(a, "x", i), at(a, "y", i), at(a, "yaw", i), colour(agent));
     });
   }
   // A figure of the page: a canvas showing `run` on its map, and a caption.
@@ -227,7 +233,8 @@
   function legend(id) {
     const box = document.getElementById(id);
     if (!box) return;
-    const agents = Math.max(0, ...data.runs.map((r) => r.agents.length));
+    // One entry per colour at most: agents beyond them repeat the colours.
+    const agents = Math.min(COLOURS.length, Math.max(0, ...data.runs.map((r) => r.agents.length)));
     const icon = (body) => "<svg width=\"22\" height=\"14\" viewBox=\"0 0 22 14\" aria-hidden=\"true\">" + body + "</svg>";
     const items = [];
     for (let agent = 0; agent < agents; agent++) {
@@ -245,7 +252,7 @@
     box.innerHTML = items.map((item) => "<span>" + item + "</span>").join("");
   }
   const fmt = (v, d) => (v === null || v === undefined ? "n/a" : Number(v).toFixed(d));
-  const samples = (run) => (run.agents.length ? run.agents[0].x.length : 0);
+  const samples = (run) => run.samples;
 
   // Who ran: fidelity, policy, initial configuration and repetition, as captions name them.
   const describe = (run) => "fidelity " + run.fidelity + " · policy " + run.policy + " · " + run.configuration +
@@ -312,7 +319,10 @@
   function drawPanel(p, k) {
     const i = Math.min(k, samples(p.run) - 1);
     drawRun(p.canvas, p.run, i);
-    const speeds = p.run.agents.map((a, agent) => "agent " + agent + " " + fmt(a.v[i], 2) + " m/s").join(", ");
+    const speeds = p.run.agents
+      .map((a, agent) => (defined(a, i) ? "agent " + agent + " " + fmt(at(a, "v", i), 2) + " m/s" : null))
+      .filter((text) => text !== null)
+      .join(", ");
     p.text.textContent = describe(p.run) + " — " + speeds;
   }
   function setFrame(k) {

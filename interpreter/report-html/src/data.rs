@@ -5,7 +5,11 @@
 //! replay together, Figure 3's choices, and the learning curves.
 //!
 //! Display only: coordinates are rounded to a millimetre (or the map's scale) and polylines
-//! simplified; the metrics were computed from every sample of the recording.
+//! simplified; the metrics were computed from every sample of the recording. The runs' states
+//! together hold at most [`REPLAY_BUDGET`] vehicle samples: beyond it every run is drawn at
+//! every `stride`-th sample of the grid (the page says so), so that an experiment of many long
+//! runs still gives a page a browser opens. Each agent's states cover only the samples it is
+//! present in (agents that come and go under `on_collision: replace-agent`).
 
 use std::collections::BTreeMap;
 
@@ -17,10 +21,15 @@ use serde_json::{Value, json};
 
 use crate::{Page, PageRun};
 
+/// The most vehicle samples the page's runs hold together (about 25 MB of page).
+pub const REPLAY_BUDGET: usize = 1_000_000;
+
 /// The data of the page (what the insta snapshots hold), written in this order.
 #[derive(Serialize)]
 pub struct PageData<'a> {
     experiment: &'a str,
+    /// The runs are drawn at every `stride`-th sample of the metrics' grid (1: every one).
+    pub(crate) stride: usize,
     maps: Vec<Value>,
     vehicle: Value,
     runs: Vec<RunData<'a>>,
@@ -37,11 +46,13 @@ pub fn page_data<'a>(page: &Page<'a>) -> PageData<'a> {
         .enumerate()
         .map(|(index, map)| map_data(map, page.runs.iter().filter(|run| run.map == index)))
         .collect();
+    let stride = replay_stride(&page.runs);
     PageData {
         experiment: &page.summary.experiment,
+        stride,
         maps,
         vehicle: json!({"length_m": page.vehicle.length_m, "width_m": page.vehicle.width_m}),
-        runs: page.runs.iter().map(run_data).collect(),
+        runs: page.runs.iter().map(|run| run_data(run, stride)).collect(),
         pairs: pairs(&page.runs),
         figure3: figure3(&page.runs, page.summary),
         learning_curves: page
@@ -100,7 +111,10 @@ struct RunData<'a> {
     map: usize,
     pair: String,
     metrics: RunMetricsData,
+    /// Seconds between two drawn samples.
     dt: f64,
+    /// Drawn samples.
+    samples: usize,
     ref_paths: &'a [usize],
     agents: Vec<AgentData>,
     /// Per collision event: sample, first agent, second agent.
@@ -118,28 +132,53 @@ struct RunMetricsData {
     as_mps: Option<f64>,
 }
 
-/// One agent's states on the metrics' grid (null where the agent has no sample).
+/// One agent's states on the drawn samples from its first, `first`, to its last.
 #[derive(Serialize)]
 struct AgentData {
+    first: usize,
     x: Vec<Option<f64>>,
     y: Vec<Option<f64>>,
     yaw: Vec<Option<f64>>,
     v: Vec<Option<f64>>,
 }
 
-fn run_data<'a>(run: &PageRun<'a>) -> RunData<'a> {
+/// The stride that keeps the runs' vehicle samples within [`REPLAY_BUDGET`].
+fn replay_stride(runs: &[PageRun<'_>]) -> usize {
+    let total: usize = runs
+        .iter()
+        .map(|run| {
+            let r = run.recording;
+            (0..r.agent_count())
+                .map(|agent| r.span(agent).len())
+                .sum::<usize>()
+        })
+        .sum();
+    total.div_ceil(REPLAY_BUDGET).max(1)
+}
+
+fn run_data<'a>(run: &PageRun<'a>, stride: usize) -> RunData<'a> {
     let (plan, metrics) = (&run.record.plan, &run.record.metrics);
     let period_s = metrics.config.sample_period_s;
     let grid = resample(run.recording, period_s);
-    let rows: Vec<&Vec<AgentSample>> = grid.samples.iter().take(metrics.num_samples).collect();
+    let rows: Vec<&Vec<AgentSample>> = grid
+        .samples
+        .iter()
+        .take(metrics.num_samples)
+        .step_by(stride)
+        .collect();
     let agents = (0..run.recording.agent_count())
         .map(|agent| {
+            let present = |row: &&Vec<AgentSample>| row.get(agent).is_some_and(AgentSample::is_present);
+            let first = rows.iter().position(present).unwrap_or(rows.len());
+            let end = rows.iter().rposition(present).map_or(first, |last| last + 1);
             let column = |f: &dyn Fn(&AgentSample) -> f64, digits: i32| -> Vec<Option<f64>> {
-                rows.iter()
+                rows[first..end]
+                    .iter()
                     .map(|row| row.get(agent).and_then(|s| rounded(f(s), digits)))
                     .collect()
             };
             AgentData {
+                first,
                 x: column(&|s| s.x_m, 3),
                 y: column(&|s| s.y_m, 3),
                 yaw: column(&|s| s.yaw_rad, 3),
@@ -147,6 +186,13 @@ fn run_data<'a>(run: &PageRun<'a>) -> RunData<'a> {
             }
         })
         .collect();
+    let mut violations: Vec<[usize; 2]> = metrics
+        .agents
+        .iter()
+        .enumerate()
+        .flat_map(|(agent, a)| a.violation_samples.iter().map(move |&k| [agent, k / stride]))
+        .collect();
+    violations.dedup();
     RunData {
         key: &plan.key,
         fidelity: &plan.fidelity,
@@ -161,20 +207,16 @@ fn run_data<'a>(run: &PageRun<'a>) -> RunData<'a> {
             cd_m: rounded(metrics.cd_m, 5),
             as_mps: rounded(metrics.as_mps, 4),
         },
-        dt: period_s,
+        dt: period_s * stride as f64,
+        samples: rows.len(),
         ref_paths: &run.recording.ref_paths,
         agents,
         collisions: metrics
             .pair_events
             .iter()
-            .map(|e| [e.sample, e.agents[0], e.agents[1]])
+            .map(|e| [e.sample / stride, e.agents[0], e.agents[1]])
             .collect(),
-        violations: metrics
-            .agents
-            .iter()
-            .enumerate()
-            .flat_map(|(agent, a)| a.violation_samples.iter().map(move |&k| [agent, k]))
-            .collect(),
+        violations,
     }
 }
 

@@ -101,7 +101,18 @@ pub fn report_html(page: &Page<'_>) -> String {
     out.push_str("</section>\n");
 
     // Figure 3, the replay and the run list are drawn by the script from the data.
-    out.push_str(
+    let data = page_data(page);
+    let thinned = if data.stride > 1 {
+        format!(
+            " Runs are drawn at one sample in {} of the metrics' grid: the page holds at most {} vehicle \
+             samples (the metrics used every sample).",
+            data.stride,
+            data::REPLAY_BUDGET
+        )
+    } else {
+        String::new()
+    };
+    out.push_str(&format!(
         "<section id=\"figure3\"><h2>Initial configurations and representative runs</h2>\n\
          <p>For each initial configuration: the setup with each agent's reference path, then per row of the summary \
          (fidelity and policy unless the spec pools) the run whose CD is closest to that row's mean (as the \
@@ -110,7 +121,7 @@ pub fn report_html(page: &Page<'_>) -> String {
          in inks no agent takes, without hiding the trajectories.</p>\n\
          <div id=\"figure3-legend\" class=\"legend\"></div>\n<div id=\"figure3-body\"></div></section>\n\
          <section id=\"replay\"><h2>Replay</h2>\n<p>The runs of one policy, initial configuration and \
-         repetition in every fidelity, in sync (the paired design). Choose a run in the table below.</p>\n\
+         repetition in every fidelity, in sync (the paired design). Choose a run in the table below.{thinned}</p>\n\
          <div class=\"controls\"><button id=\"play\" type=\"button\">Play</button>\
          <input id=\"scrub\" type=\"range\" min=\"0\" max=\"0\" value=\"0\" aria-label=\"time\">\
          <label>speed <select id=\"speed\"><option>0.5</option><option selected>1</option><option>2</option>\
@@ -118,7 +129,7 @@ pub fn report_html(page: &Page<'_>) -> String {
          <span id=\"replay-title\"></span></div>\n<div id=\"replay-legend\" class=\"legend\"></div>\n\
          <div id=\"replay-body\" class=\"panels\"></div></section>\n\
          <section id=\"runs\"><h2>Runs</h2><div id=\"runs-body\"></div></section>\n",
-    );
+    ));
 
     // The sensitivity curves of sweeps, the distributions, and the training's learning curves.
     figures::sensitivity(&mut out, page.summary, &page.runs, &sensitivity);
@@ -136,7 +147,7 @@ pub fn report_html(page: &Page<'_>) -> String {
 
     // The data and the script.
     // Strings, numbers and arrays under string keys: serialising them cannot fail.
-    let json = serde_json::to_string(&page_data(page))
+    let json = serde_json::to_string(&data)
         .expect("the page's data serialises")
         .replace("</", "<\\/");
     let _ = write!(

@@ -130,3 +130,64 @@ fn page_data_of_a_small_folder() {
         "the summary table is in the page"
     );
 }
+
+#[test]
+fn agents_that_come_and_go_are_drawn_over_their_own_samples_and_long_folders_thinned() {
+    // Four agents on path 1 for 400,000 samples: agents 0 and 3 throughout, agent 1 until the
+    // middle, agent 2 (placed instead) from the middle on: 1.2 million vehicle samples, more
+    // than the page holds.
+    let map = Map::builtin("intersection").unwrap();
+    let count = 400_001;
+    let half = 200_000;
+    let at = |k: usize, lane: f64| AgentSample {
+        x_m: (k % 1000) as f64 * 0.001,
+        y_m: lane,
+        yaw_rad: 0.0,
+        velocity_mps: [0.5, 0.0],
+        steering_rad: 0.0,
+    };
+    let samples: Vec<Vec<AgentSample>> = (0..count)
+        .map(|k| {
+            let first = if k < half { at(k, 1.0) } else { AgentSample::ABSENT };
+            let later = if k >= half {
+                at(k, 2.0)
+            } else {
+                AgentSample::ABSENT
+            };
+            vec![at(k, 0.0), first, later, at(k, 3.0)]
+        })
+        .collect();
+    let recording = Recording {
+        times_s: (0..count).map(|k| k as f64 * 0.1).collect(),
+        ref_paths: vec![1; 4],
+        samples,
+        ..Recording::default()
+    };
+    let records = [record(&map, "sim", &recording)];
+    let summary = summarize("long", &records, &ReportSpec::default(), &Origins::default());
+    let vehicle = VehicleParams::MU_CAR;
+    let page = Page {
+        summary: &summary,
+        description: None,
+        maps: vec![&map],
+        vehicle: &vehicle,
+        runs: vec![PageRun {
+            record: &records[0],
+            recording: &recording,
+            map: 0,
+        }],
+        learning_curves: vec![],
+    };
+    let data = serde_json::to_value(page_data(&page)).unwrap();
+    assert_eq!(data["stride"], 2);
+    let run = &data["runs"][0];
+    assert_eq!(run["samples"], 200_001);
+    assert!((run["dt"].as_f64().unwrap() - 0.2).abs() < 1e-12);
+    let agents = run["agents"].as_array().unwrap();
+    let span = |a: &serde_json::Value| (a["first"].as_u64().unwrap(), a["x"].as_array().unwrap().len());
+    assert_eq!(span(&agents[0]), (0, 200_001));
+    assert_eq!(span(&agents[1]), (0, 100_000));
+    assert_eq!(span(&agents[2]), (100_000, 100_001));
+    let html = report_html(&page);
+    assert!(html.contains("Runs are drawn at one sample in 2 of the metrics' grid"));
+}

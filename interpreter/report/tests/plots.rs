@@ -117,6 +117,36 @@ fn trajectory_plot_has_one_path_per_agent_and_marks_events() {
 }
 
 #[test]
+fn agents_that_come_and_go_are_drawn_where_they_are_present() {
+    let (map, mut recording, _) = scene();
+    // Agent 2 leaves after sample 9 and a new agent 3 drives its last ten samples.
+    recording.ref_paths.push(4);
+    for (k, row) in recording.samples.iter_mut().enumerate() {
+        let later = if k >= 10 { row[2] } else { AgentSample::ABSENT };
+        if k >= 10 {
+            row[2] = AgentSample::ABSENT;
+        }
+        row.push(later);
+    }
+    let paths: Vec<PathGeometry> = [1, 4]
+        .iter()
+        .map(|&id| PathGeometry::from(map.reference_path(id).unwrap()))
+        .collect();
+    let metrics = evaluate(
+        &recording,
+        &paths,
+        &VehicleParams::MU_CAR,
+        &MetricsConfig::default(),
+    )
+    .unwrap();
+    let svg = trajectory_svg(&map, &recording, &metrics, &VehicleParams::MU_CAR);
+    assert!(!svg.contains("NaN"), "absent samples are not drawn");
+    let doc = roxmltree::Document::parse(&svg).unwrap();
+    assert_eq!(count(&doc, "path", "trajectory"), 4);
+    assert_eq!(count(&doc, "circle", "start"), 4);
+}
+
+#[test]
 fn trajectory_plot_snapshot() {
     let (map, recording, metrics) = scene();
     // Only the path's own lanelets keep the snapshot small.

@@ -133,6 +133,7 @@ fn draw_run(
     for &(agent, first, last) in &episodes {
         let points: Vec<Point> = (first..=last)
             .filter_map(|k| states.get(k).and_then(|row| row.get(agent)))
+            .filter(|s| s.is_present())
             .map(|s| [s.x_m, s.y_m])
             .collect();
         if !points.is_empty() {
@@ -155,11 +156,12 @@ fn draw_run(
         }
     }
 
-    // Trajectories and start markers.
+    // Trajectories (over the samples each agent is present in) and start markers.
     for (agent, &ref_path) in recording.ref_paths.iter().enumerate() {
         let points: Vec<Point> = states
             .iter()
             .filter_map(|row| row.get(agent))
+            .filter(|s| s.is_present())
             .map(|s| [s.x_m, s.y_m])
             .collect();
         let _ = writeln!(
@@ -208,7 +210,11 @@ fn draw_run(
     }
     // A hollow ring where each lane-violation episode starts.
     for &(agent, first, _) in &episodes {
-        if let Some(s) = states.get(first).and_then(|row| row.get(agent)) {
+        if let Some(s) = states
+            .get(first)
+            .and_then(|row| row.get(agent))
+            .filter(|s| s.is_present())
+        {
             let (cx, cy) = frame.to_px(s.x_m, s.y_m);
             let _ = writeln!(
                 out,
@@ -284,7 +290,7 @@ fn violation_episodes(metrics: &RunMetrics) -> Vec<(usize, usize, usize)> {
 }
 
 /// Draws one agent's footprint at one sample as an unfilled outline, and returns its centre
-/// in pixels (nothing when either is out of range).
+/// in pixels (nothing when either is out of range or the agent is absent then).
 fn outline(
     out: &mut String,
     frame: &Frame,
@@ -293,7 +299,10 @@ fn outline(
     at: (usize, usize),
 ) -> Option<(f64, f64)> {
     let (sample, agent) = at;
-    let s = states.get(sample).and_then(|row| row.get(agent))?;
+    let s = states
+        .get(sample)
+        .and_then(|row| row.get(agent))
+        .filter(|s| s.is_present())?;
     let corners = footprint_corners(vehicle, s.x_m, s.y_m, s.yaw_rad);
     let points: Vec<String> = corners
         .iter()
