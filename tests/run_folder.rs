@@ -99,6 +99,26 @@ fn only_never_shrinks_the_summary_and_a_typo_changes_nothing() {
     assert_eq!(summary.as_bytes(), whole.1.as_slice());
     let reported = ok(&cpmx(&["report", out_arg, "--format", "csv"]));
     assert_eq!(summary, reported);
+
+    // A run whose metrics.json is damaged is named, not taken for a run never made.
+    let damaged = out.join("runs/sim/cautious/crossing/rep1/metrics.json");
+    std::fs::write(&damaged, "{not json").unwrap();
+    let rerun = cpmx(&[
+        "run",
+        "experiments/quickstart.yaml",
+        "--out",
+        out_arg,
+        "--only",
+        "policy=eager",
+    ]);
+    assert!(rerun.status.success());
+    let stderr = String::from_utf8_lossy(&rerun.stderr);
+    assert!(
+        stderr.contains(
+            "1 runs' files cannot be read and are left out of the summary (e.g. sim/cautious/crossing/rep1:"
+        ),
+        "{stderr}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

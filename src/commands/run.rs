@@ -138,6 +138,13 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             done.stale[0]
         );
     }
+    if let Some((key, reason)) = done.unreadable.first() {
+        eprintln!(
+            "warning: {} runs' files cannot be read and are left out of the summary (e.g. {key}: {reason}); \
+             run them again with `--resume`",
+            done.unreadable.len()
+        );
+    }
     if done.summarised > 0 && done.summarised < done.matrix_runs {
         eprintln!(
             "note: the summary covers {} of the spec's {} runs; the others are not in the folder yet",

@@ -444,8 +444,9 @@ pub fn read_matrix(dir: &Path) -> Result<Vec<RunPlan>, String> {
 pub struct FolderRuns {
     /// Finished runs made from the folder's spec, in matrix order.
     pub records: Vec<RunRecord>,
-    /// Runs of the matrix not finished in the folder.
-    pub missing: Vec<String>,
+    /// Runs whose files are there but cannot be read (a damaged `metrics.json`): left out of
+    /// every summary, with the reason; `--resume` runs them again.
+    pub unreadable: Vec<(String, String)>,
     /// Runs finished from an earlier spec (their inputs differ): left out of every summary
     /// until they are run again.
     pub stale: Vec<String>,
@@ -457,7 +458,15 @@ pub fn read_records(dir: &Path, plans: &[RunPlan], context_hash: &str) -> Folder
     let mut runs = FolderRuns::default();
     for plan in plans {
         let run = run_dir(dir, plan);
-        let stored = read_stored(&run).ok().filter(|s| s.key == plan.key);
+        let stored = match read_stored(&run) {
+            Ok(stored) => Some(stored).filter(|s| s.key == plan.key),
+            // Not there: not finished (or failed). There but unreadable: say so.
+            Err(reason) if run.join("metrics.json").exists() => {
+                runs.unreadable.push((plan.key.clone(), reason));
+                continue;
+            }
+            Err(_) => None,
+        };
         match (stored, std::fs::read(run.join("trajectory.csv"))) {
             (Some(stored), Ok(_)) if stored.inputs_hash != inputs_hash(context_hash, plan) => {
                 runs.stale.push(plan.key.clone());
@@ -469,7 +478,7 @@ pub fn read_records(dir: &Path, plans: &[RunPlan], context_hash: &str) -> Folder
                 drawn_parameters: stored.drawn_parameters,
                 statistics: stored.statistics,
             }),
-            _ => runs.missing.push(plan.key.clone()),
+            _ => {}
         }
     }
     runs

@@ -122,6 +122,8 @@ pub struct MatrixRun {
     pub summarised: usize,
     /// Keys of runs in the folder made from an earlier spec (left out of the summary).
     pub stale: Vec<String>,
+    /// Runs whose files cannot be read, with the reason: left out of the summary.
+    pub unreadable: Vec<(String, String)>,
     /// Notes for the user (e.g. that `--force` replaced the folder's spec).
     pub notes: Vec<String>,
 }
@@ -328,6 +330,7 @@ pub fn run_matrix(
         summary,
         summarised: held.records.len(),
         stale: held.stale,
+        unreadable: held.unreadable,
         notes,
     })
 }
