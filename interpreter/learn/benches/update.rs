@@ -60,7 +60,7 @@ impl Step {
         let mut action = Vec::new();
         let mut log_prob = Vec::new();
         for raw in ta.output().chunks_exact(4) {
-            let p = tanh_normal::params(raw);
+            let p = tanh_normal::params(raw, f32::INFINITY);
             let a = tanh_normal::sample(
                 &p,
                 [rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)],
@@ -104,6 +104,7 @@ impl Step {
             entropy_coef: 5e-4,
             critic_coef: 1.0,
             high: HIGH,
+            max_scale: f32::INFINITY,
         };
         self.actor.forward(&self.obs, SAMPLES * AGENTS, &mut self.ta);
         self.critic.forward(&self.obs, SAMPLES, &mut self.tc);
@@ -269,6 +270,7 @@ fn bench(c: &mut Criterion) {
                 entropy_coef: 5e-4,
                 critic_coef: 1.0,
                 high: HIGH,
+                max_scale: f32::INFINITY,
             };
             let input = LossInput {
                 action: &step.action,

@@ -42,6 +42,10 @@ pub struct Hyperparameters {
     /// learn, so that a fresh critic beside a warm-started actor has learnt its values before
     /// its advantages move it (0: SigmaRL, both from the first iteration).
     pub critic_warmup_iterations: u64,
+    /// The largest scale of the actor's action noise (before tanh; `f32::INFINITY`: none, as
+    /// SigmaRL). A bound keeps a state's noise from growing without limit where the policy
+    /// gradient widens it (docs/transfer.md).
+    pub max_scale: f32,
 }
 
 impl Hyperparameters {
@@ -65,6 +69,7 @@ impl Hyperparameters {
             critic_hidden: vec![256, 256, 256],
             action_high: [1.0, 0.541_052_04],
             critic_warmup_iterations: 0,
+            max_scale: f32::INFINITY,
         }
     }
 

@@ -58,6 +58,8 @@ pub struct LossConfig {
     pub critic_coef: f64,
     /// Action half-ranges.
     pub high: [f32; 2],
+    /// The action noise's largest scale (`f32::INFINITY`: unbounded, SigmaRL).
+    pub max_scale: f32,
 }
 
 /// One minibatch's data, `S` env-steps of `N` agents: every per-entry slice is `[S][N]`
@@ -122,7 +124,7 @@ pub fn ppo_loss(
     let entry = |(s, ((d_raw, terms), d_value)): EnvStepChunk<'_>| {
         for (a, (d_raw, term)) in d_raw.chunks_exact_mut(4).zip(terms).enumerate() {
             let i = s * agents + a;
-            let p: Params = tanh_normal::params(&raw[i * 4..i * 4 + 4]);
+            let p: Params = tanh_normal::params(&raw[i * 4..i * 4 + 4], config.max_scale);
             let action = [input.action[2 * i], input.action[2 * i + 1]];
             let eps = [input.entropy_eps[2 * i], input.entropy_eps[2 * i + 1]];
             let scored = tanh_normal::log_prob(&p, action, config.high);

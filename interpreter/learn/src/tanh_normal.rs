@@ -1,6 +1,8 @@
 //! SigmaRL's action distribution with its gradients: torchrl's `TanhNormal(loc, scale,
 //! low = -high, high = high, safe_tanh = true)` over the network's raw outputs
-//! `[loc_v, loc_δ, z_v, z_δ]` with `scale = max(softplus(z + 0.52546) + 0.01, 1e-4)`.
+//! `[loc_v, loc_δ, z_v, z_δ]` with `scale = max(softplus(z + 0.52546) + 0.01, 1e-4)`, at most
+//! `max_scale` when a training bounds it (`algorithm.mappo.max_scale`: clamped as torch's
+//! `clamp`, no gradient above the bound; SigmaRL has no bound, `f32::INFINITY`).
 //!
 //! Per dimension, an action `a` is scored through torch's float32 inverse
 //! `u = atanh(clamp(a / high, ±(1 - 1e-6)))` and
@@ -48,15 +50,16 @@ fn sigmoid(x: f64) -> f64 {
     1.0 / (1.0 + (-x).exp())
 }
 
-/// `loc` and `scale` of the raw outputs (torchrl's `NormalParamExtractor`).
-pub fn params(raw: &[f32]) -> Params {
+/// `loc` and `scale` of the raw outputs (torchrl's `NormalParamExtractor`), the scale at most
+/// `max_scale`.
+pub fn params(raw: &[f32], max_scale: f32) -> Params {
     let mut scale = [0.0; 2];
     let mut dscale_dz = [0.0; 2];
     for c in 0..2 {
         let x = f64::from(raw[2 + c] + SCALE_BIAS);
         let s = softplus(x) + SCALE_OFFSET;
-        scale[c] = s.max(SCALE_MIN) as f32;
-        dscale_dz[c] = if s < SCALE_MIN {
+        scale[c] = (s.max(SCALE_MIN) as f32).min(max_scale);
+        dscale_dz[c] = if s < SCALE_MIN || s as f32 > max_scale {
             0.0
         } else if x > 20.0 {
             1.0
@@ -171,8 +174,8 @@ mod tests {
             ([-0.7, 0.9, 2.0, -2.0], [-0.6, 0.5], [1.5, 0.1]),
         ];
         for (raw, action, eps) in cases {
-            let lp = |r: &[f32; 4]| log_prob(&params(r), action, high).log_prob;
-            let got = log_prob(&params(&raw), action, high).grad_raw;
+            let lp = |r: &[f32; 4]| log_prob(&params(r, f32::INFINITY), action, high).log_prob;
+            let got = log_prob(&params(&raw, f32::INFINITY), action, high).grad_raw;
             let want = numeric(&lp, raw);
             for i in 0..4 {
                 // float32 rounding of loc/scale bounds the difference quotient's accuracy.
@@ -181,8 +184,8 @@ mod tests {
                     "{i}: {got:?} {want:?}"
                 );
             }
-            let se = |r: &[f32; 4]| sample_log_prob(&params(r), eps, high).log_prob;
-            let got = sample_log_prob(&params(&raw), eps, high).grad_raw;
+            let se = |r: &[f32; 4]| sample_log_prob(&params(r, f32::INFINITY), eps, high).log_prob;
+            let got = sample_log_prob(&params(&raw, f32::INFINITY), eps, high).grad_raw;
             let want = numeric(&se, raw);
             for i in 0..4 {
                 assert!(
@@ -194,8 +197,29 @@ mod tests {
     }
 
     #[test]
+    fn a_bounded_scale_stops_at_its_bound_without_gradient_above_it() {
+        let high = [1.0, 0.541_052_04];
+        // z = 3 gives a scale of about 3.5, z = -1 about 0.64.
+        let raw = [0.2f32, -0.1, 3.0, -1.0];
+        let free = params(&raw, f32::INFINITY);
+        let bounded = params(&raw, 1.0);
+        assert!(free.scale[0] > 3.0);
+        assert_eq!(bounded.scale, [1.0, free.scale[1]]);
+        assert_eq!(bounded.dscale_dz, [0.0, free.dscale_dz[1]]);
+        // The clamped dimension's raw output gets no gradient; the other is unchanged.
+        let action = [0.4f32, -0.2];
+        let got = log_prob(&bounded, action, high).grad_raw;
+        let want = log_prob(&free, action, high).grad_raw;
+        assert_eq!(got[2], 0.0);
+        assert_eq!(got[3], want[3]);
+        let lp = |r: &[f32; 4]| log_prob(&params(r, 1.0), action, high).log_prob;
+        let numeric_grad = numeric(&lp, raw);
+        assert!((got[1] - numeric_grad[1]).abs() < 2e-3 * (1.0 + numeric_grad[1].abs()));
+    }
+
+    #[test]
     fn zero_raw_output_is_unit_scale() {
-        let p = params(&[0.0; 4]);
+        let p = params(&[0.0; 4], f32::INFINITY);
         assert!((p.scale[0] - 1.0).abs() < 1e-6);
     }
 }

@@ -385,7 +385,7 @@ impl<E: Environment> Trainer<E> {
             }
             self.actor.forward(&self.observations, envs * agents, tape);
             for (i, raw) in tape.output().chunks_exact(4).enumerate() {
-                let p = tanh_normal::params(raw);
+                let p = tanh_normal::params(raw, self.hp.max_scale);
                 for (sum, scale) in record.action_scale_means.iter_mut().zip(p.scale) {
                     *sum += f64::from(scale);
                 }
@@ -504,6 +504,7 @@ impl<E: Environment> Trainer<E> {
             entropy_coef: self.hp.entropy_eps,
             critic_coef: self.hp.critic_coef,
             high: self.hp.action_high,
+            max_scale: self.hp.max_scale,
         };
         let mut sums = (Losses::default(), 0.0);
         let steps_per_iteration = (self.hp.num_epochs * (envs * steps / mb)) as u64;

@@ -158,6 +158,7 @@ fn loss_and_grads(
         entropy_coef: 5e-4,
         critic_coef: 1.0,
         high: HIGH,
+        max_scale: f32::INFINITY,
     };
     let input = LossInput {
         action: &m.action,
@@ -194,7 +195,7 @@ fn ppo_minibatch_losses_and_gradient_norms_match_sigmarl() {
     let (loc, scale) = (flat(&mb["loc"]), flat(&mb["scale"]));
     let mut worst_param = 0.0f64;
     for (i, r) in raw.chunks_exact(4).enumerate() {
-        let p = tanh_normal::params(r);
+        let p = tanh_normal::params(r, f32::INFINITY);
         for c in 0..2 {
             worst_param = worst_param
                 .max((f64::from(p.loc[c]) - loc[2 * i + c]).abs())
@@ -211,7 +212,7 @@ fn ppo_minibatch_losses_and_gradient_norms_match_sigmarl() {
         .enumerate()
         .map(|(i, r)| {
             let lp = tanh_normal::log_prob(
-                &tanh_normal::params(r),
+                &tanh_normal::params(r, f32::INFINITY),
                 [m.action[2 * i], m.action[2 * i + 1]],
                 HIGH,
             )
@@ -278,7 +279,7 @@ fn synthetic() -> Minibatch {
     let mut action = Vec::new();
     let mut log_prob_old = Vec::new();
     for raw in tape.output().chunks_exact(4) {
-        let p = tanh_normal::params(raw);
+        let p = tanh_normal::params(raw, f32::INFINITY);
         let eps = [rng.random_range(-1.0..1.0f32), rng.random_range(-1.0..1.0f32)];
         let a = tanh_normal::sample(&p, eps, HIGH);
         action.extend(a);

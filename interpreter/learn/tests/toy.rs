@@ -316,3 +316,29 @@ fn a_critic_warm_up_trains_the_critic_while_the_actor_only_collects() {
         "{error}"
     );
 }
+
+#[test]
+fn a_bounded_noise_scale_never_exceeds_its_bound() {
+    // A fresh actor's scale is about 1 (raw output 0); bounded at 0.3, every sample's noise is
+    // at most 0.3, so the iteration's mean scale is too, while the unbounded one is not.
+    let bounded = Hyperparameters {
+        max_scale: 0.3,
+        ..hyperparameters()
+    };
+    let mut trainer = Trainer::new(Line::new(8), bounded, 1).unwrap();
+    for _ in 0..3 {
+        let record = trainer.iterate().unwrap();
+        assert!(
+            record.action_scale_means.iter().all(|&s| s <= 0.3 + 1e-7),
+            "{:?}",
+            record.action_scale_means
+        );
+    }
+    let mut free = Trainer::new(Line::new(8), hyperparameters(), 1).unwrap();
+    let record = free.iterate().unwrap();
+    assert!(
+        record.action_scale_means.iter().any(|&s| s > 0.5),
+        "{:?}",
+        record.action_scale_means
+    );
+}

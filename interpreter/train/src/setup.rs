@@ -235,6 +235,7 @@ fn hyperparameters(training: &TrainingSpec, vehicle: &cpmx_vehicle::VehicleParam
         lmbda: m.lambda,
         entropy_eps: m.entropy,
         critic_warmup_iterations: u64::from(m.critic_warmup_iterations),
+        max_scale: m.max_scale.map_or(f32::INFINITY, |bound| bound as f32),
         actor_hidden: hidden.clone(),
         critic_hidden: hidden,
         action_high: [vehicle.max_speed_mps as f32, vehicle.max_steering_rad as f32],

@@ -556,6 +556,13 @@ pub struct MappoSpec {
     /// `iterations`. Default: 0 (SigmaRL).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub critic_warmup_iterations: u32,
+    /// The largest scale of the actor's action noise, before tanh (the scale is clamped to it,
+    /// with no gradient above). Default: none (SigmaRL). Through the twin a warm actor's scale
+    /// collapsed to its floor (0.01) in most states and grew past 30 in others without one
+    /// (docs/transfer.md).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("exclusiveMinimum" = 0.01))]
+    pub max_scale: Option<f64>,
 }
 
 fn is_zero(n: &u32) -> bool {
