@@ -83,14 +83,17 @@ fn only_never_shrinks_the_summary_and_a_typo_changes_nothing() {
     assert!(files(&out) == before, "a refused --only left the folder changed");
 
     // A subset re-run into the finished folder: its summary still covers every run.
-    ok(&cpmx(&[
-        "run",
-        "experiments/quickstart.yaml",
-        "--out",
-        out_arg,
-        "--only",
-        "policy=eager",
-    ]));
+    let eager_again = || {
+        cpmx(&[
+            "run",
+            "experiments/quickstart.yaml",
+            "--out",
+            out_arg,
+            "--only",
+            "policy=eager",
+        ])
+    };
+    ok(&eager_again());
     let summary = std::fs::read_to_string(out.join("summary.csv")).unwrap();
     let whole = before
         .iter()
@@ -103,14 +106,7 @@ fn only_never_shrinks_the_summary_and_a_typo_changes_nothing() {
     // A run whose metrics.json is damaged is named, not taken for a run never made.
     let damaged = out.join("runs/sim/cautious/crossing/rep1/metrics.json");
     std::fs::write(&damaged, "{not json").unwrap();
-    let rerun = cpmx(&[
-        "run",
-        "experiments/quickstart.yaml",
-        "--out",
-        out_arg,
-        "--only",
-        "policy=eager",
-    ]);
+    let rerun = eager_again();
     assert!(rerun.status.success());
     let stderr = String::from_utf8_lossy(&rerun.stderr);
     assert!(

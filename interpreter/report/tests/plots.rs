@@ -44,18 +44,23 @@ fn scene() -> (Map, Recording, RunMetrics) {
             pose(4, 0.2 + 0.05 * t, 0.01 * t, 0.5),
         ]);
     }
+    let metrics = measure(&map, &recording);
+    (map, recording, metrics)
+}
+
+/// A recording's metrics on the built-in map (paths 1 and 4, the µCar, the paper's parameters).
+fn measure(map: &Map, recording: &Recording) -> RunMetrics {
     let paths: Vec<PathGeometry> = [1, 4]
         .iter()
         .map(|&id| PathGeometry::from(map.reference_path(id).unwrap()))
         .collect();
-    let metrics = evaluate(
-        &recording,
+    evaluate(
+        recording,
         &paths,
         &VehicleParams::MU_CAR,
         &MetricsConfig::default(),
     )
-    .unwrap();
-    (map, recording, metrics)
+    .unwrap()
 }
 
 fn count(doc: &roxmltree::Document, tag: &str, class: &str) -> usize {
@@ -128,17 +133,7 @@ fn agents_that_come_and_go_are_drawn_where_they_are_present() {
         }
         row.push(later);
     }
-    let paths: Vec<PathGeometry> = [1, 4]
-        .iter()
-        .map(|&id| PathGeometry::from(map.reference_path(id).unwrap()))
-        .collect();
-    let metrics = evaluate(
-        &recording,
-        &paths,
-        &VehicleParams::MU_CAR,
-        &MetricsConfig::default(),
-    )
-    .unwrap();
+    let metrics = measure(&map, &recording);
     let svg = trajectory_svg(&map, &recording, &metrics, &VehicleParams::MU_CAR);
     assert!(!svg.contains("NaN"), "absent samples are not drawn");
     let doc = roxmltree::Document::parse(&svg).unwrap();
