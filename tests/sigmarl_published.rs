@@ -10,13 +10,14 @@ use std::path::{Path, PathBuf};
 
 use support::{cpmx_in, reference, root, scratch, unwrapped};
 
-/// The shipped spec with `steps` steps, `count` drawn starts and `policies` instead of its own
-/// (YAML list items; the shipped ones when `None`), written into `dir`.
+/// The shipped spec with `steps` steps, `count` drawn starts (repetitions) and `policies`
+/// instead of its own (YAML list items; the shipped ones when `None`), written into `dir`.
 fn variant(dir: &Path, steps: u32, count: u32, policies: Option<&str>) -> PathBuf {
     let shipped = std::fs::read_to_string(root().join("experiments/xp-marl.yaml")).unwrap();
     let mut text = shipped
-        .replace("steps: 600", &format!("steps: {steps}"))
-        .replace("count: 10,", &format!("count: {count},"));
+        .replace("steps: 1199", &format!("steps: {steps}"))
+        .replace("repetitions: 32", &format!("repetitions: {count}"));
+    assert_ne!(text, shipped, "the shipped spec's steps and repetitions");
     if let Some(policies) = policies {
         let start = text.find("policies:\n").unwrap();
         let end = text.find("initial_configurations:").unwrap();
@@ -54,7 +55,7 @@ fn the_five_models_run_and_a_random_ranking_is_the_runs_stream() {
     let trajectory = |folder: &str, policy: &str| {
         std::fs::read(
             dir.join(folder)
-                .join(format!("runs/sim/{policy}/sample1/rep1/trajectory.csv")),
+                .join(format!("runs/sim/{policy}/cpm-entire/rep1/trajectory.csv")),
         )
         .unwrap()
     };
@@ -123,11 +124,15 @@ fn priority_is_refused_where_it_cannot_rank() {
 fn a_planning_fidelity_at_the_models_step_decides_on_the_vehicles_periods() {
     let dir = scratch("xp-marl-twin");
     let spec = variant(&dir, 6, 1, None);
-    let planning = std::fs::read_to_string(&spec).unwrap().replace(
-        "  sim: {control: direct, dynamics: kinematic-vmas}\n",
-        "  sim: {control: direct, dynamics: kinematic-vmas}\n  twin: {control: trajectory, dynamics: stdlib:mu-car-greybox}\n\
-         planner: {control_horizon: 4, prediction_horizon: 12, after_control_horizon: {speed: hold, steering: linear-to-zero}}\n",
-    );
+    // A planning fidelity replaces no cars (SigmaRL's testing mode is the sim's).
+    let sim = "  sim: {control: direct, dynamics: kinematic-vmas}\n";
+    let with_twin = "  sim: {control: direct, dynamics: kinematic-vmas}\n  \
+                     twin: {control: trajectory, dynamics: stdlib:mu-car-greybox}\n\
+                     planner: {control_horizon: 4, prediction_horizon: 12, after_control_horizon: {speed: hold, steering: linear-to-zero}}\n";
+    let planning = std::fs::read_to_string(&spec)
+        .unwrap()
+        .replace("on_collision: replace-agent", "on_collision: continue")
+        .replace(sim, with_twin);
     std::fs::write(&spec, &planning).unwrap();
     let (code, _, stderr) = cpmx_spec(&dir, "validate", &spec, &[]);
     assert_eq!(code, Some(0), "{stderr}");
@@ -143,7 +148,8 @@ fn a_planning_fidelity_at_the_models_step_decides_on_the_vehicles_periods() {
     );
     assert_eq!(code, Some(0), "{stderr}");
     let trajectory =
-        std::fs::read_to_string(dir.join("out/runs/twin/m2-baseline/sample1/rep1/trajectory.csv")).unwrap();
+        std::fs::read_to_string(dir.join("out/runs/twin/m2-baseline/cpm-entire/rep1/trajectory.csv"))
+            .unwrap();
     let mut times: Vec<&str> = trajectory
         .lines()
         .skip(1)
