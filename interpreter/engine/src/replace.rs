@@ -152,11 +152,11 @@ impl Replacements {
             }
         }
         for (slot, outline) in outlines.iter().enumerate() {
-            let path = &self.paths.paths[self.slot_paths[slot]];
             if leaving[slot].is_some() {
                 continue;
             }
-            if self.off_road(slot, outline) {
+            let path = &self.paths.paths[self.slot_paths[slot]];
+            if path.boundaries.crossed_by(outline) {
                 leaving[slot] = Some(Leave::OffRoad);
             } else if [path.entry, path.exit]
                 .iter()
@@ -167,12 +167,6 @@ impl Replacements {
             }
         }
         leaving
-    }
-
-    fn off_road(&self, slot: usize, outline: &cpmx_vehicle::Footprint) -> bool {
-        self.paths.paths[self.slot_paths[slot]]
-            .boundaries
-            .crossed_by(outline)
     }
 
     /// Places a new car in `slot`, clear of the other cars of `states`: its reference path id,
@@ -243,9 +237,10 @@ mod tests {
             on_path(&map, a, 1.5),
             on_path(&map, b, 0.5),
         ];
-        if apart.iter().any(|s| s.x_m.is_nan()) || length_a < 2.0 {
-            panic!("the built-in map's paths are shorter than the test assumes");
-        }
+        assert!(
+            length_a >= 2.0,
+            "the built-in map's paths are shorter than the test assumes"
+        );
         assert_eq!(replacements.leaving(&apart), [None, None, None]);
         // Two cars overlapping with crossing outlines both leave.
         let mut overlap = apart;

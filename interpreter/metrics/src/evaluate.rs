@@ -249,16 +249,19 @@ pub fn evaluate(
 
     // SigmaRL's per-sample collision rates, over the agents present in each sample.
     let (cr_aa_pct, cr_al_pct) = if config.per_sample_collisions {
-        let roads: Vec<Walls> = (0..agent_count)
-            .map(|agent| {
+        // One set of walls per path (a run replacing cars has many agents on few paths).
+        let mut walls_of_path = std::collections::BTreeMap::new();
+        for &id in &recording.ref_paths {
+            walls_of_path.entry(id).or_insert_with(|| {
                 let path = ref_paths
                     .iter()
-                    .find(|p| p.id == recording.ref_paths[agent])
+                    .find(|p| p.id == id)
                     .expect("every path was found above");
                 let map = |line: &[Point]| -> Vec<Point> { line.iter().map(|&p| rotate(p)).collect() };
                 Walls::new(&[&map(path.road_left_boundary), &map(path.road_right_boundary)])
-            })
-            .collect();
+            });
+        }
+        let roads: Vec<&Walls> = recording.ref_paths.iter().map(|id| &walls_of_path[id]).collect();
         per_sample_collision_rates(&states, vehicle, &roads)
     } else {
         (f64::NAN, f64::NAN)
@@ -306,7 +309,7 @@ pub fn evaluate(
 fn per_sample_collision_rates(
     states: &[Vec<AgentSample>],
     vehicle: &VehicleParams,
-    roads: &[Walls],
+    roads: &[&Walls],
 ) -> (f64, f64) {
     let (mut between_agents, mut off_road) = (0usize, 0usize);
     for row in states {
