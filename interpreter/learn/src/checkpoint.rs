@@ -173,7 +173,7 @@ impl<E: Environment> Trainer<E> {
                 "best_reward".to_owned(),
                 format!("{:016x}", self.best_reward.to_bits()),
             ),
-            ("hyperparameters".to_owned(), format!("{:?}", self.hp)),
+            ("hyperparameters".to_owned(), self.hp.fingerprint()),
         ]);
         for (name, rng) in
             STREAMS[1..]
@@ -208,7 +208,7 @@ impl<E: Environment> Trainer<E> {
         if get("format")? != FORMAT {
             return Err(bad(format!("format is not {FORMAT}")));
         }
-        if get("hyperparameters")? != format!("{hp:?}") {
+        if get("hyperparameters")? != hp.fingerprint() {
             return Err(bad("it was made with different hyperparameters".into()));
         }
         let seed = number("seed")? as u64;

@@ -73,6 +73,18 @@ impl Hyperparameters {
         }
     }
 
+    /// What a checkpoint records to refuse resuming with other values: the `Debug` form, less
+    /// the fields added since checkpoints were first written when they hold the value that
+    /// means "as before" (an unbounded `max_scale`), so that older checkpoints still resume.
+    pub fn fingerprint(&self) -> String {
+        let text = format!("{self:?}");
+        if self.max_scale == f32::INFINITY {
+            text.replace(", max_scale: inf", "")
+        } else {
+            text
+        }
+    }
+
     /// Check the values against each other and the environment's sizes.
     pub fn check(&self, envs: usize, agents: usize, obs_dim: usize) -> Result<(), TrainError> {
         let bad = |what: String| Err(TrainError::Hyperparameters(what));
@@ -137,4 +149,23 @@ pub enum TrainError {
     /// The environment's answer does not fit its sizes, or its state does not load.
     #[error("environment: {0}")]
     Environment(String),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fingerprint_names_a_bounded_scale_and_reads_unbounded_as_before() {
+        let unbounded = Hyperparameters::sigmarl(10);
+        let fingerprint = unbounded.fingerprint();
+        assert!(!fingerprint.contains("max_scale"), "{fingerprint}");
+        assert!(fingerprint.ends_with("critic_warmup_iterations: 0 }"), "{fingerprint}");
+        let bounded = Hyperparameters {
+            max_scale: 1.0,
+            ..unbounded.clone()
+        };
+        assert!(bounded.fingerprint().contains("max_scale: 1.0"));
+        assert_ne!(bounded.fingerprint(), fingerprint);
+    }
 }
