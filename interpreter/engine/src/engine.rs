@@ -265,6 +265,17 @@ impl RunInputs<'_> {
 /// An engine: produces a run's recording.
 pub trait Engine: Sync {
     fn run(&self, inputs: &RunInputs<'_>) -> Result<Recording, RunError>;
+
+    /// Several runs of one experiment, each result the one [`Engine::run`] gives: one after
+    /// the other, unless the engine shares work between runs in lock-step (the twin's MPCs).
+    fn run_together(&self, inputs: &[RunInputs<'_>]) -> Vec<Result<Recording, RunError>> {
+        inputs.iter().map(|inputs| self.run(inputs)).collect()
+    }
+
+    /// Whether [`Engine::run_together`] gains from being handed several runs.
+    fn steps_together(&self) -> bool {
+        false
+    }
 }
 
 /// The engine of a fidelity, or why this build has none.

@@ -8,6 +8,7 @@ mod checks;
 mod engine;
 mod experiment;
 pub mod folder;
+mod groups;
 pub mod lab;
 mod memo;
 mod onnx;

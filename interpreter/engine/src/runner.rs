@@ -17,6 +17,7 @@ use sha2::{Digest, Sha256};
 
 use crate::engine::{Operator, RunError, RunInputs, engine_for};
 use crate::experiment::Experiment;
+use crate::groups::lockstep_groups;
 use crate::pipeline::pipelined;
 use crate::store::{
     EARLIER_RECORDING, Failure, StoredRun, finished_run, run_dir, store_failure, store_run, write_atomic,
@@ -101,44 +102,44 @@ pub fn execute(
         on_done(run.plan, &outcome);
         (run.index, outcome)
     };
-    let (mut outcomes, stored): (Vec<Option<RunOutcome>>, _) = pipelined(jobs + 1, store, |to_writer| {
+    let groups = lockstep_groups(experiment, &selected, jobs);
+    let (computed, stored): (Vec<Vec<Settled>>, _) = pipelined(jobs + 1, store, |to_writer| {
         pool.install(|| {
-            selected
+            groups
                 .par_iter()
-                .enumerate()
-                .map(|(index, plan)| {
-                    let stopped = options.stop.as_ref().is_some_and(|s| s.load(Ordering::SeqCst));
-                    let outcome = if stopped {
-                        RunOutcome::NotRun
-                    } else if silent.lock().is_ok_and(|s| s.contains(&plan.fidelity)) {
-                        RunOutcome::Failed(format!(
-                            "not started: the lab of fidelity `{}` did not answer an earlier run",
-                            plan.fidelity
-                        ))
-                    } else {
-                        match execute_one(experiment, plan, out, options, context_hash, &silent) {
-                            Computed::Outcome(outcome) => outcome,
-                            Computed::Finished { recording, stored } => {
-                                let run = ToStore {
-                                    index,
-                                    plan,
-                                    recording,
-                                    stored,
-                                };
-                                // Sending fails only when the writers are gone (one panicked).
-                                match to_writer.send(run) {
-                                    Ok(()) => return None,
-                                    Err(SendError(run)) => return Some(store(run).1),
+                .map(|group| {
+                    let runs: Vec<(usize, &RunPlan)> = group.iter().map(|&i| (i, selected[i])).collect();
+                    execute_group(experiment, &runs, out, options, context_hash, &silent)
+                        .into_iter()
+                        .map(|(index, plan, computed)| {
+                            let outcome = match computed {
+                                Computed::Outcome(outcome) => outcome,
+                                Computed::Finished { recording, stored } => {
+                                    let run = ToStore {
+                                        index,
+                                        plan,
+                                        recording,
+                                        stored,
+                                    };
+                                    // Sending fails only when the writers are gone (one panicked).
+                                    match to_writer.send(run) {
+                                        Ok(()) => return (index, None),
+                                        Err(SendError(run)) => return (index, Some(store(run).1)),
+                                    }
                                 }
-                            }
-                        }
-                    };
-                    on_done(plan, &outcome);
-                    Some(outcome)
+                            };
+                            on_done(plan, &outcome);
+                            (index, Some(outcome))
+                        })
+                        .collect()
                 })
                 .collect()
         })
     });
+    let mut outcomes: Vec<Option<RunOutcome>> = (0..selected.len()).map(|_| None).collect();
+    for (index, outcome) in computed.into_iter().flatten() {
+        outcomes[index] = outcome;
+    }
     for (index, outcome) in stored {
         outcomes[index] = Some(outcome);
     }
@@ -152,6 +153,10 @@ pub fn execute(
         })
         .collect())
 }
+
+/// A run's place in the selection and its outcome, unless the writers settle it (a finished
+/// run counts as done once stored).
+type Settled = (usize, Option<RunOutcome>);
 
 /// A finished run on its way to the writer: its place in the selection, its recording and
 /// what its `metrics.json` will hold.
@@ -184,31 +189,85 @@ pub fn inputs_hash(context_hash: &str, plan: &RunPlan) -> String {
     digest.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-fn execute_one(
+/// A run whose engine is to run it: its plan, its inputs' hash and its fidelity as drawn.
+struct Ready<'a> {
+    index: usize,
+    plan: &'a RunPlan,
+    hash: String,
+    fidelity: Option<DrawnFidelity>,
+    drawn_parameters: BTreeMap<String, f64>,
+}
+
+/// Computes a group of runs (one fidelity's, or a run alone): each is skipped when the
+/// execution was stopped, its lab is silent or `--resume` finds it stored; the others run
+/// together through their engine ([`crate::engine::Engine::run_together`]) and are measured.
+fn execute_group<'a>(
     experiment: &Experiment,
-    plan: &RunPlan,
+    runs: &[(usize, &'a RunPlan)],
     out: &Path,
     options: &RunOptions,
     context_hash: &str,
     silent: &Mutex<BTreeSet<String>>,
-) -> Computed {
-    let hash = inputs_hash(context_hash, plan);
-    if options.resume
-        && let Some(stored) = finished_run(out, plan, &hash)
-    {
-        return Computed::Outcome(RunOutcome::Resumed(Box::new(stored)));
+) -> Vec<(usize, &'a RunPlan, Computed)> {
+    let mut computed = Vec::with_capacity(runs.len());
+    let mut ready = Vec::with_capacity(runs.len());
+    for &(index, plan) in runs {
+        let stopped = options.stop.as_ref().is_some_and(|s| s.load(Ordering::SeqCst));
+        let hash = inputs_hash(context_hash, plan);
+        let settled = if stopped {
+            Some(RunOutcome::NotRun)
+        } else if silent.lock().is_ok_and(|s| s.contains(&plan.fidelity)) {
+            Some(RunOutcome::Failed(format!(
+                "not started: the lab of fidelity `{}` did not answer an earlier run",
+                plan.fidelity
+            )))
+        } else if options.resume {
+            finished_run(out, plan, &hash).map(|stored| RunOutcome::Resumed(Box::new(stored)))
+        } else {
+            None
+        };
+        match settled {
+            Some(outcome) => computed.push((index, plan, Computed::Outcome(outcome))),
+            None => {
+                let (fidelity, drawn_parameters) = drawn_fidelity(experiment, plan);
+                ready.push(Ready {
+                    index,
+                    plan,
+                    hash,
+                    fidelity,
+                    drawn_parameters,
+                });
+            }
+        }
     }
-    let (fidelity, drawn_parameters) = drawn_fidelity(experiment, plan);
     let context = EngineContext {
         stop: options.stop.as_deref(),
         operator: options.operator.as_ref(),
         timing: options.timing,
     };
+    let results = run_engines(experiment, &ready, context);
+    for (run, result) in ready.into_iter().zip(results) {
+        let conclusion = conclude(experiment, &run, result, out, silent);
+        computed.push((run.index, run.plan, conclusion));
+    }
+    computed
+}
+
+/// What became of a run its engine ran: measured and ready to store, or failed and stored as
+/// such (with what it recorded, if anything).
+fn conclude(
+    experiment: &Experiment,
+    run: &Ready<'_>,
+    result: Result<Recording, RunFailure>,
+    out: &Path,
+    silent: &Mutex<BTreeSet<String>>,
+) -> Computed {
+    let plan = run.plan;
     let failed = |reason: String, notes: &[String], latency_s: &[f64]| {
         let failure = Failure {
             key: plan.key.clone(),
             seed: plan.seed,
-            inputs_hash: hash.clone(),
+            inputs_hash: run.hash.clone(),
             reason: reason.clone(),
             notes: notes.to_vec(),
             planning_latency_ms: milliseconds(latency_s),
@@ -218,7 +277,7 @@ fn execute_one(
             Err(e) => RunOutcome::Failed(format!("{reason}; cannot store failed.json: {e}")),
         }
     };
-    let outcome = match run_engine(experiment, plan, fidelity.as_ref(), context).and_then(|recording| {
+    let outcome = match result.and_then(|recording| {
         let metrics = measure(experiment, plan, &recording)?;
         Ok((recording, metrics))
     }) {
@@ -226,9 +285,9 @@ fn execute_one(
             let stored = StoredRun {
                 key: plan.key.clone(),
                 seed: plan.seed,
-                inputs_hash: hash.clone(),
+                inputs_hash: run.hash.clone(),
                 notes: recording.notes.clone(),
-                drawn_parameters,
+                drawn_parameters: run.drawn_parameters.clone(),
                 planning_latency_ms: milliseconds(&recording.latency_s),
                 statistics: recording.statistics.clone(),
                 metrics,
@@ -368,6 +427,58 @@ fn run_engine(
     drawn: Option<&DrawnFidelity>,
     context: EngineContext<'_>,
 ) -> Result<Recording, RunFailure> {
+    let (engine, starts) = engine_and_starts(experiment, plan)?;
+    Ok(engine.run(&run_inputs(experiment, plan, starts, drawn, context))?)
+}
+
+/// Runs the `ready` runs (of one fidelity, or one run) through their engine together.
+fn run_engines(
+    experiment: &Experiment,
+    ready: &[Ready<'_>],
+    context: EngineContext<'_>,
+) -> Vec<Result<Recording, RunFailure>> {
+    let mut results: Vec<Option<Result<Recording, RunFailure>>> = (0..ready.len()).map(|_| None).collect();
+    let mut engine = None;
+    let mut inputs = Vec::with_capacity(ready.len());
+    let mut positions = Vec::with_capacity(ready.len());
+    for (position, run) in ready.iter().enumerate() {
+        match engine_and_starts(experiment, run.plan) {
+            Ok((run_engine, starts)) => {
+                engine = Some(run_engine);
+                inputs.push(run_inputs(
+                    experiment,
+                    run.plan,
+                    starts,
+                    run.fidelity.as_ref(),
+                    context,
+                ));
+                positions.push(position);
+            }
+            Err(failure) => results[position] = Some(Err(failure)),
+        }
+    }
+    if let Some(engine) = engine {
+        for (position, result) in positions.into_iter().zip(engine.run_together(&inputs)) {
+            results[position] = Some(result.map_err(RunFailure::from));
+        }
+    }
+    results
+        .into_iter()
+        .map(|result| result.expect("every run has a result"))
+        .collect()
+}
+
+/// The engine of the plan's fidelity and the run's initial states.
+fn engine_and_starts<'e>(
+    experiment: &'e Experiment,
+    plan: &RunPlan,
+) -> Result<
+    (
+        &'static dyn crate::engine::Engine,
+        &'e [crate::starts::InitialState],
+    ),
+    RunFailure,
+> {
     let fidelity = experiment
         .spec
         .fidelities
@@ -377,7 +488,18 @@ fn run_engine(
     let starts = experiment
         .start(plan)
         .ok_or_else(|| RunError::UnknownConfiguration(plan.initial_configuration.clone()).to_string())?;
-    Ok(engine.run(&RunInputs {
+    Ok((engine, starts))
+}
+
+/// What an engine is handed for a run.
+fn run_inputs<'a>(
+    experiment: &'a Experiment,
+    plan: &'a RunPlan,
+    starts: &'a [crate::starts::InitialState],
+    drawn: Option<&'a DrawnFidelity>,
+    context: EngineContext<'a>,
+) -> RunInputs<'a> {
+    RunInputs {
         experiment,
         plan,
         starts,
@@ -385,7 +507,7 @@ fn run_engine(
         stop: context.stop,
         operator: context.operator,
         timing: context.timing,
-    })?)
+    }
 }
 
 /// The spec's metrics of a planned run's recording, on its configuration's map (the same

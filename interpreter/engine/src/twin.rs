@@ -33,6 +33,84 @@ pub struct TwinEngine;
 
 impl Engine for TwinEngine {
     fn run(&self, inputs: &RunInputs<'_>) -> Result<Recording, RunError> {
+        let mut results = self.run_together(std::slice::from_ref(inputs));
+        results.pop().expect("one result per run")
+    }
+
+    /// The runs tick by tick in lock-step: each plans on its own, then the 50 Hz loops of all
+    /// their vehicles step together, so that one pass of SIMD lanes solves the MPCs of several
+    /// runs. A vehicle shares nothing with the others during a step, so each run has the bits
+    /// it has alone (`tests/twin_together.rs`).
+    fn run_together(&self, inputs: &[RunInputs<'_>]) -> Vec<Result<Recording, RunError>> {
+        let mut runs: Vec<Result<TwinRun<'_>, RunError>> = inputs.iter().map(TwinRun::new).collect();
+        let Some(steps) = runs.iter().flatten().map(|run| run.steps).max() else {
+            return runs.into_iter().map(|run| run.map(TwinRun::finish)).collect();
+        };
+        for tick in 0..steps {
+            for slot in &mut runs {
+                if let Ok(run) = slot
+                    && run.is_driving(tick)
+                    && let Err(error) = run.decide(tick)
+                {
+                    *slot = Err(error);
+                }
+            }
+            // The vehicles' 50 Hz loops until the next policy period; runs of one spec share
+            // its schedule, so their vehicles' clocks agree.
+            let driving = |run: &&mut TwinRun<'_>| run.is_driving(tick);
+            let periods = runs
+                .iter_mut()
+                .flatten()
+                .filter(driving)
+                .map(|run| run.schedule.periods_after(u64::from(tick)))
+                .max()
+                .unwrap_or(0);
+            for sub in 0..periods {
+                step_together(
+                    runs.iter_mut()
+                        .flatten()
+                        .filter(driving)
+                        .filter(|run| sub < run.schedule.periods_after(u64::from(tick)))
+                        .flat_map(|run| {
+                            let now_ns = run.tick_ns(tick) + sub * CONTROL_PERIOD_NS;
+                            run.vehicles.iter_mut().map(move |vehicle| (vehicle, now_ns))
+                        }),
+                );
+            }
+            for run in runs.iter_mut().flatten().filter(driving) {
+                run.end_of_tick();
+            }
+        }
+        runs.into_iter().map(|run| run.map(TwinRun::finish)).collect()
+    }
+
+    fn steps_together(&self) -> bool {
+        true
+    }
+}
+
+/// A twin run under way: its vehicles, planner, policy and layers, and what it recorded.
+struct TwinRun<'a> {
+    inputs: &'a RunInputs<'a>,
+    steps: u32,
+    schedule: DecisionSchedule,
+    /// The oldest state a plan may be anchored at.
+    max_age_ns: u64,
+    vehicles: Vec<VehicleStack>,
+    planner: Planner,
+    policy: Box<dyn cpmx_policy::Policy>,
+    paths: cpmx_policy::AgentPaths,
+    safety: Option<cpmx_safety::layer::LayerFilter>,
+    knowledge: cpmx_sensing::NeighbourKnowledge,
+    model: cpmx_vehicle::KinematicBicycle,
+    recording: Recording,
+    /// Ended early (`on_collision: end-run`).
+    ended: bool,
+}
+
+impl<'a> TwinRun<'a> {
+    /// Places the vehicles and prepares the planner.
+    fn new(inputs: &'a RunInputs<'a>) -> Result<Self, RunError> {
         let experiment = inputs.experiment;
         let spec = &experiment.spec;
         let unsupported = |reason: String| RunError::Unsupported(inputs.plan.fidelity.clone(), reason);
@@ -49,88 +127,115 @@ impl Engine for TwinEngine {
             .planner
             .as_ref()
             .ok_or_else(|| unsupported("the spec has no `planner`".into()))?;
-
-        // Place the vehicles and prepare the planner.
         let starts = inputs.starts;
         let paths = inputs.agent_paths()?;
-        let mut vehicles = starts
+        let vehicles = starts
             .iter()
             .enumerate()
             .map(|(i, start)| VehicleStack::new(fidelity, experiment.vehicle, start, inputs.plan.seed, i))
             .collect::<Result<Vec<_>, _>>()
             .map_err(&unsupported)?;
-        let mut planner = planner(planner_spec, dt_s, experiment.vehicle);
-        let mut policy = inputs.policy()?;
         let ref_paths: Vec<usize> = starts.iter().map(|s| s.ref_path).collect();
-        let mut safety = crate::safety::filter_of_run(fidelity.safety.as_ref(), inputs, &ref_paths)?;
-        let mut knowledge = inputs.neighbour_knowledge();
-        let model = cpmx_vehicle::KinematicBicycle::new(experiment.vehicle);
-
-        let mut recording = Recording {
-            notes: Vec::new(),
-            latency_s: Vec::new(),
-            statistics: Default::default(),
-            times_s: Vec::with_capacity(spec.timing.steps as usize),
-            ref_paths,
-            samples: Vec::with_capacity(spec.timing.steps as usize),
-        };
+        let safety = crate::safety::filter_of_run(fidelity.safety.as_ref(), inputs, &ref_paths)?;
         let dt_ns = schedule.step_ns();
         // A plan must reach the next decision, which comes up to a period late on a step that
         // is no whole number of periods.
         let max_age_ns = max_state_age_ns(planner_spec.prediction_horizon, dt_ns)
             .saturating_sub(schedule.longest_gap_ns() - dt_ns);
-        for tick in 0..spec.timing.steps {
-            let offset_ns = schedule.offset_ns(u64::from(tick));
-            let t_s = if schedule.is_exact() {
-                (f64::from(tick) * dt_s * 1e9).round() / 1e9
-            } else {
-                offset_ns as f64 / 1e9
-            };
-            let tick_ns = RUN_START_NS + offset_ns;
+        Ok(TwinRun {
+            inputs,
+            steps: spec.timing.steps,
+            schedule,
+            max_age_ns,
+            vehicles,
+            planner: planner(planner_spec, dt_s, experiment.vehicle),
+            policy: inputs.policy()?,
+            paths,
+            safety,
+            knowledge: inputs.neighbour_knowledge(),
+            model: cpmx_vehicle::KinematicBicycle::new(experiment.vehicle),
+            recording: Recording {
+                notes: Vec::new(),
+                latency_s: Vec::new(),
+                statistics: Default::default(),
+                times_s: Vec::with_capacity(spec.timing.steps as usize),
+                ref_paths,
+                samples: Vec::with_capacity(spec.timing.steps as usize),
+            },
+            ended: false,
+        })
+    }
 
-            // Record the true states.
-            recording.times_s.push(t_s);
-            recording
-                .samples
-                .push(vehicles.iter().map(VehicleStack::true_sample).collect());
+    /// Whether the run still drives at `tick`.
+    fn is_driving(&self, tick: u32) -> bool {
+        !self.ended && tick < self.steps
+    }
 
-            // Plan from what the middleware lists; every vehicle gets its trajectory, anchored
-            // at its state's time and valid from the tick on.
-            let listed: Vec<StampedState> = vehicles.iter().map(|v| v.listed_state(tick_ns)).collect();
-            let states: Vec<BicycleState> = listed.iter().map(|s| s.state).collect();
-            if knowledge.is_active() {
-                // What each agent knows of the others, from the states the middleware lists.
-                let agents: Vec<cpmx_policy::AgentState> = states
-                    .iter()
-                    .map(|s| cpmx_policy::AgentState::from_bicycle(s, model.velocity_mps(s)))
-                    .collect();
-                planner.set_neighbours(Some(knowledge.step(t_s, &agents)));
-            }
-            let trajectories = match &mut safety {
-                None => planner.plan(policy.as_mut(), &states, &paths, 0.0)?,
-                Some(filter) => planner.plan_filtered(policy.as_mut(), filter, &states, &paths, 0.0)?,
-            };
-            for ((vehicle, trajectory), state) in vehicles.iter_mut().zip(&trajectories).zip(&listed) {
-                let anchor = anchor_ns(state.create_ns, tick_ns, max_age_ns);
-                vehicle.receive(trajectory_points(trajectory, anchor, dt_ns), tick_ns, tick_ns);
-            }
+    /// The vehicles' clock at `tick`.
+    fn tick_ns(&self, tick: u32) -> u64 {
+        RUN_START_NS + self.schedule.offset_ns(u64::from(tick))
+    }
 
-            // The vehicles' 50 Hz loops until the next policy period.
-            for sub in 0..schedule.periods_after(u64::from(tick)) {
-                let now_ns = tick_ns + sub * CONTROL_PERIOD_NS;
-                step_together(vehicles.iter_mut().map(|vehicle| (vehicle, now_ns)));
-            }
+    /// Records the true states at `tick` and hands every vehicle its new trajectory.
+    fn decide(&mut self, tick: u32) -> Result<(), RunError> {
+        let dt_s = self.inputs.experiment.spec.timing.dt;
+        let t_s = if self.schedule.is_exact() {
+            (f64::from(tick) * dt_s * 1e9).round() / 1e9
+        } else {
+            self.schedule.offset_ns(u64::from(tick)) as f64 / 1e9
+        };
+        let tick_ns = self.tick_ns(tick);
 
-            if spec.on_collision == OnCollision::EndRun
-                && crate::sim::any_overlap(vehicles.iter().map(VehicleStack::pose), &experiment.vehicle)
-            {
-                break;
-            }
+        // Record the true states.
+        self.recording.times_s.push(t_s);
+        self.recording
+            .samples
+            .push(self.vehicles.iter().map(VehicleStack::true_sample).collect());
+
+        // Plan from what the middleware lists; every vehicle gets its trajectory, anchored
+        // at its state's time and valid from the tick on.
+        let listed: Vec<StampedState> = self.vehicles.iter().map(|v| v.listed_state(tick_ns)).collect();
+        let states: Vec<BicycleState> = listed.iter().map(|s| s.state).collect();
+        if self.knowledge.is_active() {
+            // What each agent knows of the others, from the states the middleware lists.
+            let agents: Vec<cpmx_policy::AgentState> = states
+                .iter()
+                .map(|s| cpmx_policy::AgentState::from_bicycle(s, self.model.velocity_mps(s)))
+                .collect();
+            self.planner
+                .set_neighbours(Some(self.knowledge.step(t_s, &agents)));
         }
-        if let Some(filter) = &safety {
-            crate::safety::record(filter, &mut recording);
+        let policy = self.policy.as_mut();
+        let trajectories = match &mut self.safety {
+            None => self.planner.plan(policy, &states, &self.paths, 0.0)?,
+            Some(filter) => self
+                .planner
+                .plan_filtered(policy, filter, &states, &self.paths, 0.0)?,
+        };
+        let dt_ns = self.schedule.step_ns();
+        for ((vehicle, trajectory), state) in self.vehicles.iter_mut().zip(&trajectories).zip(&listed) {
+            let anchor = anchor_ns(state.create_ns, tick_ns, self.max_age_ns);
+            vehicle.receive(trajectory_points(trajectory, anchor, dt_ns), tick_ns, tick_ns);
         }
-        Ok(recording)
+        Ok(())
+    }
+
+    /// After the vehicles' loops of a tick: ends the run at an overlap if the spec says so.
+    fn end_of_tick(&mut self) {
+        let experiment = self.inputs.experiment;
+        if experiment.spec.on_collision == OnCollision::EndRun
+            && crate::sim::any_overlap(self.vehicles.iter().map(VehicleStack::pose), &experiment.vehicle)
+        {
+            self.ended = true;
+        }
+    }
+
+    /// What the run recorded, with its safety layer's counts.
+    fn finish(mut self) -> Recording {
+        if let Some(filter) = &self.safety {
+            crate::safety::record(filter, &mut self.recording);
+        }
+        self.recording
     }
 }
 
@@ -148,4 +253,107 @@ pub fn planner(spec: &PlannerSpec, dt_s: f64, vehicle: VehicleParams) -> Planner
         },
         vehicle,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    //! Runs stepped in lock-step have, each, the bits they have alone: sim-mpc's and the
+    //! randomised twin's runs mixed in one group, of several seeds and starts, with a run
+    //! that cannot start beside them.
+
+    use std::path::PathBuf;
+
+    use cpmx_spec::{DataPath, SpecSource};
+
+    use super::*;
+    use crate::Experiment;
+
+    const SPEC: &str = "\
+cpmx: 1
+name: lockstep
+map: stdlib:intersection
+timing: {dt: 0.1, steps: 30}
+agents: 2
+policies:
+  - {name: baseline, builtin: lane-follow}
+initial_configurations:
+  - name: following
+    agents:
+      - {ref_path: 7, arc_length: 0.8}
+      - {ref_path: 7, arc_length: 0.2}
+  - name: turning
+    agents:
+      - {ref_path: 2, arc_length: 0.3}
+      - {ref_path: 9, arc_length: 0.3}
+repetitions: 2
+seed: 11
+fidelities:
+  sim-mpc: {control: trajectory, dynamics: kinematic}
+  twin-random:
+    control: trajectory
+    dynamics: stdlib:mu-car-greybox
+    sensing: {extends: stdlib:cpm-ips, noise_position_m: {uniform: [0, 0.004]}}
+    actuation: {delay_ms: {uniform: [40, 120]}}
+planner: {control_horizon: 4, prediction_horizon: 12}
+";
+
+    fn experiment() -> (Experiment, Vec<cpmx_spec::RunPlan>) {
+        let source = SpecSource {
+            name: "lockstep.yaml".into(),
+            dir: PathBuf::from("."),
+            text: SPEC.into(),
+        };
+        let checked = cpmx_spec::check(
+            &source,
+            &DataPath::new(&source.dir, &[], None),
+            &crate::BuildChecks,
+        )
+        .unwrap_or_else(|d| panic!("{}", cpmx_spec::render(&d, false)));
+        (Experiment::prepare(&checked).unwrap(), checked.plan())
+    }
+
+    #[test]
+    fn runs_together_have_the_bits_of_runs_alone() {
+        let (experiment, plans) = experiment();
+        assert_eq!(plans.len(), 8);
+        let drawn: Vec<_> = plans
+            .iter()
+            .map(|plan| match &experiment.spec.fidelities[&plan.fidelity] {
+                cpmx_spec::model::Fidelity::Simulated(f) => crate::randomise::draw_for_run(f, plan.seed).0,
+                other => panic!("not simulated: {other:?}"),
+            })
+            .collect();
+        let inputs: Vec<RunInputs<'_>> = plans
+            .iter()
+            .zip(&drawn)
+            .map(|(plan, fidelity)| RunInputs {
+                experiment: &experiment,
+                plan,
+                starts: experiment.start(plan).unwrap(),
+                fidelity: Some(fidelity),
+                stop: None,
+                operator: None,
+                timing: false,
+            })
+            .collect();
+        let alone: Vec<Recording> = inputs.iter().map(|i| TwinEngine.run(i).unwrap()).collect();
+        // A run that cannot start (no drawn stack) fails alone; the others are untouched.
+        let mut with_failing = inputs.clone();
+        with_failing.insert(
+            3,
+            RunInputs {
+                fidelity: None,
+                ..inputs[0]
+            },
+        );
+        let mut together = TwinEngine.run_together(&with_failing);
+        assert!(matches!(together.remove(3), Err(RunError::Unsupported(..))));
+        assert_eq!(together.len(), alone.len());
+        for ((plan, alone), together) in plans.iter().zip(&alone).zip(together) {
+            assert_eq!(alone.samples.len(), 30, "{}", plan.key);
+            assert_eq!(&together.unwrap(), alone, "{}", plan.key);
+        }
+        // The randomised twin's runs differ from each other (the test compares real runs).
+        assert_ne!(alone[4].samples, alone[6].samples);
+    }
 }

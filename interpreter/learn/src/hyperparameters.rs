@@ -160,7 +160,10 @@ mod tests {
         let unbounded = Hyperparameters::sigmarl(10);
         let fingerprint = unbounded.fingerprint();
         assert!(!fingerprint.contains("max_scale"), "{fingerprint}");
-        assert!(fingerprint.ends_with("critic_warmup_iterations: 0 }"), "{fingerprint}");
+        assert!(
+            fingerprint.ends_with("critic_warmup_iterations: 0 }"),
+            "{fingerprint}"
+        );
         let bounded = Hyperparameters {
             max_scale: 1.0,
             ..unbounded.clone()
