@@ -246,16 +246,23 @@ impl StackWorld {
         self.listed_corners.as_deref()
     }
 
-    /// One planning period: plan from the reported states with `first` as the policy's
-    /// decisions, every vehicle follows its trajectory for the period. Returns the true states
-    /// after it (state, velocity).
-    pub(crate) fn advance(
+    /// A planning period is taken in three parts: [`StackWorld::plan`], the vehicles' loops
+    /// ([`StackWorld::loop_vehicles`], stepped with [`step_together`], beside other
+    /// environments' vehicles) and [`StackWorld::finish_period`].
+    /// The vehicles' 50 Hz loop periods in a planning period.
+    pub(crate) fn substeps(&self) -> usize {
+        self.substeps
+    }
+
+    /// The first half of a planning period: plans from the reported states with `first` as
+    /// the policy's decisions and hands every vehicle its trajectory.
+    pub(crate) fn plan(
         &mut self,
         first: &[Command],
         paths: &AgentPaths,
         vehicle: &VehicleParams,
         filter: Option<&mut LayerFilter>,
-    ) -> Result<Vec<(BicycleState, [f64; 2])>, String> {
+    ) -> Result<(), String> {
         let states: Vec<BicycleState> = self.listed.iter().map(|l| l.state).collect();
         let mut hold = HoldCommands;
         let lookahead: &mut dyn Policy = match self.lookahead.as_mut() {
@@ -286,14 +293,20 @@ impl StackWorld {
             v.stack.receive(points.clone(), v.clock_ns, v.clock_ns);
             v.received.push((v.clock_ns, points));
         }
-        // The vehicles' 50 Hz loops for the period, their MPCs solved together.
-        for sub in 0..self.substeps as u64 {
-            step_together(
-                self.vehicles
-                    .iter_mut()
-                    .map(|v| (&mut v.stack, v.clock_ns + sub * CONTROL_PERIOD_NS)),
-            );
-        }
+        Ok(())
+    }
+
+    /// Loop period `sub` of the planning period: every vehicle with its clock then, to step
+    /// with [`step_together`] (beside other environments' vehicles).
+    pub(crate) fn loop_vehicles(&mut self, sub: usize) -> impl Iterator<Item = (&mut VehicleStack, u64)> {
+        self.vehicles
+            .iter_mut()
+            .map(move |v| (&mut v.stack, v.clock_ns + sub as u64 * CONTROL_PERIOD_NS))
+    }
+
+    /// The last half of a planning period, after its loops: the vehicles' clocks move on, and
+    /// the true states after the period (state, velocity) are returned.
+    pub(crate) fn finish_period(&mut self) -> Vec<(BicycleState, [f64; 2])> {
         let mut out = Vec::with_capacity(self.vehicles.len());
         for v in &mut self.vehicles {
             v.clock_ns += self.dt_ns;
@@ -319,7 +332,7 @@ impl StackWorld {
             .iter()
             .map(|v| v.stack.listed_state(v.clock_ns))
             .collect();
-        Ok(out)
+        out
     }
 
     /// What a checkpoint stores (see the module documentation).

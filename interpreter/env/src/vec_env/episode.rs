@@ -19,6 +19,7 @@ use crate::result::{AgentStepInfo, StepTotals};
 use crate::reward::{RewardInput, reward};
 use crate::stack_world::StackWorld;
 use crate::starts::{Placement, draw_placement};
+use cpmx_stack::VehicleStack;
 use cpmx_vehicle::{rectangle_crosses_segment, rectangles_cross};
 
 /// One agent of one environment.
@@ -59,6 +60,22 @@ pub(super) struct Env {
     /// Each training path's lane, when the filter or the CBF-informed reward needs them.
     pub(super) lanes: Option<Arc<[Lane]>>,
     pub(super) scratch: Scratch,
+}
+
+/// A step between [`Env::begin_step`] and [`Env::end_step`].
+pub(super) struct Moving {
+    /// The CBF-informed reward's margins of the sampled actions, if the reward has the term.
+    cbf_margins: Option<Vec<f64>>,
+    /// The true states after the step (state, velocity); `None` while the vehicle stacks'
+    /// loops are still to step.
+    moved: Option<Vec<(BicycleState, [f64; 2])>>,
+}
+
+impl Moving {
+    /// Whether the vehicle stacks' loops are still to step before [`Env::end_step`].
+    pub(super) fn loops_pending(&self) -> bool {
+        self.moved.is_none()
+    }
 }
 
 /// How one environment's step ended.
@@ -202,28 +219,17 @@ impl Env {
         observe_into(config, &states, &self.paths, None, None, out);
     }
 
-    /// One step; returns whether the environment was done (and has been reset), and why.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn step(
-        &mut self,
-        config: &EnvConfig,
-        paths: &[TrainingPath],
-        actions: &[f32],
-        obs: &mut [f32],
-        rewards: &mut [f32],
-        returns: &mut [f32],
-        info: &mut [AgentStepInfo],
-    ) -> (StepEnd, StepTotals) {
-        let n = self.agents.len();
+    /// The first half of a step (the whole step: `begin_step`, the loops if pending,
+    /// [`Env::end_step`], which returns whether the environment was done and has been reset,
+    /// and why): the actions as commands, the CBF-informed reward's margins of
+    /// the sampled actions, then the safety filter; the sim's bicycle steps, the vehicle
+    /// stacks' planning period is planned and its loops left to step
+    /// ([`Moving::loops_pending`]: with [`StackWorld::loop_vehicles`], perhaps beside other
+    /// environments' vehicles) before [`Env::end_step`].
+    pub(super) fn begin_step(&mut self, config: &EnvConfig, actions: &[f32]) -> Moving {
         let model = KinematicBicycle::new(config.vehicle);
         let s = &mut self.scratch;
-        s.positions.clear();
-        s.velocities.clear();
-        s.corners.clear();
         s.steering_cmds.clear();
-
-        // 1. Move: one bicycle step, or a planning period of the vehicle stacks; the
-        // CBF-informed reward's margins of the sampled actions first, then the safety filter.
         let mut commands: Vec<Command> = actions
             .chunks_exact(2)
             .map(|act| Command {
@@ -232,7 +238,6 @@ impl Env {
             })
             .collect();
         let cbf_margins = self.cbf_margin_rewards(config, &commands);
-        let mut totals = StepTotals::default();
         if let (Some(filter), None) = (&mut self.filter, &self.stack) {
             let s = &mut self.scratch;
             s.filter_states.clear();
@@ -247,29 +252,76 @@ impl Env {
         let limit = config.vehicle.max_steering_rad;
         s.steering_cmds
             .extend(commands.iter().map(|c| c.steering_rad.clamp(-limit, limit)));
-        let moved: Vec<(BicycleState, [f64; 2])> = match &mut self.stack {
-            None => self
-                .agents
+        let unmoved = |agents: &[Agent]| {
+            agents
                 .iter()
-                .zip(&commands)
-                .map(|(a, &command)| {
-                    let out =
-                        model.step_with_precision(&a.placement.state, command, config.dt_s, Precision::F32);
-                    (out.state, out.velocity_mps)
-                })
-                .collect(),
-            Some(stack) => match stack.advance(&commands, &self.paths, &config.vehicle, self.filter.as_mut())
-            {
-                Ok(moved) => moved,
+                .map(|a| (a.placement.state, a.placement.velocity_mps))
+                .collect()
+        };
+        let moved = match &mut self.stack {
+            None => Some(
+                self.agents
+                    .iter()
+                    .zip(&commands)
+                    .map(|(a, &command)| {
+                        let out = model.step_with_precision(
+                            &a.placement.state,
+                            command,
+                            config.dt_s,
+                            Precision::F32,
+                        );
+                        (out.state, out.velocity_mps)
+                    })
+                    .collect(),
+            ),
+            Some(stack) => match stack.plan(&commands, &self.paths, &config.vehicle, self.filter.as_mut()) {
+                Ok(()) => None,
                 Err(e) => {
                     self.failure.get_or_insert(e);
-                    self.agents
-                        .iter()
-                        .map(|a| (a.placement.state, a.placement.velocity_mps))
-                        .collect()
+                    Some(unmoved(&self.agents))
                 }
             },
         };
+        Moving { cbf_margins, moved }
+    }
+
+    /// The vehicles' loop periods in a step (none without vehicle stacks).
+    pub(super) fn loop_periods(&self) -> usize {
+        self.stack.as_ref().map_or(0, StackWorld::substeps)
+    }
+
+    /// The vehicles' loops of a step whose loops are pending (see [`Env::begin_step`]).
+    pub(super) fn loop_vehicles(&mut self, sub: usize) -> impl Iterator<Item = (&mut VehicleStack, u64)> {
+        self.stack
+            .iter_mut()
+            .flat_map(move |stack| stack.loop_vehicles(sub))
+    }
+
+    /// The second half of a step (after [`Env::begin_step`] and the loops): collisions,
+    /// rewards, observations, done and resets.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn end_step(
+        &mut self,
+        config: &EnvConfig,
+        paths: &[TrainingPath],
+        moving: Moving,
+        obs: &mut [f32],
+        rewards: &mut [f32],
+        returns: &mut [f32],
+        info: &mut [AgentStepInfo],
+    ) -> (StepEnd, StepTotals) {
+        let n = self.agents.len();
+        let Moving { cbf_margins, moved } = moving;
+        let moved = match (moved, &mut self.stack) {
+            (Some(moved), _) => moved,
+            (None, Some(stack)) => stack.finish_period(),
+            (None, None) => unreachable!("loops are pending only with vehicle stacks"),
+        };
+        let mut totals = StepTotals::default();
+        let s = &mut self.scratch;
+        s.positions.clear();
+        s.velocities.clear();
+        s.corners.clear();
         for (a, (state, velocity_mps)) in self.agents.iter_mut().zip(moved) {
             a.placement.state = state;
             a.placement.velocity_mps = velocity_mps;

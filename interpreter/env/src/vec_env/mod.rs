@@ -35,7 +35,12 @@ use crate::starts::Placement;
 
 mod episode;
 
-use episode::{Agent, Env, Scratch, StepEnd};
+use cpmx_stack::step_together;
+use episode::{Agent, Env, Moving, Scratch, StepEnd};
+
+/// The vehicles whose loops one call steps together when environments drive the lab's
+/// stack: three passes of eight SIMD lanes.
+const LOOP_VEHICLES: usize = 3 * cpmx_follower::WIDEST_LANES;
 
 /// E environments of N agents on a set of reference paths. See the crate documentation.
 #[derive(Debug)]
@@ -400,14 +405,58 @@ impl VecEnv {
         );
         result.resize(e, n, d);
         let (config, paths) = (&self.config, &self.paths);
-        let work = |(((env, act), obs), (rew, (ret, info))): (
-            ((&mut Env, &[f32]), &mut [f32]),
-            (&mut [f32], (&mut [f32], &mut [AgentStepInfo])),
-        )| env.step(config, paths, act, obs, rew, ret, info);
-        let outcomes: Vec<(StepEnd, StepTotals)> = if self.parallel {
+        // First halves: commands, filters; the sim's bicycles step, the stacks' periods are planned.
+        let begin = |(env, act): (&mut Env, &[f32])| env.begin_step(config, act);
+        let moving: Vec<Moving> = if self.parallel {
             self.envs
                 .par_iter_mut()
                 .zip(actions.par_chunks(n * 2))
+                .with_min_len(2)
+                .map(begin)
+                .collect()
+        } else {
+            self.envs
+                .iter_mut()
+                .zip(actions.chunks(n * 2))
+                .map(begin)
+                .collect()
+        };
+        // The vehicle stacks' loops, the vehicles of several environments stepped together so
+        // that their MPCs fill the SIMD lanes (each vehicle keeps the bits of its own step).
+        if moving.iter().any(Moving::loops_pending) {
+            let envs_together = LOOP_VEHICLES.div_ceil(n).max(1);
+            let step_loops = |(envs, moving): (&mut [Env], &[Moving])| {
+                let periods = envs.iter().map(Env::loop_periods).max().unwrap_or(0);
+                for sub in 0..periods {
+                    step_together(
+                        envs.iter_mut()
+                            .zip(moving)
+                            .filter(|(_, moving)| moving.loops_pending())
+                            .flat_map(|(env, _)| env.loop_vehicles(sub)),
+                    );
+                }
+            };
+            if self.parallel {
+                self.envs
+                    .par_chunks_mut(envs_together)
+                    .zip(moving.par_chunks(envs_together))
+                    .for_each(step_loops);
+            } else {
+                self.envs
+                    .chunks_mut(envs_together)
+                    .zip(moving.chunks(envs_together))
+                    .for_each(step_loops);
+            }
+        }
+        // Second halves: collisions, rewards, observations, resets.
+        let work = |(((env, moving), obs), (rew, (ret, info))): (
+            ((&mut Env, Moving), &mut [f32]),
+            (&mut [f32], (&mut [f32], &mut [AgentStepInfo])),
+        )| env.end_step(config, paths, moving, obs, rew, ret, info);
+        let outcomes: Vec<(StepEnd, StepTotals)> = if self.parallel {
+            self.envs
+                .par_iter_mut()
+                .zip(moving)
                 .zip(result.observations.par_chunks_mut(n * d))
                 .zip(
                     result.rewards.par_chunks_mut(n).zip(
@@ -423,7 +472,7 @@ impl VecEnv {
         } else {
             self.envs
                 .iter_mut()
-                .zip(actions.chunks(n * 2))
+                .zip(moving)
                 .zip(result.observations.chunks_mut(n * d))
                 .zip(
                     result.rewards.chunks_mut(n).zip(
