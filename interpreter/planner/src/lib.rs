@@ -161,33 +161,13 @@ impl Planner {
         paths: &AgentPaths,
         t_s: f64,
     ) -> Result<Vec<PlannedTrajectory>, PolicyError> {
-        let p = self.params;
-        let vehicle = self.model.params;
-        let mut predicted: Vec<BicycleState> = states.to_vec();
-        let mut trajectories: Vec<PlannedTrajectory> =
-            predicted.iter().map(|s| vec![self.point(s, t_s)]).collect();
-        let mut corners_before: Option<Vec<Footprint>> = self.previous_corners.take();
         let mut commands = vec![Command::default(); states.len()];
-        let mut agents = vec![AgentState::default(); states.len()];
-        let mut velocities = vec![[0.0; 2]; states.len()];
         let mut fork: Option<Box<dyn Policy>> = None;
-
-        // Roll the policy out over Hc on predicted states.
-        for k in 0..p.control_horizon {
-            for ((agent, velocity), state) in agents.iter_mut().zip(&mut velocities).zip(&predicted) {
-                *velocity = self.model.velocity_mps(state);
-                *agent = AgentState::from_bicycle(state, *velocity);
-            }
-            let input = ObservationInput {
-                agents: &agents,
-                paths,
-                vehicle: &vehicle,
-                previous_corners: corners_before.as_deref(),
-                neighbours: self.neighbours.as_ref(),
-            };
+        let mut rollout = self.begin(states, paths, t_s);
+        while let Some(input) = rollout.input() {
             // The real policy sees the real states once per planning time; the predicted
             // steps go to a fork, so they leave its memory (and random stream) untouched.
-            match (&mut first_step, k) {
+            match (&mut first_step, rollout.step()) {
                 (FirstStep::Policy(policy), 0) => {
                     policy.act(&input, &mut commands)?;
                     fork = Some(policy.fork());
@@ -208,43 +188,33 @@ impl Planner {
                 }
                 (FirstStep::Commands { lookahead, .. }, _) => lookahead.act(&input, &mut commands)?,
             }
-            if let Some(filter) = filter.as_mut() {
-                filter.filter(&predicted, &velocities, &mut commands);
-            }
-            let corners_now: Vec<Footprint> = predicted
-                .iter()
-                .map(|s| footprint_corners(&vehicle, s.x_m, s.y_m, s.yaw_rad))
-                .collect();
-            if k == 0 {
-                self.previous_corners = Some(corners_now.clone());
-            }
-            corners_before = Some(corners_now);
-            self.advance(&mut predicted, &commands, &mut trajectories, t_s, k);
+            rollout.apply(&mut commands, filter.as_deref_mut());
         }
+        Ok(rollout.finish())
+    }
 
-        // Hold the speed and bring the steering to zero until Hp.
-        let last = commands.clone();
-        let remaining = p.prediction_horizon.saturating_sub(p.control_horizon);
-        for j in 0..remaining {
-            for (command, last) in commands.iter_mut().zip(&last) {
-                let fraction = match p.steering_after {
-                    SteeringAfterHc::LinearToZero => 1.0 - (j + 1) as f64 / remaining as f64,
-                    SteeringAfterHc::Hold => 1.0,
-                };
-                *command = Command {
-                    speed_mps: last.speed_mps,
-                    steering_rad: last.steering_rad * fraction,
-                };
-            }
-            self.advance(
-                &mut predicted,
-                &commands,
-                &mut trajectories,
-                t_s,
-                p.control_horizon + j,
-            );
-        }
-        Ok(trajectories)
+    /// A plan from the agents' current states at time `t_s`, taken one rolled-out step at a
+    /// time (for callers that gather several plans' policy calls into one; [`Planner::plan`]
+    /// is this with one policy).
+    pub fn begin<'a>(&'a mut self, states: &[BicycleState], paths: &'a AgentPaths, t_s: f64) -> Rollout<'a> {
+        let predicted: Vec<BicycleState> = states.to_vec();
+        let trajectories = predicted.iter().map(|s| vec![self.point(s, t_s)]).collect();
+        let corners_before = self.previous_corners.take();
+        let n = states.len();
+        let mut rollout = Rollout {
+            planner: self,
+            paths,
+            t_s,
+            step: 0,
+            predicted,
+            trajectories,
+            corners_before,
+            agents: vec![AgentState::default(); n],
+            velocities: vec![[0.0; 2]; n],
+            last: vec![Command::default(); n],
+        };
+        rollout.observe_predicted();
+        rollout
     }
 
     /// Forgets the previous planning time (a run restarts).
@@ -277,6 +247,115 @@ impl Planner {
             velocity_mps: self.model.velocity_mps(state),
             speed_mps: state.speed_mps,
             steering_rad: state.steering_rad,
+        }
+    }
+}
+
+/// A plan under way ([`Planner::begin`]): for each of the Hc rolled-out steps, what the policy
+/// sees ([`Rollout::input`]) and then its commands ([`Rollout::apply`]); then the steps to Hp
+/// ([`Rollout::finish`]). The first step's input has the real states (with the previous planning
+/// time's corners, as SigmaRL's observation expects), every further one the predicted states of
+/// the step before, with the corners of the step before that.
+pub struct Rollout<'a> {
+    planner: &'a mut Planner,
+    paths: &'a AgentPaths,
+    t_s: f64,
+    /// The rolled-out steps done.
+    step: usize,
+    predicted: Vec<BicycleState>,
+    trajectories: Vec<PlannedTrajectory>,
+    corners_before: Option<Vec<Footprint>>,
+    /// The predicted states as the policy observes them, and their velocities.
+    agents: Vec<AgentState>,
+    velocities: Vec<[f64; 2]>,
+    /// The commands of the last rolled-out step.
+    last: Vec<Command>,
+}
+
+impl Rollout<'_> {
+    /// The rolled-out steps done (the next one's index).
+    pub fn step(&self) -> usize {
+        self.step
+    }
+
+    /// What the policy sees at the next rolled-out step; `None` once Hc steps are rolled out.
+    pub fn input(&self) -> Option<ObservationInput<'_>> {
+        (self.step < self.planner.params.control_horizon).then(|| ObservationInput {
+            agents: &self.agents,
+            paths: self.paths,
+            vehicle: &self.planner.model.params,
+            previous_corners: self.corners_before.as_deref(),
+            neighbours: self.planner.neighbours.as_ref(),
+        })
+    }
+
+    /// The next rolled-out step with the policy's `commands` (changed by `filter` first, if
+    /// given, on the predicted states): the predicted cars move one step.
+    pub fn apply<'o>(&mut self, commands: &mut [Command], filter: Option<&mut (dyn CommandFilter + 'o)>) {
+        if let Some(filter) = filter {
+            filter.filter(&self.predicted, &self.velocities, commands);
+        }
+        let vehicle = self.planner.model.params;
+        let corners_now: Vec<Footprint> = self
+            .predicted
+            .iter()
+            .map(|s| footprint_corners(&vehicle, s.x_m, s.y_m, s.yaw_rad))
+            .collect();
+        if self.step == 0 {
+            self.planner.previous_corners = Some(corners_now.clone());
+        }
+        self.corners_before = Some(corners_now);
+        self.planner.advance(
+            &mut self.predicted,
+            commands,
+            &mut self.trajectories,
+            self.t_s,
+            self.step,
+        );
+        self.last.copy_from_slice(commands);
+        self.step += 1;
+        self.observe_predicted();
+    }
+
+    /// The trajectories: after the Hc rolled-out steps, the last speed command held and the
+    /// steering brought to zero (or held) until Hp.
+    pub fn finish(mut self) -> Vec<PlannedTrajectory> {
+        let p = self.planner.params;
+        let remaining = p.prediction_horizon.saturating_sub(p.control_horizon);
+        let mut commands = self.last.clone();
+        for j in 0..remaining {
+            for (command, last) in commands.iter_mut().zip(&self.last) {
+                let fraction = match p.steering_after {
+                    SteeringAfterHc::LinearToZero => 1.0 - (j + 1) as f64 / remaining as f64,
+                    SteeringAfterHc::Hold => 1.0,
+                };
+                *command = Command {
+                    speed_mps: last.speed_mps,
+                    steering_rad: last.steering_rad * fraction,
+                };
+            }
+            self.planner.advance(
+                &mut self.predicted,
+                &commands,
+                &mut self.trajectories,
+                self.t_s,
+                p.control_horizon + j,
+            );
+        }
+        self.trajectories
+    }
+
+    /// The predicted states as the policy observes them, with their velocities.
+    fn observe_predicted(&mut self) {
+        let model = &self.planner.model;
+        for ((agent, velocity), state) in self
+            .agents
+            .iter_mut()
+            .zip(&mut self.velocities)
+            .zip(&self.predicted)
+        {
+            *velocity = model.velocity_mps(state);
+            *agent = AgentState::from_bicycle(state, *velocity);
         }
     }
 }

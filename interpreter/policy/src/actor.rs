@@ -235,6 +235,12 @@ impl ActorWorkspace {
     pub fn capacity(&self) -> usize {
         self.capacity
     }
+
+    /// Whether these buffers serve `actor`'s passes over `agents` agents.
+    pub fn serves(&self, actor: &MlpActor, agents: usize) -> bool {
+        let size = self.capacity * actor.width;
+        agents <= self.capacity && self.ping.len() == size && self.pong.len() == size
+    }
 }
 
 impl MlpActor {
@@ -435,6 +441,11 @@ impl MlpActor {
     /// Raw output size.
     pub fn output_size(&self) -> usize {
         self.output_size
+    }
+
+    /// Whether `other` runs the same weights (the same loaded actor, shared by clones).
+    pub fn same_weights(&self, other: &MlpActor) -> bool {
+        std::sync::Arc::ptr_eq(&self.layers, &other.layers)
     }
 
     /// Buffers for forward passes over up to `agents` agents.

@@ -41,6 +41,7 @@ pub mod observation;
 pub mod policy;
 pub mod priority;
 pub mod process;
+pub mod together;
 pub mod torch;
 
 pub use action::{ActionHead, ActionMode, ActionOutput, OutputHead};
@@ -55,3 +56,4 @@ pub use observation::{
 pub use policy::{MlpPolicy, Network, Policy, PolicyError, check_input_size};
 pub use priority::{PrioritizedPolicy, Ranking, SlotFilling};
 pub use process::{PROTOCOL_VERSION, ProcessConfig, ProcessPolicy};
+pub use together::{PolicyCall, SharedPasses};

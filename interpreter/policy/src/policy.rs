@@ -62,6 +62,12 @@ pub trait Policy {
     /// memory untouched. A sampling policy hands the copy a fresh stream seeded from its own,
     /// so the copy's draws are reproducible and do not repeat this policy's future draws.
     fn fork(&mut self) -> Box<dyn Policy>;
+
+    /// This policy as an [`MlpPolicy`] on cpmx's kernels, whose network pass can serve other
+    /// policies of the same actor too ([`crate::act_together`]); `None` for any other policy.
+    fn as_mlp(&mut self) -> Option<&mut MlpPolicy> {
+        None
+    }
 }
 
 /// The commands of the actions in `outputs`, agent by agent.
@@ -285,34 +291,62 @@ pub fn check_input_size(observation: &SigmarlObservation, actor: &MlpActor) -> R
     }
 }
 
-impl Policy for MlpPolicy {
-    /// Observe (with the caller's previous corners if given, else the policy's own memory of
-    /// the previous call), run the network for all agents at once, map to commands.
-    fn act(&mut self, input: &ObservationInput<'_>, out: &mut [Command]) -> Result<(), PolicyError> {
+impl MlpPolicy {
+    /// The first half of [`Policy::act`]: checks the command buffer, observes every agent (with
+    /// the caller's previous corners if given, else the policy's own memory of the previous
+    /// call; remembering this step's corners for the next) and returns the network's input,
+    /// one row per agent.
+    pub fn observe(&mut self, input: &ObservationInput<'_>, out: &[Command]) -> Result<&[f32], PolicyError> {
         check_commands(input, out)?;
-        let agents = input.agents.len();
-        self.prepare(agents);
+        self.prepare(input.agents.len());
+        Ok(self.memory.observe(&self.observation, input)?)
+    }
 
-        // Observe all agents (remembering this step's corners for the next call).
-        let observations = self.memory.observe(&self.observation, input)?;
-
-        // Network and action head.
-        debug_assert_eq!(self.net.input_size(), self.observation.size());
-        match &mut self.net {
-            Net::Mlp { actor, workspace } => actor.forward(observations, workspace, &mut self.raw)?,
-            Net::External(network) => network
-                .forward(observations, &mut self.raw)
-                .map_err(PolicyError::Network)?,
+    /// The actor on cpmx's kernels, if the network is one (else another runtime's).
+    pub fn actor(&self) -> Option<&MlpActor> {
+        match &self.net {
+            Net::Mlp { actor, .. } => Some(actor),
+            Net::External(_) => None,
         }
-        for (raw, output) in self
-            .raw
-            .chunks_exact(self.output.raw_size())
-            .zip(&mut self.outputs)
-        {
+    }
+
+    /// The second half of [`Policy::act`]: the output head on the network's raw outputs for
+    /// the agents of the last [`MlpPolicy::observe`] (one row each), as commands.
+    pub fn act_on_outputs(&mut self, raw: &[f32], out: &mut [Command]) {
+        for (raw, output) in raw.chunks_exact(self.output.raw_size()).zip(&mut self.outputs) {
             *output = self.output.map(&self.head, raw, self.mode, &mut self.rng);
         }
         write_commands(&self.outputs, out);
-        Ok(())
+    }
+}
+
+impl Policy for MlpPolicy {
+    /// Observe, run the network for all agents at once, map to commands.
+    fn act(&mut self, input: &ObservationInput<'_>, out: &mut [Command]) -> Result<(), PolicyError> {
+        self.observe(input, out)?;
+        let observations = self.memory.observations();
+        debug_assert_eq!(self.net.input_size(), self.observation.size());
+        let mut raw = std::mem::take(&mut self.raw);
+        let passed = match &mut self.net {
+            Net::Mlp { actor, workspace } => actor
+                .forward(observations, workspace, &mut raw)
+                .map_err(PolicyError::from),
+            Net::External(network) => network
+                .forward(observations, &mut raw)
+                .map_err(PolicyError::Network),
+        };
+        if passed.is_ok() {
+            self.act_on_outputs(&raw, out);
+        }
+        self.raw = raw;
+        passed
+    }
+
+    fn as_mlp(&mut self) -> Option<&mut MlpPolicy> {
+        match self.net {
+            Net::Mlp { .. } => Some(self),
+            Net::External(_) => None,
+        }
     }
 
     fn reset(&mut self) {

@@ -16,7 +16,8 @@
 //! 20,000,000 ns apart), as the lab's stamps are, so every time the follower compares is a
 //! whole-nanosecond sum.
 
-use cpmx_planner::{Planner, PlannerParams, SteeringAfterHc};
+use cpmx_planner::{PlannedTrajectory, Planner, PlannerParams, SteeringAfterHc};
+use cpmx_policy::SharedPasses;
 use cpmx_recording::Recording;
 use cpmx_spec::model::{OnCollision, Planner as PlannerSpec};
 use cpmx_vehicle::{BicycleState, VehicleParams};
@@ -26,6 +27,9 @@ use cpmx_stack::{
     CONTROL_PERIOD_NS, CONTROL_PERIOD_S, DecisionSchedule, RUN_START_NS, StampedState, VehicleStack,
     anchor_ns, max_state_age_ns, step_together, trajectory_points,
 };
+use planning::{Planning, plan_together};
+
+mod planning;
 
 /// The lab's control stack around simulated vehicles.
 #[derive(Debug, Clone, Copy, Default)]
@@ -46,13 +50,26 @@ impl Engine for TwinEngine {
         let Some(steps) = runs.iter().flatten().map(|run| run.steps).max() else {
             return runs.into_iter().map(|run| run.map(TwinRun::finish)).collect();
         };
+        let mut passes = SharedPasses::default();
         for tick in 0..steps {
-            for slot in &mut runs {
-                if let Ok(run) = slot
-                    && run.is_driving(tick)
-                    && let Err(error) = run.decide(tick)
-                {
-                    *slot = Err(error);
+            // Every run plans, the policies' calls of one actor in one network pass.
+            let plannings: Vec<(usize, Planning<'_>)> = runs
+                .iter_mut()
+                .enumerate()
+                .filter_map(|(i, slot)| match slot {
+                    Ok(run) if run.is_driving(tick) => Some((i, run.begin_plan(tick))),
+                    _ => None,
+                })
+                .collect();
+            let planned = plan_together(plannings, &mut passes);
+            for (i, plan) in planned {
+                match plan {
+                    Ok((trajectories, listed)) => {
+                        if let Ok(run) = &mut runs[i] {
+                            run.receive(tick, &trajectories, &listed);
+                        }
+                    }
+                    Err(error) => runs[i] = Err(error),
                 }
             }
             // The vehicles' 50 Hz loops until the next policy period; runs of one spec share
@@ -176,8 +193,9 @@ impl<'a> TwinRun<'a> {
         RUN_START_NS + self.schedule.offset_ns(u64::from(tick))
     }
 
-    /// Records the true states at `tick` and hands every vehicle its new trajectory.
-    fn decide(&mut self, tick: u32) -> Result<(), RunError> {
+    /// Records the true states at `tick` and begins the plan from what the middleware lists
+    /// (the policy's calls are made by [`planning::plan_together`], perhaps beside other runs').
+    fn begin_plan(&mut self, tick: u32) -> Planning<'_> {
         let dt_s = self.inputs.experiment.spec.timing.dt;
         let t_s = if self.schedule.is_exact() {
             (f64::from(tick) * dt_s * 1e9).round() / 1e9
@@ -192,8 +210,6 @@ impl<'a> TwinRun<'a> {
             .samples
             .push(self.vehicles.iter().map(VehicleStack::true_sample).collect());
 
-        // Plan from what the middleware lists; every vehicle gets its trajectory, anchored
-        // at its state's time and valid from the tick on.
         let listed: Vec<StampedState> = self.vehicles.iter().map(|v| v.listed_state(tick_ns)).collect();
         let states: Vec<BicycleState> = listed.iter().map(|s| s.state).collect();
         if self.knowledge.is_active() {
@@ -205,19 +221,23 @@ impl<'a> TwinRun<'a> {
             self.planner
                 .set_neighbours(Some(self.knowledge.step(t_s, &agents)));
         }
-        let policy = self.policy.as_mut();
-        let trajectories = match &mut self.safety {
-            None => self.planner.plan(policy, &states, &self.paths, 0.0)?,
-            Some(filter) => self
-                .planner
-                .plan_filtered(policy, filter, &states, &self.paths, 0.0)?,
-        };
+        Planning::new(
+            self.planner.begin(&states, &self.paths, 0.0),
+            self.policy.as_mut(),
+            self.safety.as_mut(),
+            listed,
+        )
+    }
+
+    /// Hands every vehicle its trajectory of the plan made at `tick`, anchored at its listed
+    /// state's time and valid from the tick on.
+    fn receive(&mut self, tick: u32, trajectories: &[PlannedTrajectory], listed: &[StampedState]) {
+        let tick_ns = self.tick_ns(tick);
         let dt_ns = self.schedule.step_ns();
-        for ((vehicle, trajectory), state) in self.vehicles.iter_mut().zip(&trajectories).zip(&listed) {
+        for ((vehicle, trajectory), state) in self.vehicles.iter_mut().zip(trajectories).zip(listed) {
             let anchor = anchor_ns(state.create_ns, tick_ns, self.max_age_ns);
             vehicle.receive(trajectory_points(trajectory, anchor, dt_ns), tick_ns, tick_ns);
         }
-        Ok(())
     }
 
     /// After the vehicles' loops of a tick: ends the run at an overlap if the spec says so.
@@ -256,104 +276,4 @@ pub fn planner(spec: &PlannerSpec, dt_s: f64, vehicle: VehicleParams) -> Planner
 }
 
 #[cfg(test)]
-mod tests {
-    //! Runs stepped in lock-step have, each, the bits they have alone: sim-mpc's and the
-    //! randomised twin's runs mixed in one group, of several seeds and starts, with a run
-    //! that cannot start beside them.
-
-    use std::path::PathBuf;
-
-    use cpmx_spec::{DataPath, SpecSource};
-
-    use super::*;
-    use crate::Experiment;
-
-    const SPEC: &str = "\
-cpmx: 1
-name: lockstep
-map: stdlib:intersection
-timing: {dt: 0.1, steps: 30}
-agents: 2
-policies:
-  - {name: baseline, builtin: lane-follow}
-initial_configurations:
-  - name: following
-    agents:
-      - {ref_path: 7, arc_length: 0.8}
-      - {ref_path: 7, arc_length: 0.2}
-  - name: turning
-    agents:
-      - {ref_path: 2, arc_length: 0.3}
-      - {ref_path: 9, arc_length: 0.3}
-repetitions: 2
-seed: 11
-fidelities:
-  sim-mpc: {control: trajectory, dynamics: kinematic}
-  twin-random:
-    control: trajectory
-    dynamics: stdlib:mu-car-greybox
-    sensing: {extends: stdlib:cpm-ips, noise_position_m: {uniform: [0, 0.004]}}
-    actuation: {delay_ms: {uniform: [40, 120]}}
-planner: {control_horizon: 4, prediction_horizon: 12}
-";
-
-    fn experiment() -> (Experiment, Vec<cpmx_spec::RunPlan>) {
-        let source = SpecSource {
-            name: "lockstep.yaml".into(),
-            dir: PathBuf::from("."),
-            text: SPEC.into(),
-        };
-        let checked = cpmx_spec::check(
-            &source,
-            &DataPath::new(&source.dir, &[], None),
-            &crate::BuildChecks,
-        )
-        .unwrap_or_else(|d| panic!("{}", cpmx_spec::render(&d, false)));
-        (Experiment::prepare(&checked).unwrap(), checked.plan())
-    }
-
-    #[test]
-    fn runs_together_have_the_bits_of_runs_alone() {
-        let (experiment, plans) = experiment();
-        assert_eq!(plans.len(), 8);
-        let drawn: Vec<_> = plans
-            .iter()
-            .map(|plan| match &experiment.spec.fidelities[&plan.fidelity] {
-                cpmx_spec::model::Fidelity::Simulated(f) => crate::randomise::draw_for_run(f, plan.seed).0,
-                other => panic!("not simulated: {other:?}"),
-            })
-            .collect();
-        let inputs: Vec<RunInputs<'_>> = plans
-            .iter()
-            .zip(&drawn)
-            .map(|(plan, fidelity)| RunInputs {
-                experiment: &experiment,
-                plan,
-                starts: experiment.start(plan).unwrap(),
-                fidelity: Some(fidelity),
-                stop: None,
-                operator: None,
-                timing: false,
-            })
-            .collect();
-        let alone: Vec<Recording> = inputs.iter().map(|i| TwinEngine.run(i).unwrap()).collect();
-        // A run that cannot start (no drawn stack) fails alone; the others are untouched.
-        let mut with_failing = inputs.clone();
-        with_failing.insert(
-            3,
-            RunInputs {
-                fidelity: None,
-                ..inputs[0]
-            },
-        );
-        let mut together = TwinEngine.run_together(&with_failing);
-        assert!(matches!(together.remove(3), Err(RunError::Unsupported(..))));
-        assert_eq!(together.len(), alone.len());
-        for ((plan, alone), together) in plans.iter().zip(&alone).zip(together) {
-            assert_eq!(alone.samples.len(), 30, "{}", plan.key);
-            assert_eq!(&together.unwrap(), alone, "{}", plan.key);
-        }
-        // The randomised twin's runs differ from each other (the test compares real runs).
-        assert_ne!(alone[4].samples, alone[6].samples);
-    }
-}
+mod tests;
