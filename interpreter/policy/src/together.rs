@@ -190,7 +190,7 @@ mod tests {
         let vehicle = VehicleParams::MU_CAR;
         let input = |k: usize| ObservationInput {
             agents: &states[k],
-            paths: &paths[states[k].len() % 2 ^ 1],
+            paths: &paths[usize::from(states[k].len() == 2)],
             vehicle: &vehicle,
             previous_corners: None,
             neighbours: None,
