@@ -41,10 +41,11 @@ impl Engine for TwinEngine {
         results.pop().expect("one result per run")
     }
 
-    /// The runs tick by tick in lock-step: each plans on its own, then the 50 Hz loops of all
-    /// their vehicles step together, so that one pass of SIMD lanes solves the MPCs of several
-    /// runs. A vehicle shares nothing with the others during a step, so each run has the bits
-    /// it has alone (`tests/twin_together.rs`).
+    /// The runs tick by tick in lock-step: each plans on its own predicted states, the calls
+    /// of the policies that run one actor sharing its network pass ([`planning`]), then the
+    /// 50 Hz loops of all their vehicles step together, so that one pass of SIMD lanes solves
+    /// the MPCs of several runs. Runs share no state, and the kernels give each row and lane
+    /// the bits it has alone, so each run has the bits it has alone (`twin/tests.rs`).
     fn run_together(&self, inputs: &[RunInputs<'_>]) -> Vec<Result<Recording, RunError>> {
         let mut runs: Vec<Result<TwinRun<'_>, RunError>> = inputs.iter().map(TwinRun::new).collect();
         let Some(steps) = runs.iter().flatten().map(|run| run.steps).max() else {
