@@ -21,6 +21,8 @@ mod safety;
 mod sim;
 mod starts;
 pub mod store;
+#[cfg(test)]
+mod together_tests;
 mod twin;
 
 pub use checks::BuildChecks;

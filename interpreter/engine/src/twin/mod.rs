@@ -45,7 +45,7 @@ impl Engine for TwinEngine {
     /// of the policies that run one actor sharing its network pass ([`planning`]), then the
     /// 50 Hz loops of all their vehicles step together, so that one pass of SIMD lanes solves
     /// the MPCs of several runs. Runs share no state, and the kernels give each row and lane
-    /// the bits it has alone, so each run has the bits it has alone (`twin/tests.rs`).
+    /// the bits it has alone, so each run has the bits it has alone (`together_tests.rs`).
     fn run_together(&self, inputs: &[RunInputs<'_>]) -> Vec<Result<Recording, RunError>> {
         let mut runs: Vec<Result<TwinRun<'_>, RunError>> = inputs.iter().map(TwinRun::new).collect();
         let Some(steps) = runs.iter().flatten().map(|run| run.steps).max() else {
@@ -275,6 +275,3 @@ pub fn planner(spec: &PlannerSpec, dt_s: f64, vehicle: VehicleParams) -> Planner
         vehicle,
     )
 }
-
-#[cfg(test)]
-mod tests;
