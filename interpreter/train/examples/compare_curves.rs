@@ -70,16 +70,15 @@ fn main() -> Result<(), String> {
         let rewards = data["episode_reward_mean_list"]
             .as_array()
             .ok_or_else(|| format!("{file}: no episode_reward_mean_list"))?;
+        // Named by the nearest folder of a seed: `seed2/checkpoint/*_data.json` (the reference
+        // actors) or `seed2/*_data.json` (the paper's).
+        let seed_folder = Path::new(file)
+            .ancestors()
+            .skip(1)
+            .find(|dir| name(dir).starts_with("seed"))
+            .unwrap_or(Path::new(file));
         series.push(Series {
-            name: format!(
-                "SigmaRL {}",
-                name(
-                    Path::new(file)
-                        .parent()
-                        .and_then(Path::parent)
-                        .unwrap_or(Path::new(file))
-                )
-            ),
+            name: format!("SigmaRL {}", name(seed_folder)),
             points: rewards
                 .iter()
                 .enumerate()
