@@ -278,6 +278,12 @@ pub trait Engine: Sync {
     }
 }
 
+/// [`Engine::run`] of an engine whose primitive is [`Engine::run_together`]: a group of one.
+pub(crate) fn run_alone(engine: &dyn Engine, inputs: &RunInputs<'_>) -> Result<Recording, RunError> {
+    let mut results = engine.run_together(std::slice::from_ref(inputs));
+    results.pop().expect("one result per run")
+}
+
 /// The engine of a fidelity, or why this build has none.
 pub fn engine_for(name: &str, fidelity: &Fidelity) -> Result<&'static dyn Engine, RunError> {
     if let Some(reason) = crate::checks::unsupported_reason(fidelity) {

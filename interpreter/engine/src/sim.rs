@@ -28,8 +28,7 @@ pub struct SimEngine;
 
 impl Engine for SimEngine {
     fn run(&self, inputs: &RunInputs<'_>) -> Result<Recording, RunError> {
-        let mut results = self.run_together(std::slice::from_ref(inputs));
-        results.pop().expect("one result per run")
+        crate::engine::run_alone(self, inputs)
     }
 
     /// The runs step by step in lock-step, the calls of the policies that run one actor

@@ -37,8 +37,7 @@ pub struct TwinEngine;
 
 impl Engine for TwinEngine {
     fn run(&self, inputs: &RunInputs<'_>) -> Result<Recording, RunError> {
-        let mut results = self.run_together(std::slice::from_ref(inputs));
-        results.pop().expect("one result per run")
+        crate::engine::run_alone(self, inputs)
     }
 
     /// The runs tick by tick in lock-step: each plans on its own predicted states, the calls
