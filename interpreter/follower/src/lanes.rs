@@ -10,7 +10,7 @@ use std::cell::Cell;
 use cpmx_math::{Lanes, Real};
 
 use crate::gradient::{self, GradientResult, Prediction, StepJacobians, WarmStart};
-use crate::model::{MODEL_NUMBERS, Power, RealModel};
+use crate::model::{HELD_TERMS, Held, MODEL_NUMBERS, RealModel};
 use crate::mpc::{CONTROL_MOVES, MpcConfig, PREDICTION_STEPS, Problem};
 
 /// `L` models' numbers and input bounds, lane by lane.
@@ -18,18 +18,20 @@ pub struct LanesPrediction<M, const NU: usize, const L: usize> {
     numbers: [Lanes<L>; MODEL_NUMBERS],
     lower: [Lanes<L>; NU],
     upper: [Lanes<L>; NU],
-    /// The last powers computed, by the bits of their bases (see [`Power`]).
+    /// The last powers computed, by the bits of their bases (see [`Held`]).
     last_power: Cell<([u64; L], Lanes<L>)>,
+    /// The last held terms computed, by the bits of the value they were computed from.
+    last_terms: Cell<([u64; L], [Lanes<L>; HELD_TERMS])>,
     model: std::marker::PhantomData<M>,
 }
 
-impl<M, const NU: usize, const L: usize> Power<Lanes<L>> for LanesPrediction<M, NU, L> {
+impl<M, const NU: usize, const L: usize> Held<Lanes<L>> for LanesPrediction<M, NU, L> {
     /// `x^y` of each lane, remembered from the call before when every lane's base is the one
     /// before (the exponents are the models' numbers, fixed for a solve).
     #[inline(always)]
     fn power(&self, x: Lanes<L>, y: Lanes<L>) -> Lanes<L> {
         let (bits, power) = self.last_power.get();
-        let base: [u64; L] = std::array::from_fn(|i| x.0[i].to_bits());
+        let base = lane_bits(x);
         if bits == base {
             return power;
         }
@@ -37,6 +39,24 @@ impl<M, const NU: usize, const L: usize> Power<Lanes<L>> for LanesPrediction<M, 
         self.last_power.set((base, power));
         power
     }
+
+    /// The terms of each lane's `x`, when every lane's `x` is the one they were computed from.
+    #[inline(always)]
+    fn remembered_terms(&self, x: Lanes<L>) -> Option<[Lanes<L>; HELD_TERMS]> {
+        let (bits, terms) = self.last_terms.get();
+        (bits == lane_bits(x)).then_some(terms)
+    }
+
+    #[inline(always)]
+    fn remember_terms(&self, x: Lanes<L>, terms: [Lanes<L>; HELD_TERMS]) {
+        self.last_terms.set((lane_bits(x), terms));
+    }
+}
+
+/// The bits of each lane.
+#[inline(always)]
+fn lane_bits<const L: usize>(x: Lanes<L>) -> [u64; L] {
+    std::array::from_fn(|i| x.0[i].to_bits())
 }
 
 /// Lane `i` of `L` values `value(i)`.
@@ -140,6 +160,7 @@ fn solve_lanes_portable<M: RealModel<NX, NU>, const NX: usize, const NU: usize, 
         lower: std::array::from_fn(|k| gather(|i| limits[i].lower[k])),
         upper: std::array::from_fn(|k| gather(|i| limits[i].upper[k])),
         last_power: Cell::new(([f64::NAN.to_bits(); L], Lanes::splat(f64::NAN))),
+        last_terms: Cell::new(([f64::NAN.to_bits(); L], [Lanes::splat(f64::NAN); HELD_TERMS])),
         model: std::marker::PhantomData,
     };
     let x0: [Lanes<L>; NX] = std::array::from_fn(|k| gather(|i| problems[i].x0[k]));

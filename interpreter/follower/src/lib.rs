@@ -40,8 +40,8 @@ pub use gradient::{
 };
 pub use lanes::{LaneJob, LanesPrediction, WIDEST_LANES, solve_lanes, solve_together};
 pub use model::{
-    BicycleModel, Computed, InputLimits, LOW_SPEED_MPS, MODEL_NUMBERS, Model, Power, RealModel, as_matrices,
-    unwrap_near,
+    BicycleModel, Computed, HELD_TERMS, Held, InputLimits, LOW_SPEED_MPS, MODEL_NUMBERS, Model, RealModel,
+    as_matrices, unwrap_near,
 };
 pub use mpc::{
     BICYCLE_MOVE_WEIGHTS, Begun, CONTROL_MOVES, LAB_MOVE_WEIGHTS, Mpc, MpcConfig, PREDICTION_STEPS, Pending,

@@ -84,34 +84,56 @@ pub trait RealModel<const NX: usize, const NU: usize>: Model<NX, NU> {
     fn numbers(&self) -> [f64; MODEL_NUMBERS];
 
     /// The state after holding `input` for `h_s` from `state`, with its Jacobians, for the
-    /// numbers `n`; `power.power(x, y)` is `x^y` (computed, or remembered from the call before).
+    /// numbers `n`; what it computes from held inputs it asks `held` for (computed, or
+    /// remembered from the call before).
     fn predict<T: Real>(
         n: &[T; MODEL_NUMBERS],
         state: &[T; NX],
         input: &[T; NU],
         h_s: f64,
-        power: &impl Power<T>,
+        held: &impl Held<T>,
     ) -> StepJacobians<T, NX, NU>;
 }
 
-/// `x^y` where a model's step needs it ([`RealModel::predict`]): computed each time
-/// ([`Computed`]), or remembered from the call before, as the prediction holds each move for
-/// two steps (every second power is then the one before: the same call, the same bits). A
-/// trait rather than a closure, so that it is inlined into the step, also in lanes.
-pub trait Power<T> {
+/// Values a model's step computes from an input the prediction holds for two steps (each move
+/// is held for two prediction steps, so every second call sees the same value and, remembered,
+/// gets the same bits without the work): `x^y` (the grey-box car's motor term of its
+/// throttle) and [`HELD_TERMS`] terms of one held value (the bicycle's of its steering angle,
+/// the clamped steering input of the step before). Computed each time ([`Computed`]) or
+/// remembered from the call before. A trait rather than closures kept by the caller, so that
+/// it is inlined into the step, also in lanes.
+pub trait Held<T> {
     /// `x^y` ([`cpmx_math::pow`]).
     fn power(&self, x: T, y: T) -> T;
+
+    /// The terms last remembered, if they were computed from `x` (the same bits). The terms
+    /// depend on `x` and the model's numbers alone, which are fixed for a solve.
+    fn remembered_terms(&self, x: T) -> Option<[T; HELD_TERMS]>;
+
+    /// Remembers `terms`, computed from `x`.
+    fn remember_terms(&self, x: T, terms: [T; HELD_TERMS]);
 }
 
-/// `x^y` computed each time.
+/// The number of terms [`Held::terms`] gives.
+pub const HELD_TERMS: usize = 6;
+
+/// Held values computed each time.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Computed;
 
-impl<T: Real> Power<T> for Computed {
+impl<T: Real> Held<T> for Computed {
     #[inline(always)]
     fn power(&self, x: T, y: T) -> T {
         x.pow(y)
     }
+
+    #[inline(always)]
+    fn remembered_terms(&self, _: T) -> Option<[T; HELD_TERMS]> {
+        None
+    }
+
+    #[inline(always)]
+    fn remember_terms(&self, _: T, _: [T; HELD_TERMS]) {}
 }
 
 /// `predict`'s Jacobians as nalgebra's matrices (for [`Model::step_jacobians`]).
@@ -320,18 +342,28 @@ impl RealModel<5, 2> for BicycleModel {
         state: &[T; 5],
         input: &[T; 2],
         h_s: f64,
-        _power: &impl Power<T>,
+        held: &impl Held<T>,
     ) -> StepJacobians<T, 5, 2> {
         let (zero, one, h) = (T::splat(0.0), T::splat(1.0), T::splat(h_s));
         let (k, wheelbase) = (n[BICYCLE_REAR_RATIO], n[BICYCLE_WHEELBASE]);
         let (max_speed, max_steering) = (n[BICYCLE_MAX_SPEED], n[BICYCLE_MAX_STEERING]);
         let [x, y, yaw, v, delta] = *state;
-        let tan = delta.tan();
-        let sec2 = one + tan * tan;
-        let beta = (k * tan).atan();
-        let dbeta = k * sec2 / (one + k * k * tan * tan);
+        // The steering angle's terms: after the first step it is the steering input held for
+        // two steps, so every second step's are the step's before.
+        let [tan, sec2, beta, dbeta, sin_b, cos_b] = match held.remembered_terms(delta) {
+            Some(terms) => terms,
+            None => {
+                let tan = delta.tan();
+                let sec2 = one + tan * tan;
+                let beta = (k * tan).atan();
+                let dbeta = k * sec2 / (one + k * k * tan * tan);
+                let (sin_b, cos_b) = beta.sin_cos();
+                let terms = [tan, sec2, beta, dbeta, sin_b, cos_b];
+                held.remember_terms(delta, terms);
+                terms
+            }
+        };
         let (sin, cos) = (yaw + beta).sin_cos();
-        let (sin_b, cos_b) = beta.sin_cos();
         let mut a = [[zero; 5]; 5];
         a[0][0] = one;
         a[0][2] = -h * v * sin;

@@ -6,8 +6,8 @@
 use std::cell::Cell;
 
 use cpmx_follower::{
-    BicycleModel, InputLimits, MODEL_NUMBERS, Model, Power, RealModel, StepJacobians, TrajectorySample,
-    as_matrices, unwrap_near,
+    BicycleModel, HELD_TERMS, Held, InputLimits, MODEL_NUMBERS, Model, RealModel, StepJacobians,
+    TrajectorySample, as_matrices, unwrap_near,
 };
 use cpmx_math::Real;
 use cpmx_sensing::Pose2;
@@ -257,7 +257,7 @@ impl GreyBoxMpcModel {
     }
 }
 
-impl Power<f64> for GreyBoxMpcModel {
+impl Held<f64> for GreyBoxMpcModel {
     /// `|throttle|^p8`, the motor term's magnitude, remembered from the call before.
     #[inline(always)]
     fn power(&self, throttle_abs: f64, exponent: f64) -> f64 {
@@ -269,6 +269,15 @@ impl Power<f64> for GreyBoxMpcModel {
         self.last_power.set((throttle_abs.to_bits(), power));
         power
     }
+
+    /// The grey-box car's step has no other held terms.
+    #[inline(always)]
+    fn remembered_terms(&self, _: f64) -> Option<[f64; HELD_TERMS]> {
+        None
+    }
+
+    #[inline(always)]
+    fn remember_terms(&self, _: f64, _: [f64; HELD_TERMS]) {}
 }
 
 impl Model<4, 2> for GreyBoxMpcModel {
@@ -384,7 +393,7 @@ impl RealModel<4, 2> for GreyBoxMpcModel {
         state: &[T; 4],
         input: &[T; 2],
         h_s: f64,
-        power: &impl Power<T>,
+        held: &impl Held<T>,
     ) -> StepJacobians<T, 4, 2> {
         let (zero, one, h) = (T::splat(0.0), T::splat(1.0), T::splat(h_s));
         let [x, y, yaw, v] = *state;
@@ -394,7 +403,7 @@ impl RealModel<4, 2> for GreyBoxMpcModel {
         let s = gain * v;
         let (sin, cos) = (yaw + p[2] * d + p[9]).sin_cos();
         let motor = p[5] + p[6] * p[GREYBOX_VOLTAGE];
-        let magnitude = power.power(f.abs(), p[7]);
+        let magnitude = held.power(f.abs(), p[7]);
         let sign = T::select(f.ge(zero), one, -one);
         let next = [
             x + h * s * cos,
