@@ -186,7 +186,7 @@ fn markdown_with_the_transfer_matrix() {
 /// A fidelity with a safety layer: its counts summed over the group's runs (copies included:
 /// a layer's counts are not a metric of independent units), its largest values the largest.
 #[test]
-fn what_the_layers_counted_is_summed_and_its_largest_kept() {
+fn what_the_layers_counted_is_summed_and_its_largest_kept_in_a_table_per_layer() {
     let mut runs = common::runs();
     for (k, run) in runs
         .iter_mut()
@@ -196,6 +196,19 @@ fn what_the_layers_counted_is_summed_and_its_largest_kept() {
         run.statistics = [
             ("safety.changed".to_owned(), k as f64),
             ("safety.largest_speed_change_mps".to_owned(), 0.1 * k as f64),
+        ]
+        .into_iter()
+        .collect();
+    }
+    // The twin's runs count their follower's stops: a table of their own, without the sim.
+    for (k, run) in runs
+        .iter_mut()
+        .enumerate()
+        .filter(|(_, r)| r.plan.fidelity == "twin")
+    {
+        run.statistics = [
+            ("follower.periods".to_owned(), 100.0),
+            ("follower.stopped_refused".to_owned(), (k % 3) as f64),
         ]
         .into_iter()
         .collect();
@@ -226,7 +239,18 @@ fn what_the_layers_counted_is_summed_and_its_largest_kept() {
             .groups
             .iter()
             .filter(|g| g.key != ["sim"])
-            .all(|g| g.layer_counts.is_empty())
+            .all(|g| !g.layer_counts.contains_key("safety.changed"))
+    );
+    let twin = summary.groups.iter().find(|g| g.key == ["twin"]).unwrap();
+    assert_eq!(twin.layer_counts["follower.periods"], 100.0 * twin.runs as f64);
+    assert!(
+        summary
+            .groups
+            .iter()
+            .find(|g| g.key == ["lab"])
+            .unwrap()
+            .layer_counts
+            .is_empty()
     );
     insta::assert_snapshot!(render(&summary, Format::Markdown));
 }

@@ -13,6 +13,7 @@ mod neighbours;
 mod plants;
 mod randomise;
 mod stack;
+mod stops;
 mod timing;
 mod together;
 
@@ -23,6 +24,7 @@ pub use stack::{
     CONTROL_PERIOD_NS, CONTROL_PERIOD_S, NOMINAL_BATTERY_V, STATE_VALID_AFTER_NS, STATE_VALID_AFTER_S,
     StampedState, VehicleStack,
 };
+pub use stops::FollowerStops;
 pub use timing::{
     DecisionSchedule, RUN_START_NS, VEHICLE_LEAD_NS, VEHICLE_LEAD_S, anchor_ns, anchored_time_ns,
     control_periods, duration_ns, max_state_age_ns, trajectory_points,

@@ -33,6 +33,7 @@ use std::collections::VecDeque;
 use rand::SeedableRng;
 use rand_chacha::ChaCha20Rng;
 
+use crate::FollowerStops;
 use crate::InitialState;
 use crate::plants::{GreyBoxPlant, KinematicPlant, Plant};
 use crate::timing::{RUN_START_NS, duration_ns};
@@ -101,6 +102,8 @@ pub struct Vehicle<P: Plant<NX, NU>, const NX: usize, const NU: usize> {
     ips_lost_since_ns: Option<u64>,
     /// The battery voltage last measured [V].
     battery_voltage_v: f64,
+    /// The periods stepped, and those in which the follower stopped the car.
+    stops: FollowerStops,
 }
 
 macro_rules! each {
@@ -137,6 +140,11 @@ impl VehicleStack {
                 agent,
             )?)),
         })
+    }
+
+    /// The periods stepped so far, and those in which the follower stopped the car, by reason.
+    pub fn stops(&self) -> FollowerStops {
+        each!(self, v => v.stops)
     }
 
     /// Hands the follower a new trajectory (kept until it is valid, as on the car).
@@ -245,6 +253,7 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
             rng: ChaCha20Rng::from_seed(stream_key(run_seed, &format!("sensing/{agent}"))),
             ips_lost_since_ns: None,
             battery_voltage_v: NOMINAL_BATTERY_V,
+            stops: FollowerStops::default(),
         };
         // The vehicle stood at its start before the run: that state is valid at the run's
         // start (for a start with speed, it is 60 ms early).
@@ -346,6 +355,7 @@ impl<P: Plant<NX, NU>, const NX: usize, const NU: usize> Vehicle<P, NX, NU> {
             None => output.input,
         };
         self.command = output.input;
+        self.stops.count(&output.status);
         let before = self.plant.pose(&self.state);
         let step = self.plant.step(&self.state, &input, CONTROL_PERIOD_S);
         self.state = step.state;

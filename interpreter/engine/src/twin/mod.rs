@@ -24,8 +24,8 @@ use cpmx_vehicle::{BicycleState, VehicleParams};
 
 use crate::engine::{Engine, RunError, RunInputs};
 use cpmx_stack::{
-    CONTROL_PERIOD_NS, CONTROL_PERIOD_S, DecisionSchedule, RUN_START_NS, StampedState, VehicleStack,
-    anchor_ns, max_state_age_ns, step_together, trajectory_points,
+    CONTROL_PERIOD_NS, CONTROL_PERIOD_S, DecisionSchedule, FollowerStops, RUN_START_NS, StampedState,
+    VehicleStack, anchor_ns, max_state_age_ns, step_together, trajectory_points,
 };
 use planning::{Planning, plan_together};
 
@@ -250,11 +250,16 @@ impl<'a> TwinRun<'a> {
         }
     }
 
-    /// What the run recorded, with its safety layer's counts.
+    /// What the run recorded, with its safety layer's counts and how often the lab's follower
+    /// stopped its cars.
     fn finish(mut self) -> Recording {
         if let Some(filter) = &self.safety {
             crate::safety::record(filter, &mut self.recording);
         }
+        let stops: Vec<FollowerStops> = self.vehicles.iter().map(VehicleStack::stops).collect();
+        let stops = FollowerStops::sum(&stops);
+        self.recording.notes.extend(stops.note());
+        self.recording.statistics.extend(stops.statistics());
         self.recording
     }
 }

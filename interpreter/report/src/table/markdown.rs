@@ -34,15 +34,17 @@ pub fn render(summary: &Summary) -> String {
     out
 }
 
-/// What the fidelities' layers counted (a safety filter's interventions), a row per group
-/// that has counts; nothing without such a layer.
+/// What the fidelities' layers counted (a safety filter's interventions, the lab's follower's
+/// stops): a table per layer (the counts' names up to the first `.`), a row per group with
+/// counts of that layer; nothing without such a layer.
 fn layer_table(out: &mut String, summary: &Summary) {
-    let names: std::collections::BTreeSet<&String> = summary
-        .groups
-        .iter()
-        .flat_map(|g| g.layer_counts.keys())
-        .collect();
-    if names.is_empty() {
+    let mut layers: std::collections::BTreeMap<&str, std::collections::BTreeSet<&String>> =
+        std::collections::BTreeMap::new();
+    for name in summary.groups.iter().flat_map(|g| g.layer_counts.keys()) {
+        let layer = name.split_once('.').map_or(name.as_str(), |(layer, _)| layer);
+        layers.entry(layer).or_default().insert(name);
+    }
+    if layers.is_empty() {
         return;
     }
     let _ = writeln!(
@@ -54,38 +56,48 @@ fn layer_table(out: &mut String, summary: &Summary) {
         .iter()
         .map(|&a| crate::aggregate::axis_name(a))
         .collect();
-    let _ = writeln!(
-        out,
-        "| {} | runs | {} |",
-        axes.join(" | "),
-        names
-            .iter()
-            .map(|n| format!("`{n}`"))
-            .collect::<Vec<_>>()
-            .join(" | ")
-    );
-    let _ = writeln!(
-        out,
-        "|{}",
-        " :-- |".repeat(axes.len()) + &" --: |".repeat(names.len() + 1)
-    );
-    for group in summary.groups.iter().filter(|g| !g.layer_counts.is_empty()) {
-        let cells: Vec<String> = names
-            .iter()
-            .map(|name| match group.layer_counts.get(*name) {
-                None => String::new(),
-                // Largest values and durations (`_s`) are measurements, the rest counts.
-                Some(v) if crate::aggregate::is_largest(name) || name.ends_with("_s") => format!("{v:.3}"),
-                Some(v) => format!("{v:.0}"),
-            })
-            .collect();
+    for (i, (layer, names)) in layers.iter().enumerate() {
+        if i > 0 {
+            let _ = writeln!(out);
+        }
+        let _ = writeln!(out, "### `{layer}`\n");
         let _ = writeln!(
             out,
-            "| {} | {} | {} |",
-            group.key.join(" | "),
-            group.runs,
-            cells.join(" | ")
+            "| {} | runs | {} |",
+            axes.join(" | "),
+            names
+                .iter()
+                .map(|n| format!("`{n}`"))
+                .collect::<Vec<_>>()
+                .join(" | ")
         );
+        let _ = writeln!(
+            out,
+            "|{}",
+            " :-- |".repeat(axes.len()) + &" --: |".repeat(names.len() + 1)
+        );
+        let counted =
+            |g: &&crate::aggregate::Group| names.iter().any(|name| g.layer_counts.contains_key(*name));
+        for group in summary.groups.iter().filter(counted) {
+            let cells: Vec<String> = names
+                .iter()
+                .map(|name| match group.layer_counts.get(*name) {
+                    None => String::new(),
+                    // Largest values and durations (`_s`) are measurements, the rest counts.
+                    Some(v) if crate::aggregate::is_largest(name) || name.ends_with("_s") => {
+                        format!("{v:.3}")
+                    }
+                    Some(v) => format!("{v:.0}"),
+                })
+                .collect();
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} |",
+                group.key.join(" | "),
+                group.runs,
+                cells.join(" | ")
+            );
+        }
     }
 }
 

@@ -203,3 +203,38 @@ fn the_middleware_lists_states_60_ms_after_their_creation() {
         RUN_START_NS - STATE_VALID_AFTER_NS
     );
 }
+
+/// A vehicle counts its periods and those its follower stopped it in, by reason: a trajectory
+/// whose speed jumps between 0 and 5 m/s every 0.1 s (about 100 m/s²) is refused by the lab's
+/// MPC (limit 20 m/s²) in every period it is the newest command.
+#[test]
+fn a_vehicle_counts_the_periods_its_follower_stopped_it_in() {
+    let mut stack =
+        VehicleStack::new(&twin_without_sensing(), VehicleParams::MU_CAR, &start(), 3, 0).unwrap();
+    for k in 0..10 {
+        let now_ns = RUN_START_NS + k * CONTROL_PERIOD_NS;
+        if k == 5 {
+            let mut abrupt = straight(now_ns);
+            for (i, point) in abrupt.iter_mut().enumerate() {
+                point.vx_mps = if i % 2 == 0 { 0.0 } else { 5.0 };
+            }
+            stack.receive(abrupt, now_ns, now_ns);
+        } else if k < 5 {
+            stack.receive(straight(now_ns), now_ns, now_ns);
+        }
+        let status = stack.step(now_ns);
+        assert_eq!(
+            matches!(status, Status::Stopped(StopReason::Rejected(_))),
+            k >= 5,
+            "period {k}: {status:?}"
+        );
+    }
+    assert_eq!(
+        stack.stops(),
+        crate::FollowerStops {
+            periods: 10,
+            refused: 5,
+            ..Default::default()
+        }
+    );
+}
