@@ -114,7 +114,7 @@ pub trait Held<T> {
     fn remember_terms(&self, x: T, terms: [T; HELD_TERMS]);
 }
 
-/// The number of terms [`Held::terms`] gives.
+/// The number of terms [`Held::remembered_terms`] keeps.
 pub const HELD_TERMS: usize = 6;
 
 /// Held values computed each time.
