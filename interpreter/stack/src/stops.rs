@@ -40,18 +40,6 @@ impl FollowerStops {
         }
     }
 
-    /// The counts of several vehicles together.
-    pub fn sum<'a>(all: impl IntoIterator<Item = &'a FollowerStops>) -> FollowerStops {
-        all.into_iter()
-            .fold(FollowerStops::default(), |total, s| FollowerStops {
-                periods: total.periods + s.periods,
-                no_command: total.no_command + s.no_command,
-                stale_command: total.stale_command + s.stale_command,
-                lost_ips: total.lost_ips + s.lost_ips,
-                refused: total.refused + s.refused,
-            })
-    }
-
     /// The counts as a run's statistics, by name (`follower.refused`, ...).
     pub fn statistics(&self) -> BTreeMap<String, f64> {
         [
@@ -79,6 +67,19 @@ impl FollowerStops {
     }
 }
 
+/// The counts of several vehicles together.
+impl std::iter::Sum for FollowerStops {
+    fn sum<I: Iterator<Item = FollowerStops>>(all: I) -> FollowerStops {
+        all.fold(FollowerStops::default(), |total, s| FollowerStops {
+            periods: total.periods + s.periods,
+            no_command: total.no_command + s.no_command,
+            stale_command: total.stale_command + s.stale_command,
+            lost_ips: total.lost_ips + s.lost_ips,
+            refused: total.refused + s.refused,
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -98,7 +99,7 @@ mod tests {
         }
         let mut other = FollowerStops::default();
         other.count(&Status::Stopped(StopReason::LostIps { age_ns: 1 }));
-        let both = FollowerStops::sum([&one, &other]);
+        let both: FollowerStops = [one, other].into_iter().sum();
         assert_eq!(
             both,
             FollowerStops {

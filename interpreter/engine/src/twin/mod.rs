@@ -256,8 +256,7 @@ impl<'a> TwinRun<'a> {
         if let Some(filter) = &self.safety {
             crate::safety::record(filter, &mut self.recording);
         }
-        let stops: Vec<FollowerStops> = self.vehicles.iter().map(VehicleStack::stops).collect();
-        let stops = FollowerStops::sum(&stops);
+        let stops: FollowerStops = self.vehicles.iter().map(VehicleStack::stops).sum();
         self.recording.notes.extend(stops.note());
         self.recording.statistics.extend(stops.statistics());
         self.recording
