@@ -111,6 +111,11 @@ fn emulate(args: &EmulateArgs) -> Result<(), Failure> {
         EmulatorEvent::Superseded { ticks } => {
             eprintln!("the planner announced another run after {ticks} ticks; run abandoned");
         }
+        EmulatorEvent::FollowerStopped(stops) => {
+            if let Some(note) = stops.note() {
+                eprintln!("{note}");
+            }
+        }
     };
     emulator.serve(args.runs, &mut on_event).map_err(|e| {
         eprintln!("error: {e}");

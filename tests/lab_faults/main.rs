@@ -295,6 +295,41 @@ clock_offset_ms: -2500
     ] {
         assert!(record.contains(noted), "`{noted}` not in {record}\n{logs}");
     }
+    // Those faults the cars did not feel: their followers never stopped them.
+    assert!(!logs.contains("the lab's follower stopped the cars"), "{logs}");
+
+    // Fixes lost for good in a lab whose planner waits longer than the cars (10 s against the
+    // lab's 3 s): the car's own follower stops it, and the emulator says for how long.
+    let patient = dir.join("patient.yaml");
+    std::fs::write(
+        &patient,
+        spec_text(40, 1, ", preflight: {wait_s: 1}, ips_age_limit_s: 10"),
+    )
+    .expect("spec");
+    let lost_early = faults_file(dir, "lost-early", "ips_loss: [{vehicle: 1, at_s: 0.5}]\n");
+    let (status, logs) = session(
+        dir,
+        "patient",
+        &patient,
+        &dir.join("out-patient"),
+        1,
+        &["--faults", lost_early.to_str().expect("utf-8")],
+        &only,
+        deadline,
+    );
+    assert!(status.success(), "{logs}");
+    let follower = logs
+        .lines()
+        .find(|l| l.starts_with("the lab's follower stopped the cars in "))
+        .unwrap_or_else(|| panic!("no follower stops reported\n{logs}"));
+    // From 3 s after the last fix to the run's end at 4 s: 0.5 s at 50 Hz, and the periods
+    // between that fix and the loss.
+    let lost: u64 = follower
+        .split(", ")
+        .find_map(|part| part.strip_suffix(" with the positioning lost"))
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{follower}"));
+    assert!((25..=30).contains(&lost), "{follower}");
 }
 
 #[test]

@@ -38,7 +38,7 @@ use super::{discovery_config, hlc_vehicle_id, ns_from_s, timeout};
 use crate::experiment::Experiment;
 use crate::starts::InitialState;
 use cpmx_stack::control_periods;
-use cpmx_stack::{CONTROL_PERIOD_NS, CONTROL_PERIOD_S, VehicleStack};
+use cpmx_stack::{CONTROL_PERIOD_NS, CONTROL_PERIOD_S, FollowerStops, VehicleStack};
 
 pub use super::lockstep::RESEND_INTERVAL;
 
@@ -117,6 +117,10 @@ pub enum EmulatorEvent {
     /// The planner announced another run after `ticks` driven ticks; the stop trigger was
     /// sent.
     Superseded { ticks: usize },
+    /// The vehicles' followers stopped their cars during the run once they had a command
+    /// (refused trajectories, commands too old, positioning lost): the periods of every
+    /// vehicle together, sent after the run's end when there were any.
+    FollowerStopped(FollowerStops),
 }
 
 /// How one run ends: its length, the planner's timeout, collisions, the run's announcement.
@@ -386,6 +390,12 @@ impl<'a> Emulator<'a> {
             EmulatorClock::RealTime => super::realtime::play(&mut stage, wire, &rules, on_event)?,
         };
         on_event(ended.clone());
+        // Counted before the planner's stops are handed over and the lab's time goes on,
+        // where a car whose command grows old is meant to stop.
+        let stops: FollowerStops = stage.vehicles.iter().map(VehicleStack::stops).sum();
+        if stops.note().is_some() {
+            on_event(EmulatorEvent::FollowerStopped(stops));
+        }
         // A planner that finished its run stops its vehicles now: their commands are handed
         // over. Then the lab's time goes on: the vehicles do what they were told last (a car
         // whose command is a second old stops), and the emulator says which stand.
