@@ -85,7 +85,9 @@ class VecEnv:
         environment); ``truncated``: by the time limit. ``info``: ``final_obs`` and
         ``_final_obs`` (when an episode ended), ``episode_return[E, A]``,
         ``collides_with_agents[E, A]``, ``collides_with_boundary[E, A]``, ``agent_replaced[E, A]``
-        (an agent at the end of an open path, re-placed alone).
+        (an agent at the end of an open path, re-placed alone), ``follower_stopped_periods[E, A]``
+        (the step's 50 Hz periods in which the lab's follower stopped the vehicle once commanded:
+        a refused trajectory, a command too old, positioning lost; 0 without the lab's stack).
         """
 
     def state(self) -> npt.NDArray[np.float32]:

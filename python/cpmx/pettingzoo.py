@@ -133,6 +133,7 @@ class CpmxParallelEnv(ParallelEnv):
                 "collides_with_agents": bool(info["collides_with_agents"][0, i]),
                 "collides_with_boundary": bool(info["collides_with_boundary"][0, i]),
                 "replaced": bool(info["agent_replaced"][0, i]),
+                "follower_stopped_periods": int(info["follower_stopped_periods"][0, i]),
             }
             for i, a in enumerate(self.possible_agents)
         }

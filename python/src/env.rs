@@ -236,6 +236,8 @@ impl VecEnv {
             array(py, flag(|i| i.collides_with_boundary), &[e, a])?,
         )?;
         info.set_item("agent_replaced", array(py, flag(|i| i.reset), &[e, a])?)?;
+        let stopped: Vec<u32> = r.agents.iter().map(|i| i.follower_stopped_periods).collect();
+        info.set_item("follower_stopped_periods", array(py, stopped, &[e, a])?)?;
         pyo3::types::PyTuple::new(py, [observations, reward, terminated, truncated, info.into_any()])
     }
 

@@ -162,3 +162,23 @@ def test_an_adapter_without_its_library_says_which_extra_installs_it(monkeypatch
     message = str(error.value)
     assert f"{adapter} needs the module `{library}`, which is not installed" in message
     assert f"pip install './python[{adapter.split('.')[1]}]'" in message
+
+
+def test_the_follower_stops_are_counted_through_the_labs_stack(at25, reference):
+    # Random actions make jittery plans, some of which the lab's MPC refuses: the car stops.
+    counted = {}
+    for fidelity in ("sim", "twin"):
+        env = cpmx.VecEnv(at25, fidelity=fidelity, num_envs=8, seed=1, data=reference)
+        env.reset()
+        rng = np.random.default_rng(0)
+        total = 0
+        for _ in range(40):
+            *_, info = env.step(random_actions(env, rng))
+            stopped = info["follower_stopped_periods"]
+            assert stopped.shape == (8, env.num_agents) and stopped.dtype == np.uint32
+            # At most the step's 50 Hz periods (dt 0.1 s: five).
+            assert stopped.max() <= 5
+            total += int(stopped.sum())
+        counted[fidelity] = total
+    assert counted["sim"] == 0
+    assert counted["twin"] > 0

@@ -52,12 +52,11 @@ fn training_through_the_filter_and_with_the_cbf_informed_reward() {
         curve.lines().next().unwrap().to_owned()
     };
     assert!(!header("sim").contains("filtered"), "{}", header("sim"));
-    for fidelity in ["sim-safe", "sim-mpc-safe"] {
-        assert!(
-            header(fidelity).ends_with(",filtered,filter_fallbacks"),
-            "{}",
-            header(fidelity)
-        );
+    for (fidelity, last) in [
+        ("sim-safe", ",filtered,filter_fallbacks"),
+        ("sim-mpc-safe", ",filtered,filter_fallbacks,follower_stopped"),
+    ] {
+        assert!(header(fidelity).ends_with(last), "{}", header(fidelity));
         let filtered = column(&out.join(fidelity), 5, "filtered");
         assert!(filtered.iter().sum::<f64>() > 0.0, "{fidelity}: {filtered:?}");
     }

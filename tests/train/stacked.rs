@@ -69,6 +69,16 @@ fn training_in_the_labs_control_architecture_is_deterministic_and_its_actors_run
             .all(|(d, &n)| n == 0.0 || (40.0..120.0).contains(d)),
         "{delays:?}"
     );
+    // The curves of both stacked fidelities count the periods the lab's follower stopped a
+    // car in; it refuses some of the untrained actor's jittery plans through the kinematic
+    // MPC (16-25 periods an iteration; none in these few twin episodes).
+    for fidelity in ["sim-mpc", "twin-random"] {
+        let text = std::fs::read_to_string(out.join(fidelity).join("3/learning_curve.csv")).unwrap();
+        let header = text.lines().next().unwrap_or_default();
+        assert!(header.ends_with(",follower_stopped"), "{fidelity}: {header}");
+    }
+    let stopped = column(&out.join("sim-mpc"), 3, "follower_stopped");
+    assert!(stopped.iter().all(|&n| n > 0.0), "{stopped:?}");
     // Both actors in every fidelity.
     let per_run = crate::run_trained_spec(&dir, "train-stacked.yaml");
     for fidelity in ["sim", "sim-mpc", "twin-random"] {

@@ -45,6 +45,9 @@ pub struct StepResult {
     pub filtered: u64,
     /// Agent-steps where the filter had no answer and the clamped action went through.
     pub filter_fallbacks: u64,
+    /// 50 Hz periods of this step in which the vehicles' followers stopped them once
+    /// commanded (0 without vehicle stacks).
+    pub follower_stopped: u64,
 }
 
 /// One agent at one step.
@@ -60,6 +63,10 @@ pub struct AgentStepInfo {
     pub touches_entry_or_exit: bool,
     /// It was re-placed alone after this step.
     pub reset: bool,
+    /// The 50 Hz periods of this step in which the lab's follower on its vehicle stopped it
+    /// once commanded (a refused trajectory, a command too old, positioning lost); 0 without
+    /// a vehicle stack.
+    pub follower_stopped_periods: u32,
 }
 
 /// Means of the reward terms over the agent-steps of a step.
@@ -115,6 +122,8 @@ pub(crate) struct StepTotals {
     pub filtered: u64,
     /// Agent-steps where the filter had no answer and the clamped action went through.
     pub filter_fallbacks: u64,
+    /// 50 Hz periods in which the vehicles' followers stopped them once commanded.
+    pub follower_stopped: u64,
 }
 
 impl StepTotals {
@@ -122,6 +131,7 @@ impl StepTotals {
         self.terms += &info.terms;
         self.with_agents += u64::from(info.collides_with_agents);
         self.with_boundary += u64::from(info.collides_with_boundary);
+        self.follower_stopped += u64::from(info.follower_stopped_periods);
     }
 
     pub(crate) fn add(&mut self, o: &StepTotals) {
@@ -133,6 +143,7 @@ impl StepTotals {
         self.starts_relaxed += o.starts_relaxed;
         self.filtered += o.filtered;
         self.filter_fallbacks += o.filter_fallbacks;
+        self.follower_stopped += o.follower_stopped;
     }
 }
 
@@ -182,5 +193,6 @@ impl StepResult {
         };
         self.filtered = t.filtered;
         self.filter_fallbacks = t.filter_fallbacks;
+        self.follower_stopped = t.follower_stopped;
     }
 }

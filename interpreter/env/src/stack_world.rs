@@ -87,6 +87,8 @@ struct StackVehicle {
     clock_ns: u64,
     /// Every trajectory it received, with the tick it arrived at [ns] (replayed on restore).
     received: Vec<(u64, Vec<TrajectoryPoint>)>,
+    /// Its follower's periods stopped once commanded, as far as a step has reported them.
+    stopped_reported: u64,
 }
 
 /// The vehicles of one environment and what drives them.
@@ -225,6 +227,7 @@ impl StackWorld {
             sensing_seed,
             clock_ns: RUN_START_NS,
             received: Vec::new(),
+            stopped_reported: 0,
         })
     }
 
@@ -333,6 +336,17 @@ impl StackWorld {
             .map(|v| v.stack.listed_state(v.clock_ns))
             .collect();
         out
+    }
+
+    /// Per vehicle, the 50 Hz periods its follower stopped it in (once commanded: refused,
+    /// too old or without positioning) since the last call, into `out`.
+    pub(crate) fn take_follower_stopped(&mut self, out: &mut Vec<u32>) {
+        out.clear();
+        for v in &mut self.vehicles {
+            let stopped = v.stack.stops().stopped_once_commanded();
+            out.push(u32::try_from(stopped - v.stopped_reported).unwrap_or(u32::MAX));
+            v.stopped_reported = stopped;
+        }
     }
 
     /// What a checkpoint stores (see the module documentation).
@@ -445,12 +459,15 @@ impl StackWorld {
                 follow(&mut stack, tick_ns, &points, world.substeps);
                 received.push((tick_ns, points));
             }
+            // The replayed periods were reported before the checkpoint.
+            let stopped_reported = stack.stops().stopped_once_commanded();
             world.vehicles.push(StackVehicle {
                 stack,
                 spawn,
                 sensing_seed,
                 clock_ns,
                 received,
+                stopped_reported,
             });
         }
         world.listed = world

@@ -30,6 +30,9 @@ pub struct StepResult {
     pub filtered: u64,
     /// Agent-steps the filter had no answer for.
     pub filter_fallbacks: u64,
+    /// 50 Hz periods in which the vehicles' followers stopped them once commanded (a refused
+    /// trajectory, a command too old, positioning lost) this step.
+    pub follower_stopped: u64,
 }
 
 /// A batch of `E` environments with `N` agents each that share one policy.
@@ -56,6 +59,11 @@ pub trait Environment {
     /// Whether a safety filter changes the actions before they move the vehicles (the
     /// learner learns on its own sampled actions; the filter's counts go into the records).
     fn filters(&self) -> bool {
+        false
+    }
+    /// Whether the vehicles run the lab's follower (a `control: trajectory` fidelity), whose
+    /// stops go into the records.
+    fn follows(&self) -> bool {
         false
     }
     /// Names of the parameters drawn per episode (none by default).

@@ -86,6 +86,9 @@ pub struct IterationRecord {
     pub action_scale_means: [f64; 2],
     /// What the environment's safety filter did in the batch, when it has one.
     pub filter: Option<FilterCounts>,
+    /// The 50 Hz periods of the batch in which the vehicles' followers stopped them once
+    /// commanded, when the vehicles run the lab's follower.
+    pub follower_stopped: Option<u64>,
 }
 
 /// What a safety filter in the environment did over a batch.
@@ -362,6 +365,7 @@ impl<E: Environment> Trainer<E> {
             draws: 0,
             drawn_parameter_means: vec![0.0; self.env.randomised_parameters().len()],
             filter: self.env.filters().then(FilterCounts::default),
+            follower_stopped: self.env.follows().then_some(0),
             policy_loss: 0.0,
             value_loss: 0.0,
             entropy_loss: 0.0,
@@ -430,6 +434,9 @@ impl<E: Environment> Trainer<E> {
             if let Some(f) = &mut record.filter {
                 f.changed += result.filtered;
                 f.fallbacks += result.filter_fallbacks;
+            }
+            if let Some(stopped) = &mut record.follower_stopped {
+                *stopped += result.follower_stopped;
             }
             record.env_resets += result.env_resets;
             record.agent_resets += result.agent_resets;

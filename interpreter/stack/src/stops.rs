@@ -54,9 +54,15 @@ impl FollowerStops {
         .collect()
     }
 
+    /// Periods stopped once a command had come: refused, too old or without positioning (a
+    /// run's first periods before any command are not counted).
+    pub fn stopped_once_commanded(&self) -> u64 {
+        self.stale_command + self.lost_ips + self.refused
+    }
+
     /// A note for a run whose cars were stopped once they had a command, if any was.
     pub fn note(&self) -> Option<String> {
-        let stopped = self.stale_command + self.lost_ips + self.refused;
+        let stopped = self.stopped_once_commanded();
         (stopped > 0).then(|| {
             format!(
                 "the lab's follower stopped the cars in {stopped} of {} 50 Hz periods: {} trajectories \

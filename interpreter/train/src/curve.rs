@@ -13,7 +13,9 @@
 //! `action_scale_speed, action_scale_steering` (the policy's noise: it grows when a training
 //! collapses), and with a safety layer in the fidelity `filtered` (agent-steps whose action
 //! it changed; with vehicle stacks, of every rolled-out step) and `filter_fallbacks`
-//! (agent-steps it had no answer for). Everything but the wall times is the same on any machine and thread count. A
+//! (agent-steps it had no answer for), and in a `control: trajectory` fidelity
+//! `follower_stopped` (the 50 Hz periods in which the lab's follower stopped a vehicle once
+//! commanded: a refused trajectory, a command too old, positioning lost). Everything but the wall times is the same on any machine and thread count. A
 //! curve written before the scale columns existed gets them empty on a resume.
 
 use std::fmt::Write as _;
@@ -22,9 +24,9 @@ use cpmx_learn::IterationRecord;
 
 /// The CSV header line (without newline) for the reward terms `terms`
 /// ([`crate::reward_term_names`]), the fidelity parameters drawn per episode `drawn` (none
-/// unless the fidelity is randomised) and, when the fidelity `filters` its actions through a
-/// safety layer, its counts.
-pub fn header(terms: &[&str], drawn: &[String], filters: bool) -> String {
+/// unless the fidelity is randomised), when the fidelity `filters` its actions through a
+/// safety layer its counts, and when its vehicles run the lab's follower (`follows`) its stops.
+pub fn header(terms: &[&str], drawn: &[String], filters: bool, follows: bool) -> String {
     let mut h = String::from("iteration,samples,episode_reward_mean,episodes");
     for term in terms {
         let _ = write!(h, ",reward_{term}");
@@ -40,6 +42,9 @@ pub fn header(terms: &[&str], drawn: &[String], filters: bool) -> String {
     h.push_str(",action_scale_speed,action_scale_steering");
     if filters {
         h.push_str(",filtered,filter_fallbacks");
+    }
+    if follows {
+        h.push_str(",follower_stopped");
     }
     h
 }
@@ -80,6 +85,9 @@ pub fn row(r: &IterationRecord) -> String {
     let _ = write!(s, ",{},{}", r.action_scale_means[0], r.action_scale_means[1]);
     if let Some(f) = &r.filter {
         let _ = write!(s, ",{},{}", f.changed, f.fallbacks);
+    }
+    if let Some(stopped) = r.follower_stopped {
+        let _ = write!(s, ",{stopped}");
     }
     s
 }
@@ -322,6 +330,7 @@ mod tests {
             update_seconds: 0.5,
             action_scale_means: [0.75, 1.5],
             filter: None,
+            follower_stopped: None,
         }
     }
 
@@ -335,10 +344,10 @@ mod tests {
             "collide_boundary",
             "total",
         ];
-        let columns = header(&terms, &[], false).split(',').count();
+        let columns = header(&terms, &[], false, false).split(',').count();
         let text = format!(
             "{}\n{}\n{}\n",
-            header(&terms, &[], false),
+            header(&terms, &[], false, false),
             row(&record(1, -0.25)),
             row(&record(2, f64::NAN))
         );
@@ -347,15 +356,15 @@ mod tests {
         }
         assert_eq!(reward_points(&text), vec![(1.0, -0.25)]);
         assert_eq!(last_best(&text), Some((1, -0.25)));
-        assert_eq!(rows_through(&text, 1, header(&terms, &[], false)).len(), 2);
-        assert_eq!(rows_through(&text, 5, header(&terms, &[], false)).len(), 3);
+        assert_eq!(rows_through(&text, 1, header(&terms, &[], false, false)).len(), 2);
+        assert_eq!(rows_through(&text, 5, header(&terms, &[], false, false)).len(), 3);
         assert!(text.lines().nth(1).unwrap().ends_with(",0.75,1.5"));
         // A curve written before the scale columns: resumed, its rows get them empty.
         let old: String = text
             .lines()
             .map(|l| l.rsplitn(3, ',').last().unwrap().to_owned() + "\n")
             .collect();
-        let resumed = rows_through(&old, 5, header(&terms, &[], false));
+        let resumed = rows_through(&old, 5, header(&terms, &[], false, false));
         assert!(resumed[1].ends_with(",,"), "{}", resumed[1]);
         assert!(resumed.iter().all(|l| l.split(',').count() == columns));
         // A randomised fidelity adds the draws and a column per drawn parameter.
@@ -365,7 +374,7 @@ mod tests {
             drawn_parameter_means: vec![81.5],
             ..record(3, 0.5)
         };
-        let (h, r) = (header(&terms, &drawn, false), row(&randomised));
+        let (h, r) = (header(&terms, &drawn, false, false), row(&randomised));
         assert!(
             h.contains(",agent_resets,draws,drawn_actuation.delay_ms,policy_loss,"),
             "{h}"

@@ -123,6 +123,7 @@ impl Environment for TrainingEnv {
             draws: r.draws,
             filtered: r.filtered,
             filter_fallbacks: r.filter_fallbacks,
+            follower_stopped: r.follower_stopped,
         })
     }
 
@@ -140,6 +141,10 @@ impl Environment for TrainingEnv {
 
     fn filters(&self) -> bool {
         self.env.config().safety.is_some()
+    }
+
+    fn follows(&self) -> bool {
+        self.env.has_stacks()
     }
 
     fn save_state(&self) -> Vec<u8> {

@@ -19,7 +19,7 @@ use std::fs;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
-use cpmx_learn::{IterationRecord, TrainError, Trainer};
+use cpmx_learn::{Environment as _, IterationRecord, TrainError, Trainer};
 
 use crate::collapse::{self, Collapse};
 use crate::curve;
@@ -157,6 +157,12 @@ impl SeedRun {
         let checkpoint_path = dir.join("checkpoint.safetensors");
         let planned = setup.hyperparameters.n_iters;
         let env = TrainingEnv::new(setup.env.clone(), &setup.paths, seed)?;
+        let header = curve::header(
+            &reward_term_names(&setup.env.reward),
+            &setup.randomised_parameters(),
+            setup.env.safety.is_some(),
+            env.follows(),
+        );
         // Before the folder is read: what it holds is then this process's alone.
         let lock = lock_folder(&dir)?;
         let previous: Option<RunInfo> = fs::read(dir.join("run.json"))
@@ -192,16 +198,7 @@ impl SeedRun {
             })?;
             let done = trainer.iteration();
             let old_curve = fs::read_to_string(dir.join("learning_curve.csv")).unwrap_or_default();
-            let mut curve_text = curve::rows_through(
-                &old_curve,
-                done,
-                curve::header(
-                    &reward_term_names(&setup.env.reward),
-                    &setup.randomised_parameters(),
-                    setup.env.safety.is_some(),
-                ),
-            )
-            .join("\n");
+            let mut curve_text = curve::rows_through(&old_curve, done, header).join("\n");
             curve_text.push('\n');
             info.iterations_done = done;
             info.iterations_planned = planned;
@@ -238,14 +235,7 @@ impl SeedRun {
             trainer,
             dir,
             info,
-            curve_text: format!(
-                "{}\n",
-                curve::header(
-                    &reward_term_names(&setup.env.reward),
-                    &setup.randomised_parameters(),
-                    setup.env.safety.is_some(),
-                )
-            ),
+            curve_text: format!("{header}\n"),
             collapse_watch: collapse::Watch::default(),
             _lock: lock,
         };

@@ -104,6 +104,8 @@ pub(super) struct Scratch {
     /// The states and velocities the safety filter sees this step.
     pub(super) filter_states: Vec<BicycleState>,
     pub(super) filter_velocities: Vec<[f64; 2]>,
+    /// Per agent, the periods of this step its follower stopped it in (vehicle stacks only).
+    pub(super) follower_stopped: Vec<u32>,
 }
 
 impl Env {
@@ -312,13 +314,18 @@ impl Env {
     ) -> (StepEnd, StepTotals) {
         let n = self.agents.len();
         let Moving { cbf_margins, moved } = moving;
+        let s = &mut self.scratch;
+        s.follower_stopped.clear();
         let moved = match (moved, &mut self.stack) {
             (Some(moved), _) => moved,
-            (None, Some(stack)) => stack.finish_period(),
+            (None, Some(stack)) => {
+                stack.take_follower_stopped(&mut s.follower_stopped);
+                stack.finish_period()
+            }
             (None, None) => unreachable!("loops are pending only with vehicle stacks"),
         };
+        s.follower_stopped.resize(n, 0);
         let mut totals = StepTotals::default();
-        let s = &mut self.scratch;
         s.positions.clear();
         s.velocities.clear();
         s.corners.clear();
@@ -416,6 +423,7 @@ impl Env {
                 collides_with_boundary: s.with_boundary[i],
                 touches_entry_or_exit: s.on_line[i],
                 reset: false,
+                follower_stopped_periods: s.follower_stopped[i],
             };
             totals.add_agent(&info[i]);
         }
