@@ -124,8 +124,16 @@ pub fn solve<T: Real, P: Prediction<T, NX, NU>, const NX: usize, const NU: usize
     warm: &mut WarmStart<NU, T>,
 ) -> GradientResult<NU, T> {
     let (lower, upper) = prediction.input_bounds();
+    // Loops, not `array::from_fn`: its closures are not always inlined into the lanes' vector
+    // functions and then run in baseline code (the profile showed them).
     let clip = |moves: &[[T; NU]; CONTROL_MOVES]| {
-        std::array::from_fn(|m| std::array::from_fn(|i| moves[m][i].clamp(lower[i], upper[i])))
+        let mut clipped = *moves;
+        for m in 0..CONTROL_MOVES {
+            for i in 0..NU {
+                clipped[m][i] = moves[m][i].clamp(lower[i], upper[i]);
+            }
+        }
+        clipped
     };
     let (momentum_rate, learning_rate) = (T::splat(MOMENTUM_RATE), T::splat(LEARNING_RATE));
     let mut objective = T::splat(f64::INFINITY);
@@ -221,15 +229,18 @@ pub fn objective_and_gradient<T: Real, P: Prediction<T, NX, NU>, const NX: usize
 /// `mᵀ v` for `m` given rows first, summed as nalgebra's `gemv` sums `m.transpose() * v`
 /// (element `i` is `Σⱼ m[j][i]·v[j]` in increasing `j` from the first product), so that the
 /// solver keeps the bits it had over nalgebra's matrices.
-#[inline]
+/// (A loop, not `array::from_fn`, whose closure the lanes' vector functions did not inline.)
+#[inline(always)]
 fn transposed_times<T: Real, const R: usize, const C: usize>(m: &[[T; C]; R], v: &[T; R]) -> [T; C] {
-    std::array::from_fn(|i| {
+    let mut product = m[0];
+    for (i, element) in product.iter_mut().enumerate() {
         let mut sum = m[0][i] * v[0];
         for j in 1..R {
             sum = sum + m[j][i] * v[j];
         }
-        sum
-    })
+        *element = sum;
+    }
+    product
 }
 
 #[cfg(test)]
