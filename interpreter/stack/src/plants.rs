@@ -243,7 +243,15 @@ pub struct GreyBoxMpcModel {
     /// The last `|f|^p8` computed, by the bits of `|f|`: the prediction holds each move for two
     /// steps, so every second power is the one before (the same call, the same bits).
     last_power: Cell<(u64, f64)>,
+    /// The powers of the last [`STEP_POWERS`] throttles [`Model::step`] stepped under, by the
+    /// throttle's bits, and the slot the next one goes to: the delay compensation steps through
+    /// the last three inputs, two of which the decision before stepped through too.
+    step_powers: [Cell<(u64, f64)>; STEP_POWERS],
+    next_step_power: Cell<usize>,
 }
+
+/// How many throttles' powers [`GreyBoxMpcModel`]'s steps remember.
+const STEP_POWERS: usize = 4;
 
 impl GreyBoxMpcModel {
     /// The MPC model of a grey-box vehicle, predicting at its battery voltage until the MPC's
@@ -253,7 +261,23 @@ impl GreyBoxMpcModel {
             model: GreyBoxVehicle::new(params)?,
             battery_voltage_v: params.battery_voltage_v,
             last_power: Cell::new((f64::NAN.to_bits(), f64::NAN)),
+            step_powers: std::array::from_fn(|_| Cell::new((f64::NAN.to_bits(), f64::NAN))),
+            next_step_power: Cell::new(0),
         })
+    }
+
+    /// The motor power of `throttle`, remembered for the steps after (the same call, the same
+    /// bits).
+    fn step_power(&self, throttle: f64) -> f64 {
+        let bits = throttle.to_bits();
+        if let Some(known) = self.step_powers.iter().find(|slot| slot.get().0 == bits) {
+            return known.get().1;
+        }
+        let power = self.model.motor_power(throttle);
+        let slot = self.next_step_power.get();
+        self.step_powers[slot].set((bits, power));
+        self.next_step_power.set((slot + 1) % STEP_POWERS);
+        power
     }
 }
 
@@ -287,7 +311,10 @@ impl Model<4, 2> for GreyBoxMpcModel {
             steering_servo: input[1],
             battery_voltage_v: self.battery_voltage_v,
         };
-        let out = self.model.euler_step(&grey_state(state), &grey_input, dt_s);
+        let power = self.step_power(input[0]);
+        let out = self
+            .model
+            .euler_step_with_power(&grey_state(state), &grey_input, dt_s, power);
         [out.x_m, out.y_m, out.yaw_rad, out.speed_mps]
     }
 

@@ -95,3 +95,55 @@ fn grey_box_mpcs_in_lanes_give_each_vehicles_bits() {
         }
     }
 }
+
+/// The MPC model's steps remember the last few throttles' powers (the delay compensation steps
+/// through the last three inputs every decision): each step keeps the bits of the grey-box car's
+/// own Euler step, whatever it remembers, at any battery voltage.
+#[test]
+fn remembered_step_powers_keep_the_euler_steps_bits() {
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let params = GreyBoxParams {
+        parameters: LAB_GREYBOX_PARAMETERS,
+        euler_step_s: 0.02,
+        battery_voltage_v: 7.8,
+    };
+    let mut model = GreyBoxMpcModel::new(params).expect("the lab's parameters");
+    let car = cpmx_vehicle::GreyBoxVehicle::new(params).expect("the lab's parameters");
+    // A history that shifts by one input a decision, with repeats, zero, negative and clamped
+    // throttles.
+    let inputs: Vec<[f64; 2]> = (0..60)
+        .map(|k| match k % 7 {
+            0 => [0.0, 0.1],
+            1 => [1.7, -0.2],
+            _ => [rng.random_range(-1.2..1.2), rng.random_range(-1.0..1.0)],
+        })
+        .collect();
+    for (decision, window) in inputs.windows(3).enumerate() {
+        let voltage_v = 7.0 + 0.02 * decision as f64;
+        model.set_battery_voltage_v(voltage_v);
+        let mut state = [0.1, -0.3, 0.4, rng.random_range(0.0..1.2)];
+        for u in window {
+            let own = car.euler_step(
+                &cpmx_vehicle::GreyBoxState {
+                    x_m: state[0],
+                    y_m: state[1],
+                    yaw_rad: state[2],
+                    speed_mps: state[3],
+                },
+                &cpmx_vehicle::GreyBoxInput {
+                    throttle: u[0],
+                    steering_servo: u[1],
+                    battery_voltage_v: voltage_v,
+                },
+                0.02,
+            );
+            let next = model.step(&state, u, 0.02);
+            assert_eq!(
+                bits(&[next]),
+                bits(&[[own.x_m, own.y_m, own.yaw_rad, own.speed_mps]]),
+                "decision {decision}, input {u:?}"
+            );
+            state = next;
+        }
+    }
+}

@@ -187,9 +187,26 @@ impl GreyBoxVehicle {
         [speed * cos, speed * sin]
     }
 
+    /// The motor term's magnitude `|f|^p8` for a throttle command (clamped to [-1, 1]): the
+    /// costliest number of a step, and the same for every step under the same throttle.
+    pub fn motor_power(&self, throttle: f64) -> f64 {
+        cpmx_math::pow(throttle.clamp(-1.0, 1.0).abs(), self.params.parameters[7])
+    }
+
     /// The right-hand side of the model (inputs clamped to [-1, 1], as the lab's controller
     /// clips its outputs before the plant sees them).
     pub fn derivative(&self, state: &GreyBoxState, input: &GreyBoxInput) -> GreyBoxDerivative {
+        self.derivative_with_power(state, input, self.motor_power(input.throttle))
+    }
+
+    /// [`GreyBoxVehicle::derivative`] with the input's [`GreyBoxVehicle::motor_power`]
+    /// computed by the caller (once for several steps under one throttle).
+    pub fn derivative_with_power(
+        &self,
+        state: &GreyBoxState,
+        input: &GreyBoxInput,
+        motor_power: f64,
+    ) -> GreyBoxDerivative {
         let p = &self.params.parameters;
         let delta = self.effective_steering(input.steering_servo);
         let throttle = input.throttle.clamp(-1.0, 1.0);
@@ -199,15 +216,26 @@ impl GreyBoxVehicle {
             x_mps,
             y_mps,
             yaw_rate_rad_s: p[3] * state.speed_mps * delta,
-            accel_mps2: p[4] * state.speed_mps
-                + (p[5] + p[6] * input.battery_voltage_v) * sign * cpmx_math::pow(throttle.abs(), p[7]),
+            accel_mps2: p[4] * state.speed_mps + (p[5] + p[6] * input.battery_voltage_v) * sign * motor_power,
         }
     }
 
     /// One explicit Euler step of `h_s` (the lab's `VehicleModel::step`; the MPC predicts
     /// with single steps of 50 ms).
     pub fn euler_step(&self, state: &GreyBoxState, input: &GreyBoxInput, h_s: f64) -> GreyBoxState {
-        let d = self.derivative(state, input);
+        self.euler_step_with_power(state, input, h_s, self.motor_power(input.throttle))
+    }
+
+    /// [`GreyBoxVehicle::euler_step`] with the input's [`GreyBoxVehicle::motor_power`]
+    /// computed by the caller.
+    pub fn euler_step_with_power(
+        &self,
+        state: &GreyBoxState,
+        input: &GreyBoxInput,
+        h_s: f64,
+        motor_power: f64,
+    ) -> GreyBoxState {
+        let d = self.derivative_with_power(state, input, motor_power);
         GreyBoxState {
             x_m: state.x_m + h_s * d.x_mps,
             y_m: state.y_m + h_s * d.y_mps,
@@ -242,8 +270,9 @@ impl GreyBoxVehicle {
         // Integrate, counting what the odometer and an ideal gyro see.
         let mut next = *state;
         let mut odometer_increment_m = 0.0;
+        let motor_power = self.motor_power(input.throttle);
         for sub_s in substeps {
-            next = self.euler_step(&next, input, sub_s);
+            next = self.euler_step_with_power(&next, input, sub_s, motor_power);
             odometer_increment_m += sub_s * next.speed_mps;
         }
         Ok(GreyBoxStep {
