@@ -9,7 +9,8 @@ use cpmx_engine::{Scoring, folder, inputs_hash, store};
 use cpmx_recording::Recording;
 use cpmx_report::{Format, RunRecord, render, summarize};
 use cpmx_spec::model::GroupKey;
-use cpmx_spec::{CheckScope, CheckedSpec, DataPath, SpecSource};
+use cpmx_spec::{CheckScope, CheckedSpec, DataPath, RunPlan, SpecSource};
+use rayon::prelude::*;
 
 use super::Failure;
 use crate::DataArgs;
@@ -276,43 +277,21 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
         Scoring::prepare(&checked).map_err(|e| fail(format!("{}: {e}", resolved_path.display())))?;
     let plans = folder::read_matrix(first).map_err(fail)?;
 
-    // Every run of the matrix, from whichever folder holds it, measured from its trajectory.
+    // Every run of the matrix, from whichever folder holds it, measured from its trajectory
+    // (in parallel; taken in the matrix's order, the first problem in that order reported).
+    let found: Vec<Result<Found, Failure>> = plans
+        .par_iter()
+        .map(|plan| find_and_measure(plan, &args.dirs, &context, &scoring))
+        .collect();
     let mut records = Vec::new();
     let (mut missing, mut stale, mut damaged) = (Vec::new(), Vec::new(), Vec::new());
-    for plan in &plans {
-        let Some(dir) = args.dirs.iter().find(|d| store::finished(d, plan)) else {
-            // A metrics.json that is there but cannot be read is not a run never made.
-            match args.dirs.iter().find_map(|d| {
-                let run = store::run_dir(d, plan);
-                run.join("metrics.json")
-                    .is_file()
-                    .then(|| store::read_stored(&run).err())?
-            }) {
-                Some(why) => damaged.push(why),
-                None => missing.push(plan.key.clone()),
-            }
-            continue;
-        };
-        let run = store::run_dir(dir, plan);
-        let stored = store::read_stored(&run).map_err(fail)?;
-        if stored.inputs_hash != inputs_hash(&context, plan) {
-            stale.push(plan.key.clone());
-            continue;
+    for found in found {
+        match found? {
+            Found::Measured(record) => records.push(*record),
+            Found::Missing(key) => missing.push(key),
+            Found::Stale(key) => stale.push(key),
+            Found::Damaged(why) => damaged.push(why),
         }
-        let path = run.join("trajectory.csv");
-        let bytes = std::fs::read(&path).map_err(|e| fail(format!("{}: {e}", path.display())))?;
-        let recording =
-            Recording::read_csv(bytes.as_slice()).map_err(|e| fail(format!("{}: {e}", path.display())))?;
-        let metrics = scoring
-            .measure_in(plan, &recording)
-            .map_err(|e| fail(format!("{}: {e}", path.display())))?;
-        records.push(RunRecord {
-            plan: plan.clone(),
-            metrics,
-            recording_sha256: folder::sha256_hex(&bytes),
-            drawn_parameters: stored.drawn_parameters.clone(),
-            statistics: stored.statistics.clone(),
-        });
     }
     if !missing.is_empty() {
         eprintln!(
@@ -363,4 +342,58 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
     }
     print!("{}", render(&summary, args.format));
     Ok(())
+}
+
+/// What the report found of one run of the matrix.
+enum Found {
+    /// Finished with the current spec, and measured from its trajectory.
+    Measured(Box<RunRecord>),
+    /// In none of the folders.
+    Missing(String),
+    /// Made from an earlier spec.
+    Stale(String),
+    /// Its `metrics.json` is there but cannot be read (why).
+    Damaged(String),
+}
+
+/// Finds `plan`'s run in the first of `dirs` that has it finished and measures it.
+fn find_and_measure(
+    plan: &RunPlan,
+    dirs: &[PathBuf],
+    context: &str,
+    scoring: &Scoring,
+) -> Result<Found, Failure> {
+    let Some(dir) = dirs.iter().find(|d| store::finished(d, plan)) else {
+        // A metrics.json that is there but cannot be read is not a run never made.
+        return Ok(
+            match dirs.iter().find_map(|d| {
+                let run = store::run_dir(d, plan);
+                run.join("metrics.json")
+                    .is_file()
+                    .then(|| store::read_stored(&run).err())?
+            }) {
+                Some(why) => Found::Damaged(why),
+                None => Found::Missing(plan.key.clone()),
+            },
+        );
+    };
+    let run = store::run_dir(dir, plan);
+    let stored = store::read_stored(&run).map_err(fail)?;
+    if stored.inputs_hash != inputs_hash(context, plan) {
+        return Ok(Found::Stale(plan.key.clone()));
+    }
+    let path = run.join("trajectory.csv");
+    let bytes = std::fs::read(&path).map_err(|e| fail(format!("{}: {e}", path.display())))?;
+    let recording =
+        Recording::read_csv(bytes.as_slice()).map_err(|e| fail(format!("{}: {e}", path.display())))?;
+    let metrics = scoring
+        .measure_in(plan, &recording)
+        .map_err(|e| fail(format!("{}: {e}", path.display())))?;
+    Ok(Found::Measured(Box::new(RunRecord {
+        plan: plan.clone(),
+        metrics,
+        recording_sha256: folder::sha256_hex(&bytes),
+        drawn_parameters: stored.drawn_parameters.clone(),
+        statistics: stored.statistics,
+    })))
 }

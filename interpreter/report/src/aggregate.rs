@@ -15,6 +15,7 @@ use crate::metric::{Metric, Units};
 use crate::transfer::{Origin, Transfer, transfer};
 use crate::units::distinct_units;
 use cpmx_spec::sweep::is_reference;
+use rayon::prelude::*;
 use std::collections::BTreeMap;
 
 /// Confidence of every interval of the report.
@@ -185,8 +186,10 @@ impl Origins {
 pub fn summarize(experiment: &str, runs: &[RunRecord], report: &ReportSpec, origins: &Origins) -> Summary {
     let with_bootstrap = report.statistics.contains(&Statistic::Bootstrap);
     let units = Units::of_runs(runs.iter().map(|r| &r.metrics));
+    // Groups in parallel (their bootstraps are the summary's costliest part); each group's
+    // streams are seeded on their own, so the summary does not depend on the threads.
     let groups = group_runs(runs, &report.group_by)
-        .into_iter()
+        .into_par_iter()
         .map(|(key, members)| {
             summarize_group(key, &members, units, with_bootstrap.then_some(&report.bootstrap))
         })
@@ -383,6 +386,47 @@ mod tests {
         assert_eq!(cra_a.stats.mean, 2.0);
         assert!(cra_a.bootstrap.is_none());
         assert_eq!(summary.groups[0].runs, 3);
+    }
+
+    #[test]
+    fn the_summary_does_not_depend_on_threads() {
+        // Groups and their bootstraps are summarised in parallel; each is seeded on its own.
+        let mut runs = Vec::new();
+        for (f, fidelity) in ["sim", "twin"].into_iter().enumerate() {
+            for p in 0..4 {
+                for i in 0..3 {
+                    for rep in 1..=3 {
+                        let x = (f * 37 + p * 11 + i * 5 + rep as usize) as f64;
+                        runs.push(record(
+                            fidelity,
+                            &format!("p{p}"),
+                            &format!("init{i}"),
+                            rep,
+                            [x % 3.0, 40.0 + x % 7.0, 0.04 + 0.001 * x, 0.7 + 0.002 * x],
+                        ));
+                    }
+                }
+            }
+        }
+        let report = spec(&[GroupKey::Fidelity, GroupKey::Policy], true, Some("sim"));
+        let with_threads = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("a thread pool")
+                .install(|| {
+                    crate::render(
+                        &summarize("x", &runs, &report, &Origins::default()),
+                        crate::Format::Json,
+                    )
+                })
+        };
+        let one = with_threads(1);
+        assert!(
+            one.contains("bootstrap"),
+            "the summary has its bootstrap intervals"
+        );
+        assert_eq!(one, with_threads(4));
     }
 
     #[test]

@@ -19,6 +19,7 @@ use cpmx_spec::sweep::{is_reference, paired_reference};
 use crate::RunRecord;
 use crate::aggregate::CONFIDENCE;
 use crate::metric::Metric;
+use rayon::prelude::*;
 
 /// Which axis of the run matrix a comparison runs along: every other fidelity with a
 /// reference fidelity (the sim-to-real question), or every other policy with a reference policy
@@ -145,8 +146,9 @@ pub fn compare(runs: &[RunRecord], reference: &str, bootstrap: &Bootstrap, by_po
             compared.push(FidelityComparison {
                 fidelity: fidelity.to_owned(),
                 policy: policy.map(str::to_owned),
+                // The metrics' paired bootstraps in parallel (each seeded on its own).
                 metrics: measured
-                    .iter()
+                    .par_iter()
                     .map(|&metric| {
                         paired_metric(&compared_runs, &copies, fidelity, &reference, metric, bootstrap)
                     })
