@@ -393,7 +393,7 @@ fn find_and_measure(
         plan: plan.clone(),
         metrics,
         recording_sha256: folder::sha256_hex(&bytes),
-        drawn_parameters: stored.drawn_parameters.clone(),
+        drawn_parameters: stored.drawn_parameters,
         statistics: stored.statistics,
     })))
 }

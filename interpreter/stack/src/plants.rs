@@ -240,18 +240,16 @@ pub const STOP_BRAKE_GAIN: f64 = 0.5;
 pub struct GreyBoxMpcModel {
     model: GreyBoxVehicle,
     battery_voltage_v: f64,
-    /// The last `|f|^p8` computed, by the bits of `|f|`: the prediction holds each move for two
-    /// steps, so every second power is the one before (the same call, the same bits).
-    last_power: Cell<(u64, f64)>,
-    /// The powers of the last [`STEP_POWERS`] throttles [`Model::step`] stepped under, by the
-    /// throttle's bits, and the slot the next one goes to: the delay compensation steps through
-    /// the last three inputs, two of which the decision before stepped through too.
-    step_powers: [Cell<(u64, f64)>; STEP_POWERS],
-    next_step_power: Cell<usize>,
+    /// The last [`REMEMBERED_POWERS`] powers `|f|^p8` computed, by the bits of `|f|`, and the
+    /// slot the next one goes to: the prediction holds each move for two steps, and the delay
+    /// compensation steps through the last three inputs, two of which the decision before
+    /// stepped through too (the same call, the same bits).
+    powers: [Cell<(u64, f64)>; REMEMBERED_POWERS],
+    next_power: Cell<usize>,
 }
 
-/// How many throttles' powers [`GreyBoxMpcModel`]'s steps remember.
-const STEP_POWERS: usize = 4;
+/// How many powers [`GreyBoxMpcModel`] remembers.
+const REMEMBERED_POWERS: usize = 4;
 
 impl GreyBoxMpcModel {
     /// The MPC model of a grey-box vehicle, predicting at its battery voltage until the MPC's
@@ -260,37 +258,24 @@ impl GreyBoxMpcModel {
         Ok(Self {
             model: GreyBoxVehicle::new(params)?,
             battery_voltage_v: params.battery_voltage_v,
-            last_power: Cell::new((f64::NAN.to_bits(), f64::NAN)),
-            step_powers: std::array::from_fn(|_| Cell::new((f64::NAN.to_bits(), f64::NAN))),
-            next_step_power: Cell::new(0),
+            powers: std::array::from_fn(|_| Cell::new((f64::NAN.to_bits(), f64::NAN))),
+            next_power: Cell::new(0),
         })
-    }
-
-    /// The motor power of `throttle`, remembered for the steps after (the same call, the same
-    /// bits).
-    fn step_power(&self, throttle: f64) -> f64 {
-        let bits = throttle.to_bits();
-        if let Some(known) = self.step_powers.iter().find(|slot| slot.get().0 == bits) {
-            return known.get().1;
-        }
-        let power = self.model.motor_power(throttle);
-        let slot = self.next_step_power.get();
-        self.step_powers[slot].set((bits, power));
-        self.next_step_power.set((slot + 1) % STEP_POWERS);
-        power
     }
 }
 
 impl Held<f64> for GreyBoxMpcModel {
-    /// `|throttle|^p8`, the motor term's magnitude, remembered from the call before.
+    /// `|throttle|^p8`, the motor term's magnitude, remembered from the calls before.
     #[inline(always)]
     fn power(&self, throttle_abs: f64, exponent: f64) -> f64 {
-        let (bits, power) = self.last_power.get();
-        if bits == throttle_abs.to_bits() {
-            return power;
+        let bits = throttle_abs.to_bits();
+        if let Some(known) = self.powers.iter().find(|slot| slot.get().0 == bits) {
+            return known.get().1;
         }
         let power = cpmx_math::pow(throttle_abs, exponent);
-        self.last_power.set((throttle_abs.to_bits(), power));
+        let slot = self.next_power.get();
+        self.powers[slot].set((bits, power));
+        self.next_power.set((slot + 1) % REMEMBERED_POWERS);
         power
     }
 
@@ -311,7 +296,8 @@ impl Model<4, 2> for GreyBoxMpcModel {
             steering_servo: input[1],
             battery_voltage_v: self.battery_voltage_v,
         };
-        let power = self.step_power(input[0]);
+        // The car's own motor power (`GreyBoxVehicle::motor_power`), remembered.
+        let power = self.power(input[0].clamp(-1.0, 1.0).abs(), self.model.params().parameters[7]);
         let out = self
             .model
             .euler_step_with_power(&grey_state(state), &grey_input, dt_s, power);
