@@ -150,6 +150,31 @@ fn collided_cars_leave_and_new_agents_drive_in_their_slots() {
         "{summary}"
     );
 
+    // The folder's figures and page, drawn from the recordings the command kept in memory,
+    // are those `cpmx report` draws from the files (agents that come and go included).
+    let redrawn = dir.join("redrawn");
+    let report = cpmx_in(
+        &dir,
+        &[
+            "report",
+            out.to_str().unwrap(),
+            "--data",
+            reference.to_str().unwrap(),
+            "--out",
+            redrawn.to_str().unwrap(),
+        ],
+    );
+    assert!(report.status.success(), "{}", unwrapped(&report.stderr));
+    let drawn = support::files(&redrawn);
+    assert!(
+        drawn.iter().any(|(path, _)| path.starts_with("plots")),
+        "{drawn:?}"
+    );
+    for (path, bytes) in drawn {
+        let kept = std::fs::read(out.join(&path)).unwrap();
+        assert!(kept == bytes, "{} differs", path.display());
+    }
+
     // The same runs on one thread.
     let single = dir.join("single");
     run(&dir, &path, &single, "1");

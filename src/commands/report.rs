@@ -152,7 +152,7 @@ fn check_same_spec(
         let path = dir.join("spec.resolved.yaml");
         let text = folder::read_resolved_spec(dir).map_err(fail)?;
         let checked = check_for_scoring(path.display().to_string(), text, dir, data)?;
-        if folder::context_hash(&checked) != context {
+        if folder::ResolvedSpec::of(&checked).context_hash() != context {
             let (what, help) = if checked.spec.name == first_name {
                 (
                     format!(
@@ -238,7 +238,7 @@ pub fn run(args: &ReportArgs) -> Result<(), Failure> {
     let resolved_path = first.join("spec.resolved.yaml");
     let text = folder::read_resolved_spec(first).map_err(fail)?;
     let checked = check_for_scoring(resolved_path.display().to_string(), text, first, &args.data)?;
-    let context = folder::context_hash(&checked);
+    let context = folder::ResolvedSpec::of(&checked).context_hash();
     let mut checked = match &args.metrics {
         None => checked,
         Some(metrics) => {

@@ -4,6 +4,7 @@
 
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use cpmx_report::{Format, RunRecord, Summary, per_run_csv, render, summarize};
 use cpmx_spec::{CheckedSpec, RunPlan};
@@ -11,6 +12,7 @@ use cpmx_spec::{CheckedSpec, RunPlan};
 use cpmx_recording::Recording;
 
 use crate::experiment::Scoring;
+use crate::fresh::FreshRuns;
 use crate::pipeline::pipelined;
 use crate::runner::inputs_hash;
 use crate::store::{read_stored, run_dir, write_atomic};
@@ -18,7 +20,69 @@ use crate::store::{read_stored, run_dir, write_atomic};
 /// The resolved spec as a run folder records it: every file it names keeps the path the spec
 /// gave (relative to the spec's folder or the data path) and is pinned by the SHA-256 of the
 /// bytes that were used, so the folder finds the same files wherever it and the data move.
-pub fn resolved_spec(checked: &CheckedSpec) -> serde_json::Value {
+/// Made once per command ([`ResolvedSpec::of`] reads and hashes every file the spec names):
+/// the folder's `spec.resolved.yaml`, its context hash and the comparison with a folder's
+/// earlier spec all read the same value.
+#[derive(Debug, Clone)]
+pub struct ResolvedSpec(serde_json::Value);
+
+impl ResolvedSpec {
+    /// `checked`'s resolved spec with every file it names pinned by its SHA-256.
+    pub fn of(checked: &CheckedSpec) -> ResolvedSpec {
+        ResolvedSpec(pinned(checked))
+    }
+
+    /// The hash every run's input hash starts from: the resolved spec without its `report`
+    /// section and description (reports do not change runs). The files it names enter through
+    /// their pinned SHA-256.
+    pub fn context_hash(&self) -> String {
+        let mut resolved = self.0.clone();
+        if let Some(root) = resolved.as_object_mut() {
+            root.remove("report");
+            root.remove("description");
+        }
+        without_lab_session_keys(&mut resolved);
+        sha256_hex(resolved.to_string().as_bytes())
+    }
+
+    /// The text of `spec.resolved.yaml`: the hash line, then the resolved spec as YAML.
+    pub fn text(&self) -> std::io::Result<String> {
+        let yaml = serde_saphyr::to_string(&self.0).map_err(std::io::Error::other)?;
+        Ok(format!(
+            "{HASH_LINE_PREFIX}{}\n{yaml}",
+            sha256_hex(yaml.as_bytes())
+        ))
+    }
+
+    /// The top-level sections (report and description aside: they do not change runs) in which
+    /// a folder's resolved spec (`existing`, YAML) differs from this one.
+    pub fn differing_sections(&self, existing: &str) -> Vec<String> {
+        let Ok(old) = serde_saphyr::from_str::<serde_json::Value>(existing) else {
+            return vec!["(unreadable)".into()];
+        };
+        let (mut old, mut new) = (old, self.0.clone());
+        without_lab_session_keys(&mut old);
+        without_lab_session_keys(&mut new);
+        let (Some(old), Some(new)) = (old.as_object(), new.as_object()) else {
+            return vec!["(not a mapping)".into()];
+        };
+        let mut keys: Vec<&String> = old.keys().chain(new.keys()).collect();
+        keys.dedup();
+        let mut differing: Vec<String> = Vec::new();
+        for key in keys {
+            if key == "report" || key == "description" || differing.contains(key) {
+                continue;
+            }
+            if old.get(key).map(numbers_as_f64) != new.get(key).map(numbers_as_f64) {
+                differing.push(key.clone());
+            }
+        }
+        differing
+    }
+}
+
+/// `checked.resolved` with the SHA-256 of every file it names beside the file's path.
+fn pinned(checked: &CheckedSpec) -> serde_json::Value {
     let mut resolved = checked.resolved.clone();
     if let Some(path) = &checked.resources.map_file
         && let Some(map) = resolved.pointer_mut("/map").and_then(|m| m.as_object_mut())
@@ -54,19 +118,6 @@ pub fn resolved_spec(checked: &CheckedSpec) -> serde_json::Value {
 /// Lower-case hex SHA-256 of `bytes`.
 pub fn sha256_hex(bytes: &[u8]) -> String {
     cpmx_spec::sha256_hex(bytes)
-}
-
-/// The hash every run's input hash starts from: the resolved spec without its `report`
-/// section and description (reports do not change runs). The files it names enter through
-/// their pinned SHA-256.
-pub fn context_hash(checked: &CheckedSpec) -> String {
-    let mut resolved = resolved_spec(checked);
-    if let Some(root) = resolved.as_object_mut() {
-        root.remove("report");
-        root.remove("description");
-    }
-    without_lab_session_keys(&mut resolved);
-    sha256_hex(resolved.to_string().as_bytes())
 }
 
 /// Keys of a lab fidelity that decide whether a lab run starts or goes on, or what the emulator
@@ -140,32 +191,6 @@ pub fn read_resolved_spec(dir: &Path) -> Result<String, String> {
     Ok(body.to_owned())
 }
 
-/// The top-level sections (report and description aside: they do not change runs) in which a
-/// folder's resolved spec (`existing`, YAML) differs from `checked`'s.
-pub fn differing_sections(existing: &str, checked: &CheckedSpec) -> Vec<String> {
-    let Ok(old) = serde_saphyr::from_str::<serde_json::Value>(existing) else {
-        return vec!["(unreadable)".into()];
-    };
-    let (mut old, mut new) = (old, resolved_spec(checked));
-    without_lab_session_keys(&mut old);
-    without_lab_session_keys(&mut new);
-    let (Some(old), Some(new)) = (old.as_object(), new.as_object()) else {
-        return vec!["(not a mapping)".into()];
-    };
-    let mut keys: Vec<&String> = old.keys().chain(new.keys()).collect();
-    keys.dedup();
-    let mut differing: Vec<String> = Vec::new();
-    for key in keys {
-        if key == "report" || key == "description" || differing.contains(key) {
-            continue;
-        }
-        if old.get(key).map(numbers_as_f64) != new.get(key).map(numbers_as_f64) {
-            differing.push(key.clone());
-        }
-    }
-    differing
-}
-
 /// `value` with every number as an f64, so that `1` read back from YAML equals `1.0`.
 fn numbers_as_f64(value: &serde_json::Value) -> serde_json::Value {
     use serde_json::Value;
@@ -179,28 +204,17 @@ fn numbers_as_f64(value: &serde_json::Value) -> serde_json::Value {
     }
 }
 
-/// The text of `spec.resolved.yaml`: the hash line, then the resolved spec as YAML.
-pub fn resolved_spec_text(checked: &CheckedSpec) -> std::io::Result<String> {
-    let yaml = serde_saphyr::to_string(&resolved_spec(checked)).map_err(std::io::Error::other)?;
-    Ok(format!(
-        "{HASH_LINE_PREFIX}{}\n{yaml}",
-        sha256_hex(yaml.as_bytes())
-    ))
-}
-
 /// Writes `spec.resolved.yaml` (with the SHA-256 of its content in the first line),
 /// `provenance.json` and `matrix.csv`.
 pub fn write_header(
     out: &Path,
     checked: &CheckedSpec,
+    resolved: &ResolvedSpec,
     plans: &[RunPlan],
     provenance: &Provenance,
 ) -> std::io::Result<()> {
     write_files(|write| {
-        write(
-            out.join("spec.resolved.yaml"),
-            resolved_spec_text(checked)?.into_bytes(),
-        );
+        write(out.join("spec.resolved.yaml"), resolved.text()?.into_bytes());
         let provenance = serde_json::to_vec_pretty(provenance).map_err(std::io::Error::other)?;
         write(out.join("provenance.json"), provenance);
         let mut matrix = String::from("key,fidelity,policy,initial_configuration,repetition,seed\n");
@@ -263,8 +277,15 @@ fn keep_learning_curves(out: &Path, checked: &CheckedSpec, write: Write<'_>) {
 /// Writes `per_run.csv`, the summaries, the plots and `report.html` of `records` (in matrix
 /// order), reading each run's trajectory from `out` (or from `sources`, the folders the runs
 /// were found in, for `cpmx report` of several folders).
-pub fn write_summaries(out: &Path, scoring: &Scoring, records: &[RunRecord]) -> std::io::Result<Summary> {
-    write_summaries_from(out, &[out.to_path_buf()], scoring, records)
+/// were found in, for `cpmx report` of several folders). The runs this command stored come
+/// from `fresh` where it kept them.
+pub fn write_summaries(
+    out: &Path,
+    scoring: &Scoring,
+    records: &[RunRecord],
+    fresh: &FreshRuns,
+) -> std::io::Result<Summary> {
+    summaries(out, &[out.to_path_buf()], scoring, records, fresh)
 }
 
 /// [`write_summaries`] with the runs' trajectories read from the first of `sources` that has them.
@@ -273,6 +294,16 @@ pub fn write_summaries_from(
     sources: &[PathBuf],
     scoring: &Scoring,
     records: &[RunRecord],
+) -> std::io::Result<Summary> {
+    summaries(out, sources, scoring, records, &FreshRuns::default())
+}
+
+fn summaries(
+    out: &Path,
+    sources: &[PathBuf],
+    scoring: &Scoring,
+    records: &[RunRecord],
+    fresh: &FreshRuns,
 ) -> std::io::Result<Summary> {
     let mut summary = summarize(
         &scoring.spec.name,
@@ -294,12 +325,15 @@ pub fn write_summaries_from(
             }
         }
         // Each run's recording and figure on its own (rayon: in parallel on the command's pool).
-        let recordings: Vec<Option<Recording>> = records
+        let recordings: Vec<Option<Arc<Recording>>> = records
             .par_iter()
             .map(|record| {
-                sources.iter().find_map(|dir| {
-                    let file = std::fs::File::open(run_dir(dir, &record.plan).join("trajectory.csv")).ok()?;
-                    Recording::read_csv(file).ok()
+                fresh.recording(&record.plan.key).or_else(|| {
+                    sources.iter().find_map(|dir| {
+                        let file =
+                            std::fs::File::open(run_dir(dir, &record.plan).join("trajectory.csv")).ok()?;
+                        Recording::read_csv(file).ok().map(Arc::new)
+                    })
                 })
             })
             .collect();
@@ -377,7 +411,7 @@ fn write_plots(
     out: &Path,
     scoring: &Scoring,
     records: &[RunRecord],
-    recordings: &[Option<Recording>],
+    recordings: &[Option<Arc<Recording>>],
     summary: &Summary,
     write: Write<'_>,
 ) {
@@ -453,8 +487,9 @@ pub struct FolderRuns {
 }
 
 /// The finished runs of a folder whose inputs match `context_hash` (see
-/// [`context_hash`]), in matrix order.
-pub fn read_records(dir: &Path, plans: &[RunPlan], context_hash: &str) -> FolderRuns {
+/// [`ResolvedSpec::context_hash`]), in matrix order. The trajectories of runs in `fresh` are
+/// not read again: their hash is known.
+pub fn read_records(dir: &Path, plans: &[RunPlan], context_hash: &str, fresh: &FreshRuns) -> FolderRuns {
     let mut runs = FolderRuns::default();
     for plan in plans {
         let run = run_dir(dir, plan);
@@ -467,14 +502,20 @@ pub fn read_records(dir: &Path, plans: &[RunPlan], context_hash: &str) -> Folder
             }
             Err(_) => None,
         };
-        match (stored, std::fs::read(run.join("trajectory.csv"))) {
-            (Some(stored), Ok(_)) if stored.inputs_hash != inputs_hash(context_hash, plan) => {
+        let trajectory_sha256 = || match fresh.trajectory_sha256(&plan.key) {
+            Some(known) => run.join("trajectory.csv").is_file().then_some(known),
+            None => std::fs::read(run.join("trajectory.csv"))
+                .ok()
+                .map(|bytes| sha256_hex(&bytes)),
+        };
+        match (stored, trajectory_sha256()) {
+            (Some(stored), Some(_)) if stored.inputs_hash != inputs_hash(context_hash, plan) => {
                 runs.stale.push(plan.key.clone());
             }
-            (Some(stored), Ok(trajectory)) => runs.records.push(RunRecord {
+            (Some(stored), Some(recording_sha256)) => runs.records.push(RunRecord {
                 plan: plan.clone(),
                 metrics: stored.metrics,
-                recording_sha256: sha256_hex(&trajectory),
+                recording_sha256,
                 drawn_parameters: stored.drawn_parameters,
                 statistics: stored.statistics,
             }),

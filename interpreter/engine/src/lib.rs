@@ -8,6 +8,7 @@ mod checks;
 mod engine;
 mod experiment;
 pub mod folder;
+mod fresh;
 mod groups;
 pub mod lab;
 mod memo;
@@ -33,6 +34,7 @@ pub use experiment::{
     Experiment, PrepareError, Scoring, footprint_params, load_map, load_map_spec, load_margin_predictors,
     metrics_config, vehicle_params,
 };
+pub use fresh::FreshRuns;
 pub use policies::{NeighbourActionSource, PreparedPolicy, observation};
 pub use runner::{RunOptions, RunOutcome, Shard, execute, inputs_hash, measure, measure_recording, simulate};
 pub use sim::SimEngine;

@@ -17,6 +17,7 @@ use sha2::{Digest, Sha256};
 
 use crate::engine::{Operator, RunError, RunInputs, engine_for};
 use crate::experiment::Experiment;
+use crate::fresh::FreshRuns;
 use crate::groups::lockstep_groups;
 use crate::pipeline::pipelined;
 use crate::store::{
@@ -74,13 +75,15 @@ pub enum RunOutcome {
 /// [`pipelined`]): its files are formatted, written and `fsync`ed while the next run
 /// computes. A run counts as done (`on_done`, its outcome) when its `metrics.json` is in
 /// place; the writers have stored every finished run when this returns, Ctrl-C included (the
-/// runs under way finish and are stored).
+/// runs under way finish and are stored). What they stored goes into `fresh` too, for the
+/// folder's summaries.
 pub fn execute(
     experiment: &Experiment,
     plans: &[RunPlan],
     out: &Path,
     options: &RunOptions,
     context_hash: &str,
+    fresh: &FreshRuns,
     on_done: &(dyn Fn(&RunPlan, &RunOutcome) + Sync),
 ) -> Result<Vec<(RunPlan, RunOutcome)>, rayon::ThreadPoolBuildError> {
     let selected: Vec<&RunPlan> = plans
@@ -96,7 +99,10 @@ pub fn execute(
     let silent: Mutex<BTreeSet<String>> = Mutex::new(BTreeSet::new());
     let store = |run: ToStore<'_>| {
         let outcome = match store_run(out, run.plan, &run.recording, &run.stored) {
-            Ok(()) => RunOutcome::Finished(run.stored),
+            Ok(trajectory_sha256) => {
+                fresh.insert(&run.plan.key, trajectory_sha256, *run.recording);
+                RunOutcome::Finished(run.stored)
+            }
             Err(e) => RunOutcome::Failed(format!("cannot store the run: {e}")),
         };
         on_done(run.plan, &outcome);

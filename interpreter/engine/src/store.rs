@@ -89,12 +89,13 @@ pub fn store_failure(out: &Path, plan: &RunPlan, failure: &Failure) -> std::io::
 }
 
 /// Stores a finished run: trajectory first, then `metrics.json` (the "finished" mark).
+/// Returns the SHA-256 of the `trajectory.csv` written.
 pub fn store_run(
     out: &Path,
     plan: &RunPlan,
     recording: &Recording,
     stored: &StoredRun,
-) -> std::io::Result<()> {
+) -> std::io::Result<String> {
     let dir = run_dir(out, plan);
     let mut trajectory = Vec::new();
     recording
@@ -105,7 +106,7 @@ pub fn store_run(
     write_atomic(&dir.join("metrics.json"), &json)?;
     match std::fs::remove_file(dir.join(FAILED_FILE)) {
         Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
-        _ => Ok(()),
+        _ => Ok(cpmx_spec::sha256_hex(&trajectory)),
     }
 }
 

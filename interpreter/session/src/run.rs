@@ -271,7 +271,8 @@ pub fn run_matrix(
         .clone()
         .unwrap_or_else(|| Path::new("out").join(&checked.spec.name));
     let mut notes = Vec::new();
-    check_folder_spec(&out, checked, request.force, &mut notes)?;
+    let resolved = folder::ResolvedSpec::of(checked);
+    check_folder_spec(&out, &resolved, request.force, &mut notes)?;
     let mut made_by = folder::Provenance::read(&out).made_by;
     if made_by.last() != Some(&request.made_by) {
         made_by.push(request.made_by.clone());
@@ -285,7 +286,7 @@ pub fn run_matrix(
         path: out.clone(),
         source: e,
     };
-    folder::write_header(&out, checked, &all_plans, &provenance).map_err(io)?;
+    folder::write_header(&out, checked, &resolved, &all_plans, &provenance).map_err(io)?;
 
     // Run.
     let shard = request.shard.unwrap_or(Shard::WHOLE);
@@ -307,20 +308,24 @@ pub fn run_matrix(
         operator: request.operator.clone(),
         timing: request.timing,
     };
-    let context = folder::context_hash(checked);
-    let outcomes =
-        execute(&experiment, &plans, &out, &options, &context, on_done).map_err(|e| RunError::Invalid {
+    let context = resolved.context_hash();
+    let fresh = cpmx_engine::FreshRuns::default();
+    let outcomes = execute(&experiment, &plans, &out, &options, &context, &fresh, on_done).map_err(|e| {
+        RunError::Invalid {
             message: format!("cannot start {jobs} worker threads: {e}"),
             help: None,
-        })?;
+        }
+    })?;
 
     // Summarise every finished run the folder holds for this spec (other shards and earlier
     // `--only` selections included), so the folder's summary is what `cpmx report` gives.
-    let held = folder::read_records(&out, &all_plans, &context);
+    let held = folder::read_records(&out, &all_plans, &context, &fresh);
     // On the runs' number of threads too (the figures of the runs are drawn in parallel).
     let summary = match rayon::ThreadPoolBuilder::new().num_threads(jobs.max(1)).build() {
-        Ok(pool) => pool.install(|| folder::write_summaries(&out, &experiment.scoring(), &held.records)),
-        Err(_) => folder::write_summaries(&out, &experiment.scoring(), &held.records),
+        Ok(pool) => {
+            pool.install(|| folder::write_summaries(&out, &experiment.scoring(), &held.records, &fresh))
+        }
+        Err(_) => folder::write_summaries(&out, &experiment.scoring(), &held.records, &fresh),
     }
     .map_err(io)?;
     Ok(MatrixRun {
@@ -339,7 +344,7 @@ pub fn run_matrix(
 /// this spec's) unless `force`.
 fn check_folder_spec(
     out: &Path,
-    checked: &CheckedSpec,
+    resolved: &folder::ResolvedSpec,
     force: bool,
     notes: &mut Vec<String>,
 ) -> Result<(), RunError> {
@@ -357,7 +362,7 @@ fn check_folder_spec(
             });
         }
     };
-    let differing = folder::differing_sections(&existing, checked);
+    let differing = resolved.differing_sections(&existing);
     if differing.is_empty() {
         return Ok(());
     }
