@@ -96,6 +96,7 @@ fn the_shipped_actors_were_trained_by_the_experiments_training_sections() {
     // at25's three seeds as sim, and seeds 1-3 of sim-mpc and of the randomised twin.
     assert_eq!(check_shipped("experiments/transfer.yaml"), 9);
     assert_eq!(check_shipped("experiments/transfer-twin.yaml"), 3);
+    assert_eq!(check_shipped("experiments/transfer-twin-no-delay.yaml"), 3);
     assert_eq!(check_shipped("experiments/at25-cpmx.yaml"), 3);
     assert_eq!(check_shipped("experiments/domain-shift.yaml"), 3);
     assert_eq!(check_shipped("experiments/communication.yaml"), 1);
