@@ -430,6 +430,27 @@ fn the_lookahead_is_the_actor_unless_held_and_concerns_only_the_planner() {
         )
         .replace("training:\n", "training:\n  fidelity: [sim, sim-mpc]\n");
     assert!(check(&planning).unwrap().warnings.is_empty());
+    // Held through an actuation delay, the training environment punishes the delay far more
+    // than driving does: said at the key, with what to do instead; a delay of 0 is no delay.
+    let delayed = |delay: &str| {
+        held.replace(
+            "  lab: {driver",
+            &format!(
+                "  twin: {{control: trajectory, dynamics: kinematic, actuation: {{delay_ms: {delay}}}}}\n  lab: {{driver"
+            ),
+        )
+        .replace("training:\n", "training:\n  fidelity: [sim, twin]\n")
+    };
+    let checked = check(&delayed("{uniform: [40, 120]}")).unwrap();
+    assert_eq!(checked.warnings.len(), 1);
+    insta::assert_snapshot!(cpmx_spec::render(&checked.warnings, false));
+    assert!(check(&delayed("0")).unwrap().warnings.is_empty());
+    assert!(
+        check(&delayed("80").replace("  lookahead: hold\n", ""))
+            .unwrap()
+            .warnings
+            .is_empty()
+    );
     // Anything else is refused where it is written.
     insta::assert_snapshot!(diagnose(
         &edit(
