@@ -133,16 +133,19 @@ fn collided_cars_leave_and_new_agents_drive_in_their_slots() {
 
     // `cpmx report` recomputes the same table from the trajectories.
     let reference = reference();
-    let report = cpmx_in(
-        &dir,
-        &[
+    let report_of = |more: &[&str]| {
+        let mut args = vec![
             "report",
             out.to_str().unwrap(),
             "--data",
             reference.to_str().unwrap(),
-        ],
-    );
-    assert!(report.status.success(), "{}", unwrapped(&report.stderr));
+        ];
+        args.extend_from_slice(more);
+        let report = cpmx_in(&dir, &args);
+        assert!(report.status.success(), "{}", unwrapped(&report.stderr));
+        report
+    };
+    let report = report_of(&[]);
     let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
     assert_eq!(String::from_utf8(report.stdout).unwrap(), summary);
     assert!(
@@ -153,18 +156,7 @@ fn collided_cars_leave_and_new_agents_drive_in_their_slots() {
     // The folder's figures and page, drawn from the recordings the command kept in memory,
     // are those `cpmx report` draws from the files (agents that come and go included).
     let redrawn = dir.join("redrawn");
-    let report = cpmx_in(
-        &dir,
-        &[
-            "report",
-            out.to_str().unwrap(),
-            "--data",
-            reference.to_str().unwrap(),
-            "--out",
-            redrawn.to_str().unwrap(),
-        ],
-    );
-    assert!(report.status.success(), "{}", unwrapped(&report.stderr));
+    report_of(&["--out", redrawn.to_str().unwrap()]);
     let drawn = support::files(&redrawn);
     assert!(
         drawn.iter().any(|(path, _)| path.starts_with("plots")),
