@@ -276,7 +276,6 @@ fn keep_learning_curves(out: &Path, checked: &CheckedSpec, write: Write<'_>) {
 
 /// Writes `per_run.csv`, the summaries, the plots and `report.html` of `records` (in matrix
 /// order), reading each run's trajectory from `out` (or from `sources`, the folders the runs
-/// were found in, for `cpmx report` of several folders).
 /// were found in, for `cpmx report` of several folders). The runs this command stored come
 /// from `fresh` where it kept them.
 pub fn write_summaries(

@@ -135,8 +135,8 @@ impl Recording {
         for (&t_s, row) in self.times_s.iter().zip(&self.samples) {
             for (agent, s) in row.iter().enumerate().filter(|(_, s)| s.is_present()) {
                 decimal::push_display(&mut text, t_s);
-                text.push(b',');
-                text.extend_from_slice(agent.to_string().as_bytes());
+                // Writing to a Vec cannot fail; integers through `write!` allocate nothing.
+                let _ = write!(text, ",{agent}");
                 for value in [s.x_m, s.y_m, s.yaw_rad, s.velocity_mps[0], s.velocity_mps[1]] {
                     text.push(b',');
                     decimal::push_display(&mut text, value);
@@ -145,9 +145,7 @@ impl Recording {
                 if !s.steering_rad.is_nan() {
                     decimal::push_display(&mut text, s.steering_rad);
                 }
-                text.push(b',');
-                text.extend_from_slice(self.ref_paths[agent].to_string().as_bytes());
-                text.push(b'\n');
+                let _ = writeln!(text, ",{}", self.ref_paths[agent]);
             }
         }
         out.write_all(&text)?;
@@ -371,6 +369,55 @@ mod tests {
         let mut bytes = Vec::new();
         recording.write_csv(&mut bytes).unwrap();
         assert_eq!(Recording::read_csv(bytes.as_slice()).unwrap(), recording);
+    }
+
+    #[test]
+    fn the_rows_are_what_the_csv_crate_writes() {
+        let recording = Recording {
+            times_s: vec![0.0, 0.1],
+            ref_paths: vec![6, 1 << 40],
+            samples: vec![
+                vec![
+                    sample(1.0 / 3.0),
+                    AgentSample {
+                        steering_rad: f64::NAN,
+                        ..sample(-0.0)
+                    },
+                ],
+                vec![sample(1e-7), sample(2.5e16)],
+            ],
+            ..Recording::default()
+        };
+        let mut expected = csv::Writer::from_writer(Vec::new());
+        expected.write_record(TRAJECTORY_HEADER).unwrap();
+        for (t_s, row) in recording.times_s.iter().zip(&recording.samples) {
+            for (agent, s) in row.iter().enumerate() {
+                let steering = if s.steering_rad.is_nan() {
+                    String::new()
+                } else {
+                    s.steering_rad.to_string()
+                };
+                expected
+                    .write_record([
+                        t_s.to_string(),
+                        agent.to_string(),
+                        s.x_m.to_string(),
+                        s.y_m.to_string(),
+                        s.yaw_rad.to_string(),
+                        s.velocity_mps[0].to_string(),
+                        s.velocity_mps[1].to_string(),
+                        steering,
+                        recording.ref_paths[agent].to_string(),
+                    ])
+                    .unwrap();
+            }
+        }
+        let mut written = Vec::new();
+        recording.write_csv(&mut written).unwrap();
+        assert_eq!(
+            String::from_utf8(written).unwrap(),
+            String::from_utf8(expected.into_inner().unwrap()).unwrap()
+        );
     }
 
     #[test]
