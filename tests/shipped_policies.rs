@@ -98,6 +98,8 @@ fn the_shipped_actors_were_trained_by_the_experiments_training_sections() {
     assert_eq!(check_shipped("experiments/transfer-twin.yaml"), 3);
     assert_eq!(check_shipped("experiments/transfer-twin-no-delay.yaml"), 3);
     assert_eq!(check_shipped("experiments/transfer-twin-actor-lookahead.yaml"), 3);
+    // The control: the sim actors continued in sim; its best actors and its last.
+    assert_eq!(check_shipped("experiments/transfer-sim-continuation.yaml"), 6);
     assert_eq!(check_shipped("experiments/at25-cpmx.yaml"), 3);
     assert_eq!(check_shipped("experiments/domain-shift.yaml"), 3);
     assert_eq!(check_shipped("experiments/communication.yaml"), 1);
