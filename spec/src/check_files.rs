@@ -174,7 +174,7 @@ pub(crate) fn find_files(
                     }
                 },
                 (None, Some(_)) if scope == CheckScope::Measure => None,
-                (None, Some(trained)) => crate::check_training::find_trained(spec, i, trained, data, ctx),
+                (None, Some(trained)) => crate::check_trained::find_trained(spec, i, trained, data, ctx),
                 (None, None) => {
                     let found = crate::check_checkpoint::find_checkpoint(spec, i, mlp, data, scope, ctx);
                     observations[i] = found.observation;

@@ -17,6 +17,7 @@ mod check_fidelities;
 mod check_files;
 mod check_lab;
 mod check_poses;
+mod check_trained;
 mod check_training;
 mod diagnostic;
 pub mod matrix;

@@ -461,3 +461,57 @@ fn the_lookahead_is_the_actor_unless_held_and_concerns_only_the_planner() {
         14
     ));
 }
+
+/// The valid spec with a policy that names the actor of an iteration (`iteration`, and
+/// `extra` after it in the same `trained:` map) and the training section's `keep`.
+fn naming_iteration(iteration: u64, extra: &str, keep: &str) -> String {
+    edit("  iterations: 1000\n", &format!("  iterations: 1000\n{keep}")).replace(
+        "  - {name: base, builtin: lane-follow}\n",
+        &format!(
+            "  - {{name: base, builtin: lane-follow}}\n  - {{name: kept, mlp: {{trained: {{seed: 2, iteration: {iteration}{extra}}}}}}}\n"
+        ),
+    )
+}
+
+#[test]
+fn a_policy_names_an_actor_the_training_keeps_by_iteration() {
+    let checked = check(&naming_iteration(150, "", "  keep_actors_every: 50\n")).unwrap();
+    let training = checked.spec.training.as_ref().unwrap();
+    assert!(training.keeps_actor_of(150) && !training.keeps_actor_of(149));
+    let trained = checked.spec.policies[1]
+        .mlp
+        .as_ref()
+        .unwrap()
+        .trained
+        .as_ref()
+        .unwrap();
+    assert_eq!(
+        trained.relative_file("demo", Some(training)),
+        "out/demo-train/2/actors/150.safetensors"
+    );
+}
+
+case!(
+    trained_iteration_without_kept_actors,
+    naming_iteration(150, "", ""),
+    8,
+    54
+);
+case!(
+    trained_iteration_between_kept_actors,
+    naming_iteration(150, "", "  keep_actors_every: 100\n"),
+    8,
+    54
+);
+case!(
+    trained_iteration_beyond_the_training,
+    naming_iteration(1500, "", "  keep_actors_every: 100\n"),
+    8,
+    54
+);
+case!(
+    trained_iteration_and_the_last_actor,
+    naming_iteration(150, ", which: last", "  keep_actors_every: 50\n"),
+    8,
+    54
+);

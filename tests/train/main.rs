@@ -6,6 +6,7 @@
 #[path = "../support/mod.rs"]
 mod support;
 
+mod kept;
 mod safety;
 mod stacked;
 

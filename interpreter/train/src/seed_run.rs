@@ -4,6 +4,7 @@
 //! |---|---|
 //! | `actor.safetensors` | the best actor by SigmaRL's rule (an `mlp: {weights}` file) |
 //! | `actor.last.safetensors` | the actor of the last finished iteration |
+//! | `actors/<iteration>.safetensors` | the actor of every `keep_actors_every`th iteration |
 //! | `critic.safetensors` | the critic of the last finished iteration |
 //! | `checkpoint.safetensors` | networks, Adam's moments, environments, random streams |
 //! | `learning_curve.csv`, `learning_curve.svg` | a row per iteration (see `curve`) and its chart |
@@ -139,6 +140,8 @@ pub struct SeedRun {
     curve_text: String,
     /// The collapse rule fed every row of the curve ([`crate::collapse`]).
     collapse_watch: collapse::Watch,
+    /// Every how many iterations the actor is kept in `actors/` (`keep_actors_every`).
+    keep_actors_every: Option<u32>,
     /// The folder's lock, held for as long as the run is open.
     _lock: fs::File,
 }
@@ -220,6 +223,7 @@ impl SeedRun {
                 info,
                 curve_text,
                 collapse_watch,
+                keep_actors_every: setup.keep_actors_every,
                 _lock: lock,
             };
             write_atomic(&run.dir.join("learning_curve.csv"), run.curve_text.as_bytes())?;
@@ -237,6 +241,7 @@ impl SeedRun {
             info,
             curve_text: format!("{header}\n"),
             collapse_watch: collapse::Watch::default(),
+            keep_actors_every: setup.keep_actors_every,
             _lock: lock,
         };
         // run.json first: a checkpoint is never without it.
@@ -286,10 +291,19 @@ impl SeedRun {
         self.collapse_watch
             .push(record.iteration as f64, record.collisions as f64);
         append_line(&self.dir.join("learning_curve.csv"), &row)?;
-        write_atomic(
-            &self.dir.join("actor.last.safetensors"),
-            &self.trainer.actor_file(),
-        )?;
+        let actor = self.trainer.actor_file();
+        write_atomic(&self.dir.join("actor.last.safetensors"), &actor)?;
+        if self
+            .keep_actors_every
+            .is_some_and(|every| record.iteration.is_multiple_of(u64::from(every)))
+        {
+            let kept = self.dir.join("actors");
+            fs::create_dir_all(&kept).map_err(|source| RunError::Io {
+                path: kept.clone(),
+                source,
+            })?;
+            write_atomic(&kept.join(format!("{}.safetensors", record.iteration)), &actor)?;
+        }
         write_atomic(&self.dir.join("critic.safetensors"), &self.trainer.critic_file())?;
         if record.best {
             write_atomic(

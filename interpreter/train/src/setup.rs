@@ -60,6 +60,9 @@ pub struct TrainingSetup {
     /// The actor each seed starts from (`initial_actor`), read, by seed; empty for a random
     /// start.
     pub initial_actors: BTreeMap<u64, cpmx_learn::Mlp>,
+    /// Every how many iterations a seed's folder keeps the actor (`keep_actors_every`); none:
+    /// the best and the last only.
+    pub keep_actors_every: Option<u32>,
 }
 
 /// The fingerprints of a training's seeds: one for every seed, unless each seed starts from
@@ -213,6 +216,7 @@ impl TrainingSetup {
             fingerprints,
             resolved,
             initial_actors,
+            keep_actors_every: training.keep_actors_every,
         })
     }
 }
@@ -352,6 +356,8 @@ fn fingerprint(
     let mut training = training.clone();
     if let Some(object) = training.as_object_mut() {
         object.remove("seeds");
+        // Which actors the folder keeps besides the best and the last does not shape them.
+        object.shift_remove("keep_actors_every");
         // Only the planner has a lookahead (SigmaRL's simulation trains alike with either),
         // and the default, written or not, is what actors trained before the key existed had.
         // (`shift_remove`: the order of the other keys stays as written.)

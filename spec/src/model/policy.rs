@@ -110,10 +110,11 @@ pub struct MlpSpec {
     #[schemars(length(min = 1))]
     pub weights: Option<String>,
     /// The actor trained by this spec's `training:` section for one of its seeds. It is the
-    /// file `<dir>/<seed>/actor.safetensors` (`actor.last.safetensors` with `which: last`),
-    /// where `<dir>` is `cpmx train`'s output folder, by default `out/<name>-train`; the file
-    /// is looked up like any relative file (the spec's folder, then the data path) and then
-    /// in the current directory, where `cpmx train` writes by default.
+    /// file `<dir>/<seed>/actor.safetensors` (`actor.last.safetensors` with `which: last`,
+    /// `actors/<iteration>.safetensors` with `iteration`), where `<dir>` is `cpmx train`'s
+    /// output folder, by default `out/<name>-train`; the file is looked up like any relative
+    /// file (the spec's folder, then the data path) and then in the current directory, where
+    /// `cpmx train` writes by default.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub trained: Option<TrainedActor>,
     /// A SigmaRL checkpoint as SigmaRL writes it: a `*_policy.pth` file (PyTorch's
@@ -243,6 +244,11 @@ pub struct TrainedActor {
     /// The best actor by SigmaRL's rule (`best`, the default) or the last one (`last`).
     #[serde(default)]
     pub which: TrainedChoice,
+    /// Instead, the actor of this iteration, which the training kept
+    /// (`training.keep_actors_every`): `<dir>/<seed>/actors/<iteration>.safetensors`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1))]
+    pub iteration: Option<u64>,
     /// `cpmx train`'s output folder, if it was given with `--out`. Default: `out/<name>-train`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(length(min = 1))]
@@ -338,12 +344,14 @@ pub enum TrainedChoice {
 impl TrainedActor {
     /// The actor's file relative to the training folder `dir` (or the default
     /// `out/<spec_name>-train`): `<dir>/<seed>/actor.safetensors` (`actor.last.safetensors`
-    /// for `which: last`), or `<dir>/<fidelity>/<seed>/...` for an actor of a spec that trains
-    /// in several fidelities (`training`: the spec's section, if it has one).
+    /// for `which: last`, `actors/<iteration>.safetensors` for `iteration`), or
+    /// `<dir>/<fidelity>/<seed>/...` for an actor of a spec that trains in several fidelities
+    /// (`training`: the spec's section, if it has one).
     pub fn relative_file(&self, spec_name: &str, training: Option<&crate::model::TrainingSpec>) -> String {
-        let file = match self.which {
-            TrainedChoice::Best => "actor.safetensors",
-            TrainedChoice::Last => "actor.last.safetensors",
+        let file = match (self.iteration, self.which) {
+            (Some(iteration), _) => format!("actors/{iteration}.safetensors"),
+            (None, TrainedChoice::Best) => "actor.safetensors".to_owned(),
+            (None, TrainedChoice::Last) => "actor.last.safetensors".to_owned(),
         };
         let mut dir = self.dir.as_deref().map_or_else(
             || format!("out/{spec_name}-train"),

@@ -58,6 +58,15 @@ pub struct TrainingSpec {
     /// Training iterations per seed (SigmaRL: 1000).
     #[schemars(range(min = 1, max = 1000000))]
     pub iterations: u32,
+    /// Also keep the actor of every this many iterations, as
+    /// `<out>/<seed>/actors/<iteration>.safetensors`, so that the actor can be chosen by how it
+    /// drives (policies name one with `mlp: {trained: {seed, iteration}}`) rather than by
+    /// SigmaRL's best `episode_reward_mean`, which in a randomised fidelity is partly a draw
+    /// among noisy iterations. It does not change what trains (nor the seed's fingerprint).
+    /// Default: none (the best and the last actor only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1, max = 1000000))]
+    pub keep_actors_every: Option<u32>,
     /// One policy per seed: the training runs of `cpmx train`, written to
     /// `<out>/<seed>/` (default `<out>`: `out/<name>-train`).
     #[schemars(length(min = 1))]
@@ -67,6 +76,12 @@ pub struct TrainingSpec {
 /// What fills the control horizon after the learner's action when training through the
 /// planner (`training.lookahead`).
 impl TrainingSpec {
+    /// Whether `cpmx train` keeps the actor of `iteration` (`keep_actors_every`).
+    pub fn keeps_actor_of(&self, iteration: u64) -> bool {
+        self.keep_actors_every
+            .is_some_and(|every| iteration.is_multiple_of(u64::from(every)))
+    }
+
     /// The `initial_actor` file of `seed`: the path with `{seed}` replaced by the seed.
     pub fn initial_actor_of(&self, seed: u64) -> Option<String> {
         self.initial_actor
