@@ -223,7 +223,7 @@ fn check_trained_iteration(
             "beyond the training",
             format!("an iteration up to {}", training.iterations),
         ));
-    } else if !training.keeps_actor_of(iteration) {
+    } else if !training.kept_actors().keeps(iteration) {
         let help = match training.keep_actors_every {
             None => "add `keep_actors_every: N` to `training:` and train again, or name \
                      `which: best` or `which: last`"
@@ -235,11 +235,20 @@ fn check_trained_iteration(
                     .filter(|k| *k > 0 && *k <= u64::from(training.iterations))
                     .map(|k| k.to_string())
                     .collect();
-                format!(
-                    "`keep_actors_every: {every}` keeps the actors of iterations {every}, {}, …; the nearest: {}",
-                    2 * u64::from(every),
-                    kept.join(", ")
-                )
+                if kept.is_empty() {
+                    format!(
+                        "`keep_actors_every: {every}` keeps none of the training's {} iterations; \
+                         name `which: best` or `which: last`",
+                        training.iterations
+                    )
+                } else {
+                    format!(
+                        "`keep_actors_every: {every}` keeps the actors of iterations {every}, {}, …; \
+                         the nearest: {}",
+                        2 * u64::from(every),
+                        kept.join(", ")
+                    )
+                }
             }
         };
         ctx.push(problem(

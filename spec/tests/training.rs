@@ -477,7 +477,8 @@ fn naming_iteration(iteration: u64, extra: &str, keep: &str) -> String {
 fn a_policy_names_an_actor_the_training_keeps_by_iteration() {
     let checked = check(&naming_iteration(150, "", "  keep_actors_every: 50\n")).unwrap();
     let training = checked.spec.training.as_ref().unwrap();
-    assert!(training.keeps_actor_of(150) && !training.keeps_actor_of(149));
+    let kept = training.kept_actors();
+    assert!(kept.keeps(150) && kept.keeps(50) && !kept.keeps(149) && !kept.keeps(1));
     let trained = checked.spec.policies[1]
         .mlp
         .as_ref()
@@ -500,6 +501,12 @@ case!(
 case!(
     trained_iteration_between_kept_actors,
     naming_iteration(150, "", "  keep_actors_every: 100\n"),
+    8,
+    54
+);
+case!(
+    trained_iteration_when_none_is_kept,
+    naming_iteration(500, "", "  keep_actors_every: 2000\n"),
     8,
     54
 );

@@ -21,6 +21,7 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use cpmx_learn::{Environment as _, IterationRecord, TrainError, Trainer};
+use cpmx_spec::model::KeptActors;
 
 use crate::collapse::{self, Collapse};
 use crate::curve;
@@ -140,8 +141,8 @@ pub struct SeedRun {
     curve_text: String,
     /// The collapse rule fed every row of the curve ([`crate::collapse`]).
     collapse_watch: collapse::Watch,
-    /// Every how many iterations the actor is kept in `actors/` (`keep_actors_every`).
-    keep_actors_every: Option<u32>,
+    /// The iterations whose actors are kept in `actors/` (`keep_actors_every`).
+    kept_actors: KeptActors,
     /// The folder's lock, held for as long as the run is open.
     _lock: fs::File,
 }
@@ -223,7 +224,7 @@ impl SeedRun {
                 info,
                 curve_text,
                 collapse_watch,
-                keep_actors_every: setup.keep_actors_every,
+                kept_actors: setup.kept_actors,
                 _lock: lock,
             };
             write_atomic(&run.dir.join("learning_curve.csv"), run.curve_text.as_bytes())?;
@@ -241,7 +242,7 @@ impl SeedRun {
             info,
             curve_text: format!("{header}\n"),
             collapse_watch: collapse::Watch::default(),
-            keep_actors_every: setup.keep_actors_every,
+            kept_actors: setup.kept_actors,
             _lock: lock,
         };
         // run.json first: a checkpoint is never without it.
@@ -293,10 +294,7 @@ impl SeedRun {
         append_line(&self.dir.join("learning_curve.csv"), &row)?;
         let actor = self.trainer.actor_file();
         write_atomic(&self.dir.join("actor.last.safetensors"), &actor)?;
-        if self
-            .keep_actors_every
-            .is_some_and(|every| record.iteration.is_multiple_of(u64::from(every)))
-        {
+        if self.kept_actors.keeps(record.iteration) {
             let kept = self.dir.join("actors");
             fs::create_dir_all(&kept).map_err(|source| RunError::Io {
                 path: kept.clone(),

@@ -60,9 +60,8 @@ pub struct TrainingSetup {
     /// The actor each seed starts from (`initial_actor`), read, by seed; empty for a random
     /// start.
     pub initial_actors: BTreeMap<u64, cpmx_learn::Mlp>,
-    /// Every how many iterations a seed's folder keeps the actor (`keep_actors_every`); none:
-    /// the best and the last only.
-    pub keep_actors_every: Option<u32>,
+    /// The iterations whose actors a seed's folder keeps in `actors/` (`keep_actors_every`).
+    pub kept_actors: cpmx_spec::model::KeptActors,
 }
 
 /// The fingerprints of a training's seeds: one for every seed, unless each seed starts from
@@ -216,7 +215,7 @@ impl TrainingSetup {
             fingerprints,
             resolved,
             initial_actors,
-            keep_actors_every: training.keep_actors_every,
+            kept_actors: training.kept_actors(),
         })
     }
 }

@@ -48,8 +48,8 @@ pub use start::{
     FromRunsSpec, InitialConfiguration, Pose, SampleDraw, SamplePlacement, SampleSpec, SampledStarts,
 };
 pub use training::{
-    Activation, AlgorithmSpec, CbfMarginsSpec, CentreLineSpec, Lookahead, MappoSpec, NearAgentsSpec,
-    NearBoundarySpec, NetworkSpec, PathSetName, ProgressSpec, RampShape, ResetScopeName, RewardSpec,
-    SpeedSpec, SteeringChangeSpec, TimeSpec, TrainingFidelities, TrainingReset, TrainingScenario,
+    Activation, AlgorithmSpec, CbfMarginsSpec, CentreLineSpec, KeptActors, Lookahead, MappoSpec,
+    NearAgentsSpec, NearBoundarySpec, NetworkSpec, PathSetName, ProgressSpec, RampShape, ResetScopeName,
+    RewardSpec, SpeedSpec, SteeringChangeSpec, TimeSpec, TrainingFidelities, TrainingReset, TrainingScenario,
     TrainingSpec, TrainingStart, TtcSpec, ValueLoss, VelocityToPointsSpec,
 };

@@ -76,10 +76,9 @@ pub struct TrainingSpec {
 /// What fills the control horizon after the learner's action when training through the
 /// planner (`training.lookahead`).
 impl TrainingSpec {
-    /// Whether `cpmx train` keeps the actor of `iteration` (`keep_actors_every`).
-    pub fn keeps_actor_of(&self, iteration: u64) -> bool {
-        self.keep_actors_every
-            .is_some_and(|every| iteration.is_multiple_of(u64::from(every)))
+    /// The iterations whose actors `cpmx train` keeps (`keep_actors_every`).
+    pub fn kept_actors(&self) -> KeptActors {
+        KeptActors(self.keep_actors_every)
     }
 
     /// The `initial_actor` file of `seed`: the path with `{seed}` replaced by the seed.
@@ -87,6 +86,20 @@ impl TrainingSpec {
         self.initial_actor
             .as_ref()
             .map(|file| file.replace("{seed}", &seed.to_string()))
+    }
+}
+
+/// The iterations whose actors a training keeps besides the best and the last: every Nth
+/// (`keep_actors_every: N`), or none. The one rule `cpmx train` writes by and `cpmx validate`
+/// checks a policy's `trained: {iteration}` against.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct KeptActors(pub Option<u32>);
+
+impl KeptActors {
+    /// Whether the actor of `iteration` is kept.
+    pub fn keeps(self, iteration: u64) -> bool {
+        self.0
+            .is_some_and(|every| iteration.is_multiple_of(u64::from(every)))
     }
 }
 
